@@ -1,0 +1,40 @@
+"""ament_python package sweep_ros: the engine sweep_core (no ROS) and the ROS 2 node sweep_ros."""
+from glob import glob
+
+from setuptools import setup
+
+package_name = "sweep_ros"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=["sweep_core", "sweep_ros"],
+    package_data={"sweep_core": ["scenes/*.yaml", "py.typed"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/config", glob("config/*.yaml")),
+        ("share/" + package_name + "/config/scenes", glob("sweep_core/scenes/*.yaml")),
+        ("share/" + package_name + "/launch", glob("launch/*.py")),
+    ],
+    python_requires=">=3.10",
+    install_requires=[
+        "numpy>=1.24",
+        "scipy>=1.10",
+        "proxsuite>=0.6",
+        "PyYAML>=6",
+        "mcap>=1.6",
+        "tqdm>=4.60",
+    ],
+    zip_safe=True,
+    maintainer="sweep_ros developers",
+    maintainer_email="sweep-ros@example.org",
+    description="Stochastic sweeping-process crowd simulation with exact non-overlap, for ROS 2.",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "sweep = sweep_core.cli:main",
+        ],
+    },
+)

@@ -1,0 +1,57 @@
+"""Errors raised by sweep_core.
+
+Every error carries the data it is about and builds its own message, so the command-line
+boundary can print ``str(err)`` on one line and exit non-zero.
+"""
+from __future__ import annotations
+
+
+class SweepError(Exception):
+    """Base class of every error sweep_core raises on purpose."""
+
+
+class SceneError(SweepError, ValueError):
+    """A scene (or a simulator option) is invalid.
+
+    Attributes:
+        field: dotted path of the offending key, e.g. ``"agents.radius"``.
+        problem: what is wrong with it.
+        fix: what to do instead (may be empty).
+    """
+
+    def __init__(self, field: str, problem: str, fix: str = "") -> None:
+        self.field = field
+        self.problem = problem
+        self.fix = fix
+        msg = f"{field}: {problem}"
+        if fix:
+            msg += f" (fix: {fix})"
+        super().__init__(msg)
+
+
+class InfeasibleError(SweepError):
+    """The linearised feasible set of a step is empty or the projection failed.
+
+    The simulator's state is left at the last accepted step.
+
+    Attributes:
+        t: time (s) of the step that could not be taken (t_{n+1}).
+        agents: indices of the agents involved in the most violated constraints.
+        detail: solver status or residual.
+    """
+
+    def __init__(self, t: float, agents: list[int], detail: str) -> None:
+        self.t = t
+        self.agents = list(agents)
+        self.detail = detail
+        shown = ", ".join(str(a) for a in self.agents[:12])
+        more = "" if len(self.agents) <= 12 else f" and {len(self.agents) - 12} more"
+        super().__init__(
+            f"no feasible configuration at t = {t:.6g} s: agents [{shown}{more}] cannot be "
+            f"placed without overlap ({detail}); state kept at the last accepted step "
+            "(fix: smaller radii or radius growth, more room, or fewer agents)"
+        )
+
+
+class RecordingError(SweepError):
+    """An MCAP recording could not be written or read."""

@@ -1,0 +1,224 @@
+"""Projection onto the linearised feasible set: one convex QP per step (reference §4).
+
+    y = argmin |y - p|^2  subject to the rows of C~(t1, q)   (identity Hessian)
+
+Only agents that appear in a built row enter the QP; all others keep y_i = p_i. Rows are
+built inside a cutoff (``constraints.linearise``) and the cutoff is proven sufficient after
+the solve: an unbuilt row had value > cut at q, and moves by at most |y_i - q_i| + |y_j - q_j|
+<= 2 max_i |y_i - q_i|, so if that is <= cut every unbuilt row holds at y; otherwise the
+cutoff grows and the QP is solved again. Projecting onto a superset and landing inside the
+set gives the projection onto the set, so the result is exact, not approximate.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import proxsuite
+import scipy.sparse as sp
+from scipy.optimize import nnls
+from scipy.sparse.csgraph import connected_components
+
+from . import checks
+from .constraints import Geometry, Rows, linearise
+from .errors import InfeasibleError, SceneError
+
+#: largest row violation (m) accepted from the QP solver
+ROW_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """Settings of the QP solve.
+
+    eps_abs: proxsuite's absolute tolerance (m): bound on the row residuals and stationarity.
+        Every row is tightened by eps_abs before the solve (a skin), so a solution within the
+        tolerance still satisfies the untightened row: no overlap, not even of eps_abs.
+    max_iter: proxsuite's iteration cap; reaching it falls back to the exact active-set
+        solver on each cluster of up to ``dense_fallback`` variables.
+    """
+
+    eps_abs: float = 1e-10
+    max_iter: int = 200
+    dense_fallback: int = 4000
+
+    @classmethod
+    def from_values(cls, eps_abs: float = 1e-10, max_iter: int = 200) -> "SolverOptions":
+        eps = checks.number(eps_abs, "solver.eps_abs", positive=True)
+        if eps > 1e-9:
+            raise SceneError("solver.eps_abs", f"{eps:g} m would allow overlaps above 1e-9 m",
+                             "use eps_abs <= 1e-9")
+        if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+            raise SceneError("solver.max_iter", f"must be a positive integer, got {max_iter!r}")
+        return cls(eps, int(max_iter))
+
+
+@dataclass(frozen=True)
+class Projection:
+    """Result of one projection.
+
+    y: (N, 2) projected positions (m); rows: the rows built; lam_pair (P,), lam_single (M,):
+    multipliers (>= 0) of the rows, the reaction of each contact is lam * gradient;
+    active: number of rows with a positive multiplier or zero residual; qp_size: number of
+    agents in the QP (0 when the prediction was already feasible); solves: QP solves done.
+    """
+
+    y: np.ndarray
+    rows: Rows
+    lam_pair: np.ndarray
+    lam_single: np.ndarray
+    active: int
+    qp_size: int
+    solves: int
+
+
+def _row_matrix(rows: Rows, loc: np.ndarray, m: int) -> tuple[sp.csc_matrix, np.ndarray]:
+    """Sparse C (rows x 2m) and bounds b of ``C x >= b`` with x the stacked QP agents."""
+    p, s = len(rows.pair_b), len(rows.single_b)
+    ci, cj, ca = 2 * loc[rows.pair_i], 2 * loc[rows.pair_j], 2 * loc[rows.single_a]
+    r_p = np.arange(p)
+    r_s = p + np.arange(s)
+    row = np.concatenate([r_p, r_p, r_p, r_p, r_s, r_s])
+    col = np.concatenate([ci, ci + 1, cj, cj + 1, ca, ca + 1])
+    val = np.concatenate([rows.pair_e[:, 0], rows.pair_e[:, 1], -rows.pair_e[:, 0],
+                          -rows.pair_e[:, 1], rows.single_n[:, 0], rows.single_n[:, 1]])
+    c = sp.csc_matrix((val, (row, col)), shape=(p + s, 2 * m))
+    return c, np.concatenate([rows.pair_b, rows.single_b])
+
+
+def _proxsuite(target: np.ndarray, c: sp.csc_matrix, b: np.ndarray, opts: SolverOptions
+               ) -> tuple[np.ndarray, np.ndarray, bool]:
+    """min 1/2 |x - target|^2 s.t. c x >= b + eps_abs (the skin) with proxsuite's sparse
+    backend; returns x, multipliers >= 0 and whether it converged."""
+    n, m = len(target), len(b)
+    qp = proxsuite.proxqp.sparse.QP(n, 0, m)
+    qp.settings.eps_abs = opts.eps_abs
+    qp.settings.eps_rel = 0.0
+    qp.settings.max_iter = opts.max_iter
+    qp.settings.verbose = False
+    qp.init(sp.identity(n, format="csc"), -target, None, None, c, b + opts.eps_abs,
+            np.full(m, 1e30))
+    qp.solve()
+    status = qp.results.info.status
+    ok = (status.name if hasattr(status, "name") else str(status)) == "PROXQP_SOLVED"
+    return np.array(qp.results.x), np.maximum(-np.array(qp.results.z), 0.0), ok
+
+
+def _ldp(target: np.ndarray, c: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The same QP as a least-distance program solved exactly through NNLS.
+
+    With x = y - target, min |x| s.t. c x >= h (h = b - c target) is solved by
+    u = argmin_{u >= 0} |E u - f|, E = [c^T; h^T], f = (0, ..., 0, 1), residual r = E u - f:
+    x = -r[:n] / r[n] and the multipliers are u / -r[n]; r = 0 means no feasible point
+    (Lawson and Hanson, Solving Least Squares Problems, 1974, ch. 23). Active-set, so
+    degenerate (non-unique) multipliers of dense jams do not slow it down.
+    """
+    n, m = c.shape[1], c.shape[0]
+    h = b - c @ target
+    e = np.vstack([c.T, h[None, :]])
+    f = np.zeros(n + 1)
+    f[-1] = 1.0
+    u, _ = nnls(e, f, maxiter=max(50 * m, 1000))
+    r = e @ u - f
+    if not -r[n] > 1e-12:
+        return target.copy(), np.zeros(m), False
+    return target - r[:n] / r[n], u / -r[n], True
+
+
+def _solve_qp(target: np.ndarray, c: sp.csc_matrix, b: np.ndarray, opts: SolverOptions
+              ) -> tuple[np.ndarray, np.ndarray, bool]:
+    """min 1/2 |x - target|^2 s.t. c x >= b: proxsuite first; where it does not converge
+    (non-unique multipliers in dense jams, reference §6), each connected cluster of agents is
+    solved exactly by :func:`_ldp` (clusters of up to ``dense_fallback`` variables)."""
+    x, lam, ok = _proxsuite(target, c, b, opts)
+    if ok:
+        return x, lam, True
+    n = len(target)
+    agent_of_col = np.arange(n) // 2
+    coo = c.tocoo()
+    # rows link the agents of their columns; agents = nodes, rows give edges
+    row_agent = np.full(c.shape[0], -1)
+    row_agent[coo.row] = agent_of_col[coo.col]
+    link = sp.csr_matrix((np.ones(len(coo.row)), (row_agent[coo.row], agent_of_col[coo.col])),
+                         shape=(n // 2, n // 2))
+    n_comp, label = connected_components(link, directed=False)
+    col_label = label[agent_of_col]
+    row_label = label[row_agent]
+    x, lam = target.copy(), np.zeros(c.shape[0])
+    cr = c.tocsr()
+    for k in range(n_comp):
+        cols = np.nonzero(col_label == k)[0]
+        rws = np.nonzero(row_label == k)[0]
+        if len(rws) == 0:
+            continue
+        sub = cr[rws][:, cols]
+        if len(cols) <= opts.dense_fallback:
+            xk, lk, okk = _ldp(target[cols], sub.toarray(), b[rws])
+        else:
+            xk, lk, okk = _proxsuite(target[cols], sub.tocsc(), b[rws],
+                                     SolverOptions(opts.eps_abs, 50 * opts.max_iter))
+        if not okk:
+            return x, lam, False
+        x[cols], lam[rws] = xk, lk
+    return x, lam, True
+
+
+def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
+            opts: SolverOptions) -> Projection:
+    """Project the prediction pred (N, 2) onto C~(t1, q); q (N, 2) at t_n, r1 (N,) at t1.
+
+    Raises InfeasibleError (naming t1 and the agents) if the QP has no solution.
+    """
+    n = len(q)
+    if n == 0:
+        empty = linearise(geom, t1, q, r1, 0.0)
+        return Projection(pred.copy(), empty, np.empty(0), np.empty(0), 0, 0, 0)
+    step = np.sqrt(np.einsum("ij,ij->i", pred - q, pred - q))
+    # margin beyond the provable 2 max|p - q|: a projection usually moves agents a little
+    # further than their prediction, and a second build costs more than a few extra rows
+    cut = 3.0 * float(step.max()) + 1e-3 * float(r1.max())
+    solves = 0
+    while True:
+        rows = linearise(geom, t1, q, r1, cut)
+        rp, rs = rows.residuals(pred)
+        lam_p, lam_s = np.zeros(len(rp)), np.zeros(len(rs))
+        y = pred.copy()
+        qp_size = 0
+        if (len(rp) and rp.min() < 0) or (len(rs) and rs.min() < 0):
+            agents = rows.agents()
+            qp_size = len(agents)
+            loc = np.full(n, -1, dtype=np.intp)
+            loc[agents] = np.arange(qp_size)
+            c, b = _row_matrix(rows, loc, qp_size)
+            x, lam, ok = _solve_qp(pred[agents].ravel(), c, b, opts)
+            solves += 1
+            y[agents] = x.reshape(-1, 2)
+            rp, rs = rows.residuals(y)
+            worst = min(rp.min(initial=np.inf), rs.min(initial=np.inf))
+            if not ok or not np.isfinite(worst) or worst < -ROW_TOLERANCE:
+                why = "no feasible point" if not ok else "solver residual"
+                raise InfeasibleError(t1, _culprits(rows, rp, rs),
+                                      f"{why}, worst row residual {worst:.3g} m")
+            lam_p, lam_s = lam[: len(rp)], lam[len(rp):]
+        moved = float(np.sqrt(np.einsum("ij,ij->i", y - q, y - q)).max())
+        if 2.0 * moved <= cut:
+            break
+        cut = 3.0 * moved
+    active = int(np.count_nonzero((lam_p > 0) | (rp <= ROW_TOLERANCE))
+                 + np.count_nonzero((lam_s > 0) | (rs <= ROW_TOLERANCE)))
+    return Projection(y, rows, lam_p, lam_s, active, qp_size, solves)
+
+
+def _culprits(rows: Rows, rp: np.ndarray, rs: np.ndarray, count: int = 6) -> list[int]:
+    """Agents of the most violated rows, most violated first."""
+    rp = np.nan_to_num(rp, nan=-np.inf)
+    rs = np.nan_to_num(rs, nan=-np.inf)
+    order = np.argsort(np.concatenate([rp, rs]))[:count]
+    agents: list[int] = []
+    for k in order:
+        found = ([rows.pair_i[k], rows.pair_j[k]] if k < len(rp)
+                 else [rows.single_a[k - len(rp)]])
+        for a in found:
+            if int(a) not in agents:
+                agents.append(int(a))
+    return agents
