@@ -22,6 +22,7 @@ setup(
         "numpy>=1.24",
         "scipy>=1.10",
         "proxsuite>=0.6",
+        "clarabel>=0.9",
         "PyYAML>=6",
         "mcap>=1.6",
         "tqdm>=4.60",
@@ -35,6 +36,7 @@ setup(
     entry_points={
         "console_scripts": [
             "sweep = sweep_core.cli:main",
+            "sweep_node = sweep_ros.node:main",
         ],
     },
 )

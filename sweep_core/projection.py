@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import clarabel
 import proxsuite
 import scipy.sparse as sp
 from scipy.optimize import nnls
@@ -34,23 +35,31 @@ class SolverOptions:
     eps_abs: proxsuite's absolute tolerance (m): bound on the row residuals and stationarity.
         Every row is tightened by eps_abs before the solve (a skin), so a solution within the
         tolerance still satisfies the untightened row: no overlap, not even of eps_abs.
-    max_iter: proxsuite's iteration cap; reaching it falls back to the exact active-set
-        solver on each cluster of up to ``dense_fallback`` variables.
+    max_iter: proxsuite's iteration cap (backend "proxsuite").
+    dense_fallback: clusters of up to this many variables (2 per agent) are retried with the
+        active-set NNLS solver when the backend fails.
+    backend: "clarabel" (default: interior point, robust in dense jams) or "proxsuite"
+        (proxsuite 0.8.0 can stall inside its solve on degenerate jam QPs; see README).
     """
 
     eps_abs: float = 1e-10
-    max_iter: int = 200
+    max_iter: int = 1000
     dense_fallback: int = 4000
+    backend: str = "clarabel"
 
     @classmethod
-    def from_values(cls, eps_abs: float = 1e-10, max_iter: int = 200) -> "SolverOptions":
+    def from_values(cls, eps_abs: float = 1e-10, max_iter: int = 1000,
+                    backend: str = "clarabel") -> "SolverOptions":
         eps = checks.number(eps_abs, "solver.eps_abs", positive=True)
         if eps > 1e-9:
             raise SceneError("solver.eps_abs", f"{eps:g} m would allow overlaps above 1e-9 m",
                              "use eps_abs <= 1e-9")
         if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
             raise SceneError("solver.max_iter", f"must be a positive integer, got {max_iter!r}")
-        return cls(eps, int(max_iter))
+        if backend not in ("clarabel", "proxsuite"):
+            raise SceneError("solver.backend", f"unknown backend {backend!r}",
+                             "use 'clarabel' or 'proxsuite'")
+        return cls(eps, int(max_iter), backend=backend)
 
 
 @dataclass(frozen=True)
@@ -95,6 +104,7 @@ def _proxsuite(target: np.ndarray, c: sp.csc_matrix, b: np.ndarray, opts: Solver
     qp.settings.eps_abs = opts.eps_abs
     qp.settings.eps_rel = 0.0
     qp.settings.max_iter = opts.max_iter
+    qp.settings.max_iter_in = 100  # bounds the inner loop too, which can otherwise stall
     qp.settings.verbose = False
     qp.init(sp.identity(n, format="csc"), -target, None, None, c, b + opts.eps_abs,
             np.full(m, 1e30))
@@ -115,52 +125,116 @@ def _ldp(target: np.ndarray, c: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, 
     """
     n, m = c.shape[1], c.shape[0]
     h = b - c @ target
-    e = np.vstack([c.T, h[None, :]])
+    # the problem is positively homogeneous in h: solve it for h / scale, whose largest entry
+    # is 1, so NNLS's tolerances (relative to |f| = 1) are relative to the data
+    scale = float(np.abs(h).max())
+    if scale == 0.0:
+        return target.copy(), np.zeros(m), True
+    e = np.vstack([c.T, h[None, :] / scale])
     f = np.zeros(n + 1)
     f[-1] = 1.0
     u, _ = nnls(e, f, maxiter=max(50 * m, 1000))
     r = e @ u - f
     if not -r[n] > 1e-12:
         return target.copy(), np.zeros(m), False
-    return target - r[:n] / r[n], u / -r[n], True
+    return target - scale * r[:n] / r[n], scale * u / -r[n], True
+
+
+def _clusters(c: sp.csc_matrix) -> tuple[int, np.ndarray, np.ndarray]:
+    """Connected clusters of agents linked by rows: count, label of each column, of each row."""
+    n = c.shape[1] // 2
+    agent_of_col = np.arange(2 * n) // 2
+    coo = c.tocoo()
+    row_agent = np.zeros(c.shape[0], dtype=np.intp)
+    row_agent[coo.row] = agent_of_col[coo.col]
+    link = sp.csr_matrix((np.ones(len(coo.row)), (row_agent[coo.row], agent_of_col[coo.col])),
+                         shape=(n, n))
+    count, label = connected_components(link, directed=False)
+    return count, label[agent_of_col], label[row_agent]
 
 
 def _solve_qp(target: np.ndarray, c: sp.csc_matrix, b: np.ndarray, opts: SolverOptions
               ) -> tuple[np.ndarray, np.ndarray, bool]:
-    """min 1/2 |x - target|^2 s.t. c x >= b: proxsuite first; where it does not converge
-    (non-unique multipliers in dense jams, reference §6), each connected cluster of agents is
-    solved exactly by :func:`_ldp` (clusters of up to ``dense_fallback`` variables)."""
-    x, lam, ok = _proxsuite(target, c, b, opts)
-    if ok:
-        return x, lam, True
-    n = len(target)
-    agent_of_col = np.arange(n) // 2
-    coo = c.tocoo()
-    # rows link the agents of their columns; agents = nodes, rows give edges
-    row_agent = np.full(c.shape[0], -1)
-    row_agent[coo.row] = agent_of_col[coo.col]
-    link = sp.csr_matrix((np.ones(len(coo.row)), (row_agent[coo.row], agent_of_col[coo.col])),
-                         shape=(n // 2, n // 2))
-    n_comp, label = connected_components(link, directed=False)
-    col_label = label[agent_of_col]
-    row_label = label[row_agent]
+    """min 1/2 |x - target|^2 s.t. c x >= b, cluster by cluster (clusters of agents linked by
+    rows are independent QPs). A cluster of up to ``exact_max`` variables is solved exactly by
+    :func:`_ldp`; a larger one by proxsuite, falling back to :func:`_ldp` (up to
+    ``dense_fallback`` variables) where proxsuite does not converge, as happens when the
+    multipliers are not unique in dense jams (reference §6)."""
+    count, col_label, row_label = _clusters(c)
     x, lam = target.copy(), np.zeros(c.shape[0])
     cr = c.tocsr()
-    for k in range(n_comp):
-        cols = np.nonzero(col_label == k)[0]
-        rws = np.nonzero(row_label == k)[0]
-        if len(rws) == 0:
-            continue
+    order_c, order_r = np.argsort(col_label, kind="stable"), np.argsort(row_label, kind="stable")
+    starts_c = np.searchsorted(col_label[order_c], np.arange(count + 1))
+    starts_r = np.searchsorted(row_label[order_r], np.arange(count + 1))
+    n_rows = np.diff(starts_r)
+    # a cluster with a single row is a projection onto a half-space: closed form, vectorised
+    one = np.nonzero(n_rows == 1)[0]
+    if len(one):
+        r1 = order_r[starts_r[one]]
+        row = cr[r1]
+        lam1 = np.maximum(0.0, (b[r1] - row @ target) / np.asarray(row.multiply(row).sum(axis=1)).ravel())
+        lam[r1] = lam1
+        x += np.asarray(row.T @ lam1).ravel()
+    for k in np.nonzero(n_rows > 1)[0]:
+        cols = order_c[starts_c[k]:starts_c[k + 1]]
+        rws = order_r[starts_r[k]:starts_r[k + 1]]
         sub = cr[rws][:, cols]
-        if len(cols) <= opts.dense_fallback:
-            xk, lk, okk = _ldp(target[cols], sub.toarray(), b[rws])
-        else:
-            xk, lk, okk = _proxsuite(target[cols], sub.tocsc(), b[rws],
-                                     SolverOptions(opts.eps_abs, 50 * opts.max_iter))
-        if not okk:
+        found = _best(target[cols], sub, b[rws], opts)
+        if found is None:
             return x, lam, False
+        xk, lk = found
         x[cols], lam[rws] = xk, lk
     return x, lam, True
+
+
+def _best(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverOptions
+          ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Solve one cluster with the chosen backend; where it does not converge the active-set
+    solver is tried, and of the candidates whose rows hold (to ROW_TOLERANCE) the one
+    nearest to the target is returned."""
+    first = _proxsuite_csr if opts.backend == "proxsuite" else _clarabel
+    solvers = [first, _ldp_csr]
+    best, best_dist = None, np.inf
+    for solver in solvers:
+        if solver is _ldp_csr and c.shape[1] > opts.dense_fallback:
+            continue
+        x, lam, ok = solver(target, c, b, opts)
+        if not ok or not np.all(np.isfinite(x)):
+            continue
+        if (c @ x - b).min() < -ROW_TOLERANCE:
+            continue
+        dist = float(np.sum((x - target) ** 2))
+        if dist < best_dist:
+            best, best_dist = (x, lam), dist
+        if solver is solvers[0]:
+            break  # the first choice converged and is feasible
+    return best
+
+
+def _clarabel(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverOptions
+              ) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The cluster QP by Clarabel's interior-point method, rows tightened by eps_abs.
+
+    Interior-point iterations do not depend on the multipliers being unique, so dense jams
+    (reference §6) cost no more than loose crowds."""
+    n, m = c.shape[1], c.shape[0]
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = 1e-12
+    settings.max_iter = 200
+    solver = clarabel.DefaultSolver(sp.identity(n, format="csc"), -target, sp.csc_matrix(-c),
+                                    -(b + opts.eps_abs), [clarabel.NonnegativeConeT(m)], settings)
+    sol = solver.solve()
+    ok = str(sol.status) in ("Solved", "AlmostSolved")
+    return np.array(sol.x), np.maximum(np.array(sol.z), 0.0), ok
+
+
+def _ldp_csr(target, c, b, opts):
+    return _ldp(target, c.toarray(), b)
+
+
+def _proxsuite_csr(target, c, b, opts):
+    return _proxsuite(target, c.tocsc(), b, opts)
 
 
 def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,

@@ -1,0 +1,23 @@
+"""Small scene builders shared by the tests (dicts in the public scene schema)."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def hex_jam(rows: int, cols: int, radius: float = 0.24, spacing: float = 0.5,
+            sigma: float = 0.1) -> dict:
+    """rows x cols agents on a hexagonal lattice, all heading for its centre."""
+    pos = [(c * spacing + (r % 2) * spacing / 2, r * spacing * np.sqrt(3) / 2)
+           for r in range(rows) for c in range(cols)]
+    pos = np.array(pos)
+    centre = pos.mean(axis=0)
+    return {"agents": {"positions": pos.tolist(), "radius": radius},
+            "drift": {"kind": "goal", "goal": centre.tolist(), "speed": 1.0, "slow_radius": 0.5},
+            "noise": {"sigma": sigma}}
+
+
+def wall_agent(x0: float = 0.5, radius: float = 0.5, sigma: float = 1.0) -> dict:
+    """One agent beside the wall x >= radius (half-plane of normal (1, 0) at offset 0)."""
+    return {"agents": {"positions": [[x0, 0.0]], "radius": radius},
+            "walls": [{"kind": "halfplane", "normal": [1, 0], "offset": 0.0}],
+            "noise": {"sigma": sigma}}
