@@ -15,6 +15,6 @@ def generator(seed: int) -> np.random.Generator:
 
 
 def increments(rng: np.random.Generator, h: float, n: int) -> np.ndarray:
-    """Brownian increments over a step h (s): shape (n, 2), variance h per component (m^2/... per
-    unit sigma)."""
+    """Increments of n independent 2-D standard Brownian motions over a step h (s): shape
+    (n, 2), each component N(0, h). The scheme multiplies them by sigma (m / sqrt(s))."""
     return np.sqrt(h) * rng.standard_normal((n, 2))
