@@ -1,0 +1,588 @@
+"""sweep_node: the ROS 2 adapter of sweep_core.
+
+    ros2 run sweep_ros sweep_node --ros-args --params-file config/sweep_node.yaml
+
+A thin adapter: a timer steps the engine and publishes its state; commands are parsed and
+validated by :mod:`sweep_ros.messages` and handed to the engine as fields; parameters are
+checked by :mod:`sweep_ros.params`; every published and received message is recorded to MCAP by
+a background writer thread, so the timer never waits on the disk. See README_node.md.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import queue
+import signal
+import sys
+import threading
+import time
+from typing import Any, Callable
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PointStamped, PoseArray, Twist
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import PointCloud2
+from std_srvs.srv import SetBool, Trigger
+from visualization_msgs.msg import MarkerArray
+
+from sweep_core import InfeasibleError, SceneError, Simulator, SweepError, cdr, topics
+from sweep_core.cli import load_scene, run_metadata
+from sweep_core.recording import DEFAULT_QOS_PROFILES, Recorder
+
+from . import messages, msgdefs, params
+
+NODE_NAME = "sweep_node"
+DIAGNOSTICS_PERIOD_S = 1.0
+#: rclpy's own parameters, never reported as unknown
+_RCLPY_PARAMS = ("use_sim_time", "start_type_description_service", "qos_overrides.")
+
+
+class StartError(Exception):
+    """The node cannot start: bad parameters or scene. ``problems``: one line each."""
+
+    def __init__(self, problems: list[str]) -> None:
+        self.problems = problems
+        super().__init__("; ".join(problems))
+
+
+def _qos_yaml(depth: int, transient_local: bool = False) -> str:
+    """rosbag2's offered_qos_profiles YAML for a reliable keep-last publisher."""
+    text = DEFAULT_QOS_PROFILES.replace("depth: 10", f"depth: {depth}")
+    if transient_local:
+        text = text.replace("durability: volatile", "durability: transient_local")
+    return text
+
+
+class RecordWriter:
+    """Writes to a Recorder from a background thread; ``write``/``metadata`` only enqueue.
+
+    Channels are added up front (before the thread writes). An error of the Recorder (disk
+    full, ...) stops recording and is kept in ``error``; what was flushed stays readable.
+    """
+
+    def __init__(self, path: str, metadata: dict[str, str], flush_interval_s: float) -> None:
+        self.path = path
+        self.recorder = Recorder(path, metadata=metadata, flush_interval_s=flush_interval_s)
+        self.error: str | None = None
+        self.written = 0
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._thread = threading.Thread(target=self._run, name="sweep_node recorder",
+                                        daemon=True)
+        self._started = False
+
+    def add_channel(self, topic: str, msgtype: str, definition: str | None, qos: str) -> None:
+        self.recorder.add_channel(topic, msgtype, definition, offered_qos_profiles=qos)
+
+    def start(self) -> None:
+        self._started = True
+        self._thread.start()
+
+    def write(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        if self.error is None:
+            self._queue.put((topic, log_time_ns, data))
+
+    def metadata(self, name: str, data: dict[str, str]) -> None:
+        if self.error is None:
+            self._queue.put((name, None, data))
+
+    @property
+    def backlog(self) -> int:
+        return self._queue.qsize()
+
+    def _run(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is None:
+                return
+            if self.error is not None:
+                continue
+            name, log_time, data = item
+            try:
+                if log_time is None:
+                    self.recorder.add_metadata(name, data)
+                else:
+                    self.recorder.write(name, log_time, data)
+                    self.written += 1
+            except SweepError as err:
+                self.error = str(err)
+
+    def close(self) -> None:
+        """Writes what is queued, the summary and the footer."""
+        if self._started:
+            self._queue.put(None)
+            self._thread.join()
+        try:
+            self.recorder.close()
+        except SweepError as err:
+            self.error = self.error or str(err)
+
+
+class _Window:
+    """Timing accumulated between two diagnostics messages."""
+
+    def __init__(self, sim_t: float) -> None:
+        self.wall0 = time.monotonic()
+        self.sim0 = sim_t
+        self.ticks = 0
+        self.tick_s = 0.0
+        self.steps = 0
+        self.step_s = 0.0
+        self.overruns = 0
+
+
+class SweepNode(Node):
+    """Runs a sweep_core Simulator on a timer; see the module docstring and README_node.md."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self._p = self._declare_parameters()
+        self._closed = False
+        self.recorder: RecordWriter | None = None
+        try:
+            self.scene = load_scene(os.path.expanduser(self._p["scene"]))
+            self.sim = Simulator(self.scene, dt=self._p["dt"], seed=self._p["seed"],
+                                 solver=params.solver_options(self._p))
+        except SceneError as err:
+            raise StartError([f"scene {self._p['scene'] or '(bundled default)'}: {err}"]) from err
+        self._apply_sigma()
+        self.frame_id: str = self._p["frame_id"]
+        self._dt_ns = topics.stamp_ns(self.sim.dt)
+
+        # state of the adapter (no model state here: that is all in self.sim)
+        self.paused = False
+        self.failure: str | None = None
+        self._epoch_ns = 0            # log-time offset: log times keep increasing over resets
+        self._last_log_ns = 0
+        self._resets = 0
+        self._commands = {"accepted": 0, "rejected": 0}
+        self._overruns = 0
+        self._last_tick_start: float | None = None
+        self._last_markers = -math.inf
+        self._rt_anchor: tuple[float, float] | None = None
+        self._window = _Window(self.sim.t)
+        self._moving_walls = bool(len(self.scene.geometry.halfplane_velocity)
+                                  and (self.scene.geometry.halfplane_velocity != 0).any())
+        self._agent_markers = messages.AgentMarkers(self.frame_id, self._p["marker_height"])
+
+        # interfaces (relative names: namespaces and remapping apply)
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.pub_poses = self.create_publisher(PoseArray, topics.POSES, reliable)
+        self.pub_agents = self.create_publisher(PointCloud2, topics.AGENTS, reliable)
+        self.pub_markers = self.create_publisher(MarkerArray, "markers", reliable)
+        self.pub_walls = self.create_publisher(MarkerArray, "walls", latched)
+        self.pub_diag = self.create_publisher(DiagnosticArray, "diagnostics", reliable)
+        self.pub_clock = (self.create_publisher(Clock, "clock", reliable)
+                          if self._p["publish_clock"] else None)
+        self.sub_cmd_vel = self.create_subscription(
+            Twist, "cmd_vel", self._on_cmd_vel, reliable, raw=True)
+        self.sub_goal = self.create_subscription(
+            PointStamped, "goal", self._on_goal, reliable, raw=True)
+        self.sub_field = self.create_subscription(
+            PointCloud2, "velocity_field", self._on_velocity_field, reliable, raw=True)
+        self.srv_reset = self.create_service(Trigger, "reset", self._on_reset)
+        self.srv_pause = self.create_service(SetBool, "pause", self._on_pause)
+        self.srv_step = self.create_service(Trigger, "step", self._on_step)
+
+        if self._p["record"]:
+            self._open_recording()
+
+        self.add_on_set_parameters_callback(self._check_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self._timer = self.create_timer(1.0 / self._p["rate_hz"], self._tick)
+        self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics)
+
+        self._publish_walls()
+        self._publish_state(force_markers=True)
+        self.get_logger().info(
+            f"scene {self.scene.name!r} ({self.scene.n_agents} agents), dt {self.sim.dt:g} s, "
+            f"seed {self.sim.seed}, {self._p['rate_hz']:g} Hz x {self._p['steps_per_tick']} "
+            f"steps, recording: {self._p['record'] or 'off'}")
+
+    # -- start-up ------------------------------------------------------------------------------
+    def _declare_parameters(self) -> dict[str, Any]:
+        problems = []
+        for spec in params.SPECS:
+            try:
+                self.declare_parameter(spec.name, spec.default, params.descriptor(spec))
+            except ParameterException as err:  # wrong type or out of range in the overrides
+                problems.append(f"parameter {spec.name}: {err}")
+        if problems:
+            raise StartError(problems)
+        values = {s.name: self.get_parameter(s.name).value for s in params.SPECS}
+        problems = [f"parameter {p}" for p in params.check_start(values)]
+        if problems:
+            raise StartError(problems)
+        overrides = getattr(self, "_parameter_overrides", {}) or {}
+        unknown = sorted(n for n in overrides if n not in params.BY_NAME
+                         and not n.startswith(_RCLPY_PARAMS))
+        if unknown:
+            self.get_logger().warning(f"unknown parameters ignored: {unknown} "
+                                      f"(known: {sorted(params.BY_NAME)})")
+        return values
+
+    def _open_recording(self) -> None:
+        meta = run_metadata(self.scene, self.sim, None)
+        names = {
+            self.pub_poses.topic_name: cdr.POSE_ARRAY,
+            self.pub_agents.topic_name: cdr.POINT_CLOUD2,
+            self.pub_markers.topic_name: msgdefs.msgtype_of(MarkerArray),
+            self.pub_walls.topic_name: msgdefs.msgtype_of(MarkerArray),
+            self.pub_diag.topic_name: msgdefs.msgtype_of(DiagnosticArray),
+            self.sub_cmd_vel.topic_name: msgdefs.msgtype_of(Twist),
+            self.sub_goal.topic_name: msgdefs.msgtype_of(PointStamped),
+            self.sub_field.topic_name: cdr.POINT_CLOUD2,
+        }
+        if self.pub_clock is not None:
+            names[self.pub_clock.topic_name] = cdr.CLOCK
+        meta.update({
+            "node": self.get_fully_qualified_name(),
+            "parameters": json.dumps(self._p, sort_keys=True),
+            "frame_id": self.frame_id,
+            "topics": json.dumps(names, sort_keys=True),
+            "log_time": "simulation time (ns) of the state or of the step a command applies to; "
+                        "after a reset log times go on from the last one (records reset_*)",
+        })
+        try:
+            self.recorder = RecordWriter(os.path.expanduser(self._p["record"]), meta,
+                                         self._p["record_flush_interval_s"])
+            for topic, msgtype in names.items():
+                definition = None if msgtype in cdr.SCHEMAS else msgdefs.definition(msgtype)
+                qos = _qos_yaml(1, True) if topic == self.pub_walls.topic_name else _qos_yaml(10)
+                self.recorder.add_channel(topic, msgtype, definition, qos)
+        except (SweepError, msgdefs.MsgDefError) as err:
+            raise StartError([f"parameter record: {err}"]) from err
+        self.recorder.start()
+
+    def _apply_sigma(self) -> None:
+        sigma = self._p["noise_sigma"]
+        self.sim.set_sigma(self.scene.sigma if sigma == -1.0 else sigma)
+
+    # -- recording helpers -------------------------------------------------------------------
+    def _log_ns(self, t: float) -> int:
+        ns = self._epoch_ns + topics.stamp_ns(t)
+        self._last_log_ns = max(self._last_log_ns, ns)
+        return ns
+
+    def _record(self, topic: str, log_ns: int, data: bytes) -> None:
+        if self.recorder is not None:
+            self.recorder.write(topic, log_ns, data)
+
+    def _publish(self, pub: Any, data: bytes, log_ns: int) -> None:
+        pub.publish(data)
+        self._record(pub.topic_name, log_ns, data)
+
+    # -- publishing --------------------------------------------------------------------------
+    def _publish_state(self, force_markers: bool = False) -> None:
+        state = self.sim.state
+        ns = topics.stamp_ns(state.t)
+        log_ns = self._log_ns(state.t)
+        encoded = topics.encode_state(state, self.frame_id)
+        self._publish(self.pub_poses, encoded[topics.POSES], log_ns)
+        self._publish(self.pub_agents, encoded[topics.AGENTS], log_ns)
+        if self.pub_clock is not None:
+            self._publish(self.pub_clock, cdr.encode_clock(ns), log_ns)
+        now = time.monotonic()
+        if self._p["publish_markers"] and (
+                force_markers or now - self._last_markers >= 1.0 / self._p["marker_rate_hz"]):
+            self._last_markers = now
+            self._publish(self.pub_markers,
+                          self._agent_markers.encode(ns, state.positions, state.radii), log_ns)
+            if self._moving_walls:
+                self._publish_walls()
+
+    def _publish_walls(self) -> None:
+        t = self.sim.t
+        msg = messages.wall_markers(self.scene.geometry, self.scene.positions, self.frame_id,
+                                    topics.stamp_ns(t), t, self._p["marker_height"])
+        self._publish(self.pub_walls, bytes(serialize_message(msg)), self._log_ns(t))
+
+    def _publish_diagnostics(self) -> None:
+        w, now = self._window, time.monotonic()
+        wall = max(now - w.wall0, 1e-9)
+        sim, rec = self.sim, self.recorder
+        if self.failure:
+            level, message = "ERROR", f"infeasible, paused: {self.failure}"
+        elif rec is not None and rec.error:
+            level, message = "WARN", f"recording stopped: {rec.error}"
+        elif w.overruns:
+            level, message = "WARN", f"{w.overruns} timer overruns in the last {wall:.1f} s"
+        else:
+            level, message = "OK", "paused" if self.paused else "running"
+        values = {
+            "sim_time_s": sim.t, "steps": sim.n_steps, "agents": self.scene.n_agents,
+            "paused": self.paused,
+            "step_time_ms": 1e3 * w.step_s / w.steps if w.steps else 0.0,
+            "steps_per_s": w.steps / wall,
+            "tick_rate_hz": w.ticks / wall,
+            "tick_time_ms": 1e3 * w.tick_s / w.ticks if w.ticks else 0.0,
+            "real_time_factor": (sim.t - w.sim0) / wall,
+            "timer_overruns": self._overruns,
+            "active_contacts": sim.contacts,
+            "min_gap_m": sim.min_gap,
+            "drift": sim.drift.kind,
+            "commands_accepted": self._commands["accepted"],
+            "commands_rejected": self._commands["rejected"],
+            "resets": self._resets,
+            "recording": rec.path if rec is not None else "off",
+            "recording_backlog": rec.backlog if rec is not None else 0,
+            "recorded_messages": rec.written if rec is not None else 0,
+        }
+        msg = messages.diagnostics(topics.stamp_ns(sim.t), f"{self.get_name()}: simulation",
+                                   self.scene.name, level, message, values)
+        self._publish(self.pub_diag, bytes(serialize_message(msg)), self._log_ns(sim.t))
+        self._window = _Window(sim.t)
+
+    # -- stepping ------------------------------------------------------------------------------
+    def _steps_this_tick(self, now: float) -> int:
+        rtf = self._p["real_time_factor"]
+        if rtf <= 0:
+            return self._p["steps_per_tick"]
+        if self._rt_anchor is None:
+            self._rt_anchor = (now, self.sim.t)
+        wall0, sim0 = self._rt_anchor
+        behind = sim0 + rtf * (now - wall0) - self.sim.t
+        steps = int(math.floor(behind / self.sim.dt + 1e-9))
+        cap = self._p["max_steps_per_tick"]
+        if steps > cap:
+            self._window.overruns += 1
+            self._overruns += 1
+            if behind > rtf * 1.0 + cap * self.sim.dt:  # more than 1 s behind: give it up
+                self._rt_anchor = (now, self.sim.t + cap * self.sim.dt)
+            steps = cap
+        return max(steps, 0)
+
+    def _advance(self, n: int) -> bool:
+        """Take n steps; on an infeasible step pause and report (the state stays at the last
+        accepted step, which is published). Returns whether any step was taken."""
+        if n <= 0:
+            return False
+        k0 = self.sim.n_steps
+        start = time.perf_counter()
+        try:
+            self.sim.step(n)
+            self.failure = None
+        except (InfeasibleError, SceneError) as err:
+            self.failure = str(err)
+            self.paused = True
+            self._rt_anchor = None
+            self.get_logger().error(f"step {self.sim.n_steps + 1} failed, simulation paused: "
+                                    f"{err}")
+            self._publish_diagnostics()
+        taken = self.sim.n_steps - k0
+        self._window.steps += taken
+        self._window.step_s += time.perf_counter() - start
+        return taken > 0
+
+    def _tick(self) -> None:
+        start = time.monotonic()
+        period = 1.0 / self._p["rate_hz"]
+        if self._last_tick_start is not None:
+            missed = int((start - self._last_tick_start) / period + 0.5) - 1
+            if missed > 0:
+                self._overruns += missed
+                self._window.overruns += missed
+        self._last_tick_start = start
+        if self.paused:
+            return
+        if self._advance(self._steps_this_tick(start)):
+            self._publish_state()
+        self._window.ticks += 1
+        self._window.tick_s += time.monotonic() - start
+
+    # -- commands ------------------------------------------------------------------------------
+    def _command(self, sub: Any, msg_class: type, raw: bytes,
+                 parse: Callable[[Any], Any]) -> None:
+        topic = sub.topic_name
+        try:
+            try:
+                msg = deserialize_message(raw, msg_class)
+            except Exception as err:  # noqa: BLE001 - any undecodable payload is refused
+                raise messages.CommandError(topic, f"cannot decode ({err})") from err
+            field = parse(msg)
+        except messages.CommandError as err:
+            self._commands["rejected"] += 1
+            self.get_logger().warning(f"command refused, {err}", throttle_duration_sec=2.0)
+            return
+        self.sim.set_drift(field)  # from the next step on
+        self._commands["accepted"] += 1
+        k = self._commands["accepted"]
+        log_ns = self._log_ns(self.sim.t)
+        self._record(topic, log_ns, bytes(raw))
+        if self.recorder is not None:
+            self.recorder.metadata(f"command_{k:06d}", {
+                "topic": topic, "step": str(self.sim.n_steps), "t": repr(self.sim.t),
+                "log_time_ns": str(log_ns), "field": json.dumps(field.to_spec())})
+        self.get_logger().info(f"{topic}: {field.kind} field from step {self.sim.n_steps}",
+                               throttle_duration_sec=1.0)
+
+    def _on_cmd_vel(self, raw: bytes) -> None:
+        self._command(self.sub_cmd_vel, Twist, raw,
+                      lambda m: messages.uniform_from_twist(m, self._p["max_speed"],
+                                                            self.sub_cmd_vel.topic_name))
+
+    def _on_goal(self, raw: bytes) -> None:
+        self._command(self.sub_goal, PointStamped, raw,
+                      lambda m: messages.goal_from_point(m, self.scene.speed,
+                                                         self._p["goal_slow_radius"],
+                                                         self.frame_id,
+                                                         self.sub_goal.topic_name))
+
+    def _on_velocity_field(self, raw: bytes) -> None:
+        self._command(self.sub_field, PointCloud2, raw,
+                      lambda m: messages.grid_from_cloud(m, self._p["max_speed"],
+                                                         self.sub_field.topic_name))
+
+    # -- services ------------------------------------------------------------------------------
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        before = (self.sim.n_steps, self.sim.t)
+        self._epoch_ns = self._last_log_ns + self._dt_ns
+        self.sim.reset()
+        self._apply_sigma()
+        self.failure = None
+        self._rt_anchor = None
+        self._resets += 1
+        if self.recorder is not None:
+            self.recorder.metadata(f"reset_{self._resets:06d}", {
+                "log_time_ns": str(self._epoch_ns), "previous_step": str(before[0]),
+                "previous_t": repr(before[1]), "seed": str(self.sim.seed)})
+        if self._p["publish_markers"]:
+            clear = messages.delete_all(self.frame_id, 0)
+            self._publish(self.pub_markers, bytes(serialize_message(clear)), self._log_ns(0.0))
+        self._publish_walls()
+        self._publish_state(force_markers=True)
+        response.success = True
+        response.message = (f"reset to t = 0 with seed {self.sim.seed} (was step {before[0]}, "
+                            f"t = {before[1]:g} s); drift back to the scene's "
+                            f"{self.sim.drift.kind}")
+        return response
+
+    def _on_pause(self, request: SetBool.Request, response: SetBool.Response
+                  ) -> SetBool.Response:
+        self.paused = bool(request.data)
+        self._rt_anchor = None
+        response.success = True
+        response.message = (f"{'paused' if self.paused else 'running'} at step "
+                            f"{self.sim.n_steps}, t = {self.sim.t:g} s")
+        return response
+
+    def _on_step(self, request: Trigger.Request, response: Trigger.Response
+                 ) -> Trigger.Response:
+        if not self.paused:
+            response.success = False
+            response.message = "not paused (fix: call pause with data: true first)"
+            return response
+        if self._advance(1):
+            self._publish_state(force_markers=True)
+            response.success = True
+            response.message = f"step {self.sim.n_steps}, t = {self.sim.t:g} s"
+        else:
+            response.success = False
+            response.message = f"step failed: {self.failure}"
+        return response
+
+    # -- parameters ------------------------------------------------------------------------------
+    def _check_parameters(self, changes: list) -> Any:
+        return params.check_live([(p.name, p.value) for p in changes], self._p)
+
+    def _apply_parameters(self, changes: list) -> None:
+        for p in changes:
+            if p.name not in params.BY_NAME:
+                continue
+            old = self._p.get(p.name)
+            self._p[p.name] = p.value
+            if p.value == old:
+                continue
+            if p.name == "rate_hz":
+                self._timer.destroy()
+                self._timer = self.create_timer(1.0 / p.value, self._tick)
+                self._last_tick_start = None
+            elif p.name == "noise_sigma":
+                self._apply_sigma()
+            elif p.name == "marker_height":
+                self._agent_markers = messages.AgentMarkers(self.frame_id, p.value)
+                self._publish_walls()
+            elif p.name in ("real_time_factor", "max_steps_per_tick"):
+                self._rt_anchor = None
+            self.get_logger().info(f"parameter {p.name} = {p.value!r}")
+
+    # -- shutdown --------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Stops the timers and closes the recording cleanly (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        for timer in (self._timer, self._diag_timer):
+            timer.cancel()
+        if self.recorder is not None:
+            self.recorder.metadata("summary", {
+                "steps": str(self.sim.n_steps), "t": repr(self.sim.t),
+                "resets": str(self._resets), "timer_overruns": str(self._overruns),
+                "commands_accepted": str(self._commands["accepted"]),
+                "commands_rejected": str(self._commands["rejected"])})
+            self.recorder.close()
+            if self.recorder.error:
+                self.get_logger().error(f"recording: {self.recorder.error}")
+
+
+class _StopOnSignal:
+    """SIGINT and SIGTERM set a flag that the spin loop checks between callbacks.
+
+    With rclpy's own handlers SIGINT becomes a KeyboardInterrupt raised wherever the main
+    thread happens to be (inside a step, a publish, a queue operation). With a flag the node
+    stops between callbacks, so the engine and the recording are in a consistent state when
+    the recording is closed. A step that blocks in native code (a QP solve) delays the stop
+    until it returns; a second signal of the same kind gets the default action (immediate
+    termination; the recording stays readable up to its last flushed chunk).
+    """
+
+    def __init__(self) -> None:
+        self.event = threading.Event()
+        self.signum: int | None = None
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self._handle)
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        self.signum = signum
+        self.event.set()
+        signal.signal(signum, signal.SIG_DFL)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``ros2 run sweep_ros sweep_node``."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = _StopOnSignal()
+    node: SweepNode | None = None
+    code = 0
+    try:
+        node = SweepNode()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while not stop.event.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    except StartError as err:
+        for problem in err.problems:
+            print(f"{NODE_NAME}: error: {problem}", file=sys.stderr)
+        code = 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

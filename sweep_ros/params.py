@@ -1,0 +1,181 @@
+"""Parameters of sweep_node: specs, descriptors and validation, as pure functions.
+
+Every parameter has a :class:`ParamSpec` (default, description, range, whether it may change
+while the node runs). :func:`check_value` and :func:`check_start` return the problems of a value
+or of the whole start-up set as ``"name: problem (fix: ...)"`` strings, reusing sweep_core's
+validators; :func:`check_live` turns a set-parameters request into a ``SetParametersResult``.
+Nothing here touches a node.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from typing import Any, Iterable, Mapping
+
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                ParameterType, SetParametersResult)
+
+from sweep_core import SceneError, SolverOptions
+
+_INT64_MAX = 2**63 - 1
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter: name, default (its type is the parameter's type), description, inclusive
+    range (numbers only), and whether it may change while running (``live``)."""
+
+    name: str
+    default: Any
+    description: str
+    live: bool
+    lo: float | int | None = None
+    hi: float | int | None = None
+    constraints: str = ""
+
+    @property
+    def type(self) -> type:
+        return type(self.default)
+
+
+_DEFAULT_SOLVER = SolverOptions()
+
+SPECS: tuple[ParamSpec, ...] = (
+    ParamSpec("scene", "", "Scene YAML file; empty = the bundled room with a door (200 agents).",
+              False, constraints="readable scene YAML (see the README's scene schema)"),
+    ParamSpec("dt", 0.01, "Time step h of the projected Euler scheme, s.", False, 1e-5, 1.0),
+    ParamSpec("seed", 0, "Seed of the Brownian path; reset restarts it.", False, 0, _INT64_MAX),
+    ParamSpec("rate_hz", 20.0, "Timer rate, Hz: each tick steps, then publishes poses, agents "
+              "and clock once.", True, 0.1, 1000.0),
+    ParamSpec("steps_per_tick", 5, "Steps per tick when real_time_factor is 0 (simulated time "
+              "per tick = steps_per_tick * dt).", True, 1, 10000),
+    ParamSpec("real_time_factor", 0.0, "0: fixed steps_per_tick. > 0: step as needed to keep "
+              "simulated time = real_time_factor x wall time (at most max_steps_per_tick per "
+              "tick; a tick that cannot keep up counts as an overrun).", True, 0.0, 1000.0),
+    ParamSpec("max_steps_per_tick", 50, "Cap on steps per tick in real-time-factor mode.", True,
+              1, 10000),
+    ParamSpec("frame_id", "map", "frame_id of every published header.", False,
+              constraints="non-empty, no spaces, no leading '/'"),
+    ParamSpec("record", "", "MCAP file to record every published and received message to; "
+              "empty = no recording. Relative paths are relative to the working directory.",
+              False, constraints="its folder must exist"),
+    ParamSpec("record_flush_interval_s", 1.0, "Close an MCAP chunk and flush it to disk at least "
+              "this often, s (what a SIGKILL can lose).", False, 0.05, 60.0),
+    ParamSpec("publish_markers", True, "Publish the markers topic (one cylinder per agent).",
+              True),
+    ParamSpec("marker_rate_hz", 2.0, "Maximum rate of the markers topic, Hz.", True, 0.01, 100.0),
+    ParamSpec("marker_height", 1.0, "Height of agent and wall markers, m.", True, 0.01, 10.0),
+    ParamSpec("publish_clock", False, "Publish rosgraph_msgs/Clock (simulated time) on clock "
+              "every tick.", False),
+    ParamSpec("noise_sigma", -1.0, "Noise intensity sigma, m/sqrt(s), for every agent; -1 = the "
+              "scene's own (possibly per-agent) sigma.", True, -1.0, 100.0,
+              "-1 or >= 0"),
+    ParamSpec("max_speed", 10.0, "Velocity commands whose speed exceeds this (m/s) are refused.",
+              True, 1e-3, 1000.0),
+    ParamSpec("goal_slow_radius", 0.5, "Radius (m) inside which a goal field slows down "
+              "linearly, for the next goal command.", True, 0.01, 100.0),
+    ParamSpec("solver_eps_abs", _DEFAULT_SOLVER.eps_abs, "QP tolerance of the projection, m.",
+              False, 1e-15, 1e-9),
+    ParamSpec("solver_max_iter", _DEFAULT_SOLVER.max_iter, "QP iterations before the exact "
+              "fallback solver.", False, 1, 1000000),
+)
+
+BY_NAME: dict[str, ParamSpec] = {s.name: s for s in SPECS}
+LIVE = frozenset(s.name for s in SPECS if s.live)
+
+
+def defaults() -> dict[str, Any]:
+    return {s.name: s.default for s in SPECS}
+
+
+def descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """The ParameterDescriptor of a spec: type, description, range, constraints."""
+    kinds = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER,
+             float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING}
+    extra = [spec.constraints] if spec.constraints else []
+    if not spec.live:
+        extra.append("fixed at start: restart the node to change it")
+    d = ParameterDescriptor(name=spec.name, type=kinds[spec.type],
+                            description=spec.description,
+                            additional_constraints="; ".join(extra))
+    if spec.lo is not None:
+        if spec.type is float:
+            d.floating_point_range = [FloatingPointRange(from_value=float(spec.lo),
+                                                         to_value=float(spec.hi), step=0.0)]
+        else:
+            d.integer_range = [IntegerRange(from_value=int(spec.lo), to_value=int(spec.hi),
+                                            step=1)]
+    return d
+
+
+def _range_text(spec: ParamSpec) -> str:
+    return f"[{spec.lo:g}, {spec.hi:g}]"
+
+
+def check_value(name: str, value: Any) -> str | None:
+    """The problem with one value (``"name: problem (fix: ...)"``), or None if it is valid."""
+    spec = BY_NAME.get(name)
+    if spec is None:
+        return None
+    want = spec.type
+    ok_type = (isinstance(value, want) and not (want is not bool and isinstance(value, bool)))
+    if want is float and isinstance(value, int) and not isinstance(value, bool):
+        ok_type, value = True, float(value)
+    if not ok_type:
+        return (f"{name}: must be of type {want.__name__}, got {value!r} "
+                f"(fix: write it as {spec.default!r} is written)")
+    if want in (int, float) and spec.lo is not None:
+        if want is float and not math.isfinite(value):
+            return f"{name}: must be finite, got {value!r}"
+        if not spec.lo <= value <= spec.hi:
+            return f"{name}: {value!r} is outside {_range_text(spec)} (fix: {spec.description})"
+    if name == "noise_sigma" and value != -1.0 and value < 0:
+        return f"{name}: must be -1 (the scene's sigma) or >= 0, got {value!r}"
+    if name == "frame_id":
+        if not value or value.startswith("/") or any(c.isspace() for c in value):
+            return (f"{name}: {value!r} is not a valid frame id "
+                    "(fix: non-empty, no spaces, no leading '/', e.g. 'map')")
+    if name == "record" and value:
+        folder = os.path.dirname(os.path.abspath(os.path.expanduser(value))) or "."
+        if not os.path.isdir(folder):
+            return f"{name}: folder {folder!r} does not exist (fix: create it or record elsewhere)"
+        if os.path.isdir(os.path.expanduser(value)):
+            return f"{name}: {value!r} is a folder (fix: give a file path ending in .mcap)"
+    if name == "scene" and value and not os.path.isfile(os.path.expanduser(value)):
+        return f"{name}: no file {value!r} (fix: give a scene YAML path, or '' for the default)"
+    return None
+
+
+def solver_options(values: Mapping[str, Any]) -> SolverOptions:
+    """SolverOptions from the solver_* parameters (raises SceneError naming solver.*)."""
+    return SolverOptions.from_values(values["solver_eps_abs"], values["solver_max_iter"])
+
+
+def check_start(values: Mapping[str, Any]) -> list[str]:
+    """Problems of a complete start-up parameter set (empty when it is valid)."""
+    problems = [p for p in (check_value(k, v) for k, v in values.items()) if p]
+    if not any(p.startswith("solver_") for p in problems):
+        try:
+            solver_options(values)
+        except SceneError as err:
+            problems.append("solver_" + str(err).removeprefix("solver."))
+    return problems
+
+
+def check_live(changes: Iterable[tuple[str, Any]], current: Mapping[str, Any]
+               ) -> SetParametersResult:
+    """Accept a set-parameters request only if every change is live-safe and valid."""
+    reasons = []
+    for name, value in changes:
+        spec = BY_NAME.get(name)
+        if spec is None:
+            continue  # not ours (use_sim_time, ...): rclpy's own checks apply
+        if not spec.live and value != current.get(name):
+            reasons.append(f"{name}: cannot change while running (fix: restart the node with "
+                           f"the new value)")
+            continue
+        problem = check_value(name, value)
+        if problem:
+            reasons.append(problem)
+    return SetParametersResult(successful=not reasons, reason="; ".join(reasons))

@@ -1,0 +1,321 @@
+"""sweep_ros.messages, sweep_ros.params and sweep_ros.msgdefs: pure functions, no DDS."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import PointStamped, Twist
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import PointCloud2, PointField
+from visualization_msgs.msg import Marker, MarkerArray
+
+import sweep_core as sc
+from sweep_core import cdr
+from sweep_core.cli import load_scene
+from sweep_ros import messages, msgdefs, params
+from sweep_ros.messages import CommandError
+
+# ---------------------------------------------------------------------------------------------
+# commands
+# ---------------------------------------------------------------------------------------------
+
+
+def twist(vx=0.0, vy=0.0, wz=0.0):
+    m = Twist()
+    m.linear.x, m.linear.y, m.angular.z = vx, vy, wz
+    return m
+
+
+def test_twist_gives_uniform_field():
+    f = messages.uniform_from_twist(twist(0.5, -0.25, wz=3.0), max_speed=2.0)
+    assert isinstance(f, sc.fields.Uniform)
+    np.testing.assert_array_equal(f(0.0, np.zeros((3, 2))), [[0.5, -0.25]] * 3)
+
+
+@pytest.mark.parametrize("bad", [twist(math.nan, 0.0), twist(0.0, math.inf),
+                                 twist(0.0, 0.0, wz=-math.inf), twist(3.0, 4.0)])
+def test_twist_refused(bad):
+    with pytest.raises(CommandError, match="cmd_vel"):
+        messages.uniform_from_twist(bad, max_speed=4.9)
+
+
+def point(x, y, frame=""):
+    m = PointStamped()
+    m.header.frame_id = frame
+    m.point.x, m.point.y = x, y
+    return m
+
+
+def test_goal_field_and_refusals():
+    f = messages.goal_from_point(point(10.0, 0.0, "map"), speed=1.3, slow_radius=0.5,
+                                 frame_id="map")
+    assert isinstance(f, sc.fields.Goal) and f.speed == 1.3 and f.slow_radius == 0.5
+    np.testing.assert_allclose(f(0.0, np.array([[0.0, 0.0]])), [[1.3, 0.0]])
+    assert messages.goal_from_point(point(1.0, 2.0), 1.0, 0.5, "map").goal.tolist() == [1, 2]
+    for bad, match in [(point(math.nan, 0.0), "non-finite"), (point(0.0, math.inf), "non-finite"),
+                       (point(1e9, 0.0), "away"), (point(1.0, 1.0, "odom"), "odom")]:
+        with pytest.raises(CommandError, match=match):
+            messages.goal_from_point(bad, 1.3, 0.5, "map")
+
+
+def grid_cloud(x, y, vx, vy, dtype="<f4", names=("x", "y", "vx", "vy"), pad=0):
+    """An organised cloud: row r, column c = node (x[c], y[r])."""
+    h, w = len(y), len(x)
+    X, Y = np.meshgrid(np.asarray(x, float), np.asarray(y, float))
+    size = np.dtype(dtype).itemsize
+    rec = np.zeros((h, w), dtype=[(n, dtype) for n in names] + ([("pad", "u1", pad)] if pad
+                                                                    else []))
+    for n, v in zip(names, (X, Y, np.asarray(vx, float), np.asarray(vy, float))):
+        rec[n] = v
+    m = PointCloud2(height=h, width=w, is_bigendian=False, point_step=rec.dtype.itemsize,
+                    row_step=rec.dtype.itemsize * w, is_dense=True)
+    code = PointField.FLOAT32 if size == 4 else PointField.FLOAT64
+    m.fields = [PointField(name=n, offset=i * size, datatype=code, count=1)
+                for i, n in enumerate(names)]
+    m.data = rec.tobytes()
+    return m
+
+
+def test_grid_bilinear_inside_and_clamped_outside():
+    x, y = np.array([0.0, 1.0, 2.0]), np.array([10.0, 10.5])
+    vx = np.array([[0.0, 1.0, 2.0], [1.0, 2.0, 3.0]])  # vx = x + 2 (y - 10)
+    vy = -vx
+    for dtype in ("<f4", "<f8"):
+        f = messages.grid_from_cloud(grid_cloud(x, y, vx, vy, dtype), max_speed=10.0)
+        q = np.array([[0.5, 10.25], [1.5, 10.0], [5.0, 20.0], [-1.0, 0.0]])
+        want_vx = np.array([1.0, 1.5, 3.0, 0.0])  # last two: nearest grid point
+        np.testing.assert_allclose(f(0.0, q), np.c_[want_vx, -want_vx], atol=1e-6)
+
+
+def test_grid_float32_rounding_accepted_and_axes_sorted():
+    x = np.arange(40) * 0.1 + 3.3  # float32 spacing errors ~1e-7 relative
+    y = np.array([2.0, 1.0, 0.0])   # rows running down: sorted
+    vx = np.tile(np.arange(40) * 0.01, (3, 1))
+    vy = np.tile(np.array([[2.0], [1.0], [0.0]]), (1, 40)) * 0.1
+    f = messages.grid_from_cloud(grid_cloud(x, y, vx, vy), max_speed=10.0)
+    np.testing.assert_allclose(f.y, [0.0, 1.0, 2.0])
+    np.testing.assert_allclose(f(0.0, np.array([[3.3, 0.5]])), [[0.0, 0.05]], atol=1e-6)
+
+
+def test_single_node_grid_is_uniform():
+    f = messages.grid_from_cloud(grid_cloud([1.0], [2.0], [[0.3]], [[0.4]]), max_speed=1.0)
+    np.testing.assert_allclose(f(0.0, np.array([[9.0, -9.0]])), [[0.3, 0.4]], atol=1e-7)
+
+
+def _grid_ok():
+    return dict(x=[0.0, 1.0, 2.0], y=[0.0, 1.0], vx=np.ones((2, 3)), vy=np.zeros((2, 3)))
+
+
+@pytest.mark.parametrize("case,match", [
+    ("nan", "non-finite vx"), ("inf", "non-finite vy"), ("fast", "max_speed"),
+    ("irregular", "irregular"), ("fields", "missing fields"), ("short", "too few"),
+    ("datatype", "FLOAT32 or FLOAT64"), ("transposed", "depend on"), ("empty", "empty"),
+    ("count", "FLOAT32 or FLOAT64"),
+])
+def test_grid_refused(case, match):
+    g = _grid_ok()
+    if case == "nan":
+        g["vx"][1, 2] = np.nan
+    if case == "inf":
+        g["vy"][0, 0] = np.inf
+    if case == "fast":
+        g["vx"][0, 1] = 50.0
+    if case == "irregular":
+        g["x"] = [0.0, 1.0, 3.0]
+    m = grid_cloud(**g)
+    if case == "fields":
+        m = grid_cloud(**g, names=("x", "y", "u", "v"))
+    if case == "short":
+        m.data = bytes(m.data)[:-4]
+    if case == "datatype":
+        m.fields[2].datatype = PointField.INT32
+    if case == "count":
+        m.fields[3].count = 2
+    if case == "transposed":  # x changes along rows: not rows-along-y
+        m = grid_cloud(**g)
+        data = np.frombuffer(bytes(m.data), "<f4").reshape(2, 3, 4).copy()
+        data[..., [0, 1]] = data[..., [1, 0]]
+        m.data = data.tobytes()
+    if case == "empty":
+        m.height = 0
+    with pytest.raises(CommandError, match=match) as info:
+        messages.grid_from_cloud(m, max_speed=10.0)
+    assert info.value.topic == "velocity_field"
+
+
+# ---------------------------------------------------------------------------------------------
+# markers, diagnostics
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("frame_id", ["map", "m", "odom_12", "a_longer_frame"])
+def test_agent_markers_bytes_match_rclpy(frame_id):
+    rng = np.random.default_rng(1)
+    enc = messages.AgentMarkers(frame_id, height=1.7)
+    assert enc._layout is not None  # the fast path is the one tested here
+    for n in (0, 1, 2, 3, 8, 41):
+        q, r = rng.uniform(-5, 5, (n, 2)), rng.uniform(0.1, 0.4, n)
+        stamp = 12_345_678_901
+        data = enc.encode(stamp, q, r)
+        want = MarkerArray(markers=[messages.agent_marker(frame_id, stamp, i, q[i, 0], q[i, 1],
+                                                          r[i], 1.7) for i in range(n)])
+        ref = serialize_message(want)
+        assert len(data) == len(ref)
+        got = deserialize_message(data, MarkerArray)
+        assert got == deserialize_message(ref, MarkerArray)
+        for i, m in enumerate(got.markers):
+            assert (m.id, m.type, m.action, m.header.frame_id) == (i, Marker.CYLINDER,
+                                                                    Marker.ADD, frame_id)
+            assert (m.pose.position.x, m.pose.position.y) == (q[i, 0], q[i, 1])
+            assert m.scale.x == m.scale.y == 2 * r[i] and m.scale.z == 1.7
+            assert (m.header.stamp.sec, m.header.stamp.nanosec) == (12, 345_678_901)
+
+
+def test_agent_markers_fallback_path():
+    enc = messages.AgentMarkers("map")
+    enc._layout = None
+    q, r = np.array([[1.0, 2.0], [3.0, 4.0]]), np.array([0.2, 0.3])
+    got = deserialize_message(enc.encode(5, q, r), MarkerArray)
+    assert [m.scale.x for m in got.markers] == [0.4, 0.6]
+
+
+def test_wall_markers_and_delete_all():
+    scene = sc.Scene.from_dict({
+        "agents": {"positions": [[1.0, 1.0]], "radius": 0.2},
+        "walls": [{"kind": "segment", "a": [0, 0], "b": [4, 0]},
+                  {"kind": "halfplane", "normal": [0, 1], "offset": -1.0, "velocity": 0.5}],
+        "obstacles": [{"kind": "circle", "center": [3, 3], "radius": 0.5}]})
+    arr = messages.wall_markers(scene.geometry, scene.positions, "map", 0, t=2.0, height=2.0)
+    kinds = [(m.ns, m.id, m.type) for m in arr.markers]
+    assert kinds == [("walls", 0, Marker.CUBE), ("walls", 1, Marker.CUBE),
+                     ("obstacles", 0, Marker.CYLINDER)]
+    seg, hp, circ = arr.markers
+    assert (seg.pose.position.x, seg.pose.position.y, seg.scale.x) == (2.0, 0.0, 4.0)
+    # half-plane y >= -1 + 0.5 t drawn just outside its boundary y = 0 at t = 2
+    assert hp.pose.position.y == pytest.approx(-messages.WALL_THICKNESS / 2)
+    assert abs(hp.pose.orientation.z) < 1e-12 and hp.scale.x > 5
+    assert circ.scale.x == 1.0 and circ.pose.position.x == 3.0
+    clear = messages.delete_all("map", 0)
+    assert [m.action for m in clear.markers] == [Marker.DELETEALL]
+
+
+def test_diagnostics_and_time():
+    arr = messages.diagnostics(1_500_000_000, "n", "room", "WARN", "slow",
+                               {"a": 1.23456789, "b": True, "c": 3})
+    st = arr.status[0]
+    assert st.level == messages.LEVELS["WARN"] and st.message == "slow"
+    assert {kv.key: kv.value for kv in st.values} == {"a": "1.23457", "b": "true", "c": "3"}
+    assert (arr.header.stamp.sec, arr.header.stamp.nanosec) == (1, 500_000_000)
+    assert messages.stamp_ns_of(messages.time_msg(-1)) == -1
+
+
+# ---------------------------------------------------------------------------------------------
+# parameters
+# ---------------------------------------------------------------------------------------------
+
+
+def test_descriptors_cover_every_parameter():
+    for spec in params.SPECS:
+        d = params.descriptor(spec)
+        assert d.description and d.name == spec.name
+        if spec.type is float and spec.lo is not None:
+            assert d.floating_point_range[0].from_value == spec.lo
+        if not spec.live:
+            assert "restart" in d.additional_constraints
+    assert params.check_start(params.defaults()) == []
+
+
+def test_config_file_lists_every_parameter_with_its_default():
+    import yaml
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[1] / "config" / "sweep_node.yaml"
+    values = yaml.safe_load(path.read_text())["/**"]["ros__parameters"]
+    assert values == params.defaults()
+
+
+@pytest.mark.parametrize("name,value,match", [
+    ("dt", 0.0, "dt: 0.0 is outside"), ("dt", 1, None), ("rate_hz", -5.0, "rate_hz"),
+    ("steps_per_tick", 2.5, "type int"), ("publish_markers", 1, "type bool"),
+    ("frame_id", "/map", "frame_id"), ("frame_id", "", "frame_id"),
+    ("noise_sigma", -0.5, "-1"), ("noise_sigma", -1.0, None), ("noise_sigma", 0.2, None),
+    ("record", "/no/such/folder/x.mcap", "does not exist"), ("scene", "/no/scene.yaml", "scene"),
+    ("marker_rate_hz", math.nan, "finite"), ("seed", -1, "seed"),
+])
+def test_check_value(name, value, match):
+    problem = params.check_value(name, value)
+    if match is None:
+        assert problem is None
+    else:
+        assert problem is not None and problem.startswith(name) and match in problem
+
+
+def test_check_start_reuses_solver_validation():
+    values = dict(params.defaults(), solver_eps_abs=1e-9, solver_max_iter=0)
+    problems = params.check_start(values)
+    assert len(problems) == 1 and problems[0].startswith("solver_max_iter")
+    values["solver_max_iter"] = 10
+    assert params.check_start(values) == []
+
+
+def test_check_live():
+    cur = params.defaults()
+    ok = params.check_live([("rate_hz", 5.0), ("noise_sigma", 0.0), ("use_sim_time", True)], cur)
+    assert ok.successful, ok.reason
+    same = params.check_live([("dt", cur["dt"])], cur)
+    assert same.successful
+    refused = params.check_live([("rate_hz", 5.0), ("dt", 0.02), ("seed", 3)], cur)
+    assert not refused.successful
+    assert "dt: cannot change while running" in refused.reason and "seed" in refused.reason
+    bad = params.check_live([("marker_rate_hz", 0.0)], cur)
+    assert not bad.successful and "marker_rate_hz" in bad.reason
+
+
+# ---------------------------------------------------------------------------------------------
+# message definitions
+# ---------------------------------------------------------------------------------------------
+
+
+def test_dependencies_parser():
+    text = ("# comment Foo\nHeader h\nfloat64[] a\nstring<=5 s\nother_pkg/Bar b  # c\n"
+            "Baz[3] z\nint32 K=3\nmy/msg/Qux[<=2] q\n")
+    assert msgdefs.dependencies(text, "pkg") == ["my/Qux", "other_pkg/Bar", "pkg/Baz",
+                                                 "std_msgs/Header"]
+
+
+@pytest.mark.parametrize("msgtype", sorted(cdr.SCHEMAS))
+def test_definition_order_matches_sweep_core(msgtype):
+    full = msgdefs.definition(msgtype)
+    assert msgdefs.dependency_names(full) == msgdefs.dependency_names(cdr.SCHEMAS[msgtype])
+    assert f"\n{'=' * 80}\nMSG: " in full
+
+
+@pytest.mark.parametrize("msg_class", [MarkerArray, Twist, PointStamped, PointCloud2])
+def test_definitions_decode_with_mcap_ros2_and_rosbags(msg_class):
+    from mcap_ros2._dynamic import generate_dynamic
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    msgtype = msgdefs.msgtype_of(msg_class)
+    full = msgdefs.definition(msgtype)
+    msg = msg_class()
+    if msg_class is MarkerArray:
+        msg = MarkerArray(markers=[messages.agent_marker("map", 7, 3, 1.5, 2.5, 0.25, 1.0)])
+    data = bytes(serialize_message(msg))
+    decoded = generate_dynamic(msgtype, full)[msgtype](data)
+    store = get_typestore(Stores.EMPTY)
+    store.register(get_types_from_msg(full, msgtype))
+    again = store.deserialize_cdr(data, msgtype)
+    if msg_class is MarkerArray:
+        for m in (decoded.markers[0], again.markers[0]):
+            assert (m.id, m.pose.position.x, m.scale.y) == (3, 1.5, 0.5)
+
+
+def test_unknown_type():
+    with pytest.raises(msgdefs.MsgDefError, match="not found"):
+        msgdefs.definition("no_such_pkg/msg/Thing")
+    with pytest.raises(msgdefs.MsgDefError):
+        msgdefs.split_type("Thing")
+
+
+def test_bundled_scene_loads():
+    assert load_scene("").n_agents == 200

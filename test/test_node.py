@@ -1,0 +1,495 @@
+"""sweep_node end to end: the installed executable, real rclpy, DDS on this machine only.
+
+The package is built once per module into a temporary prefix with colcon (the file ``ros2 run``
+execs is ``<install>/sweep_ros/lib/sweep_ros/sweep_node``); each test starts that file as a
+subprocess with a params file, talks to it from this process over DDS, and reads its MCAP.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rclpy
+import yaml
+from geometry_msgs.msg import PointStamped, PoseArray, Twist, Vector3
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rcl_interfaces.srv import SetParameters
+from sensor_msgs.msg import PointCloud2, PointField
+from diagnostic_msgs.msg import DiagnosticArray
+from std_srvs.srv import SetBool, Trigger
+
+from sweep_core import cdr, topics
+from sweep_core.recording import read_recording, scan_recording
+
+REPO = Path(__file__).resolve().parents[1]
+DISCOVERY_S = 10.0
+DT = 0.01
+# 20 agents in open space (a far wall and obstacle only for the walls topic); a little noise
+POSITIONS = [[1.0 * (k % 5), 1.0 * (k // 5)] for k in range(20)]
+SCENE = {
+    "name": "test_open_20",
+    "agents": {"positions": POSITIONS, "radius": 0.2, "speed": 1.3},
+    "walls": [{"kind": "segment", "a": [-20.0, -20.0], "b": [20.0, -20.0]}],
+    "obstacles": [{"kind": "circle", "center": [-10.0, 10.0], "radius": 0.5}],
+    "noise": {"sigma": 0.02},
+}
+
+
+def _ros_env() -> dict[str, str]:
+    """The DDS isolation of this test process, passed on explicitly."""
+    return {"ROS_AUTOMATIC_DISCOVERY_RANGE": os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"],
+            "ROS_DOMAIN_ID": os.environ["ROS_DOMAIN_ID"]}
+
+
+# ---------------------------------------------------------------------------------------------
+# the installed executable
+# ---------------------------------------------------------------------------------------------
+
+
+def build_prefix(base: Path, use_colcon: bool) -> Path:
+    """Builds and installs the package under base; returns the package's install prefix.
+
+    With colcon: ``colcon build --paths REPO`` (the repository root is the package; --paths
+    keeps colcon from crawling a .venv inside it). Without: the setuptools command colcon's
+    ament_python build runs, which installs to the same layout (setup.cfg puts the scripts in
+    lib/sweep_ros)."""
+    build, install = base / "build", base / "install"
+    build.mkdir(parents=True, exist_ok=True)
+    env = dict(os.environ, **_ros_env())
+    if use_colcon:
+        colcon = shutil.which("colcon") or str(Path(sys.executable).with_name("colcon"))
+        cmd = [colcon, "--log-base", str(base / "log"), "build", "--paths", str(REPO),
+               "--build-base", str(build), "--install-base", str(install)]
+        prefix, cwd = install / "sweep_ros", base
+    else:
+        prefix, cwd = install, REPO
+        cmd = [sys.executable, "setup.py", "-q", "egg_info", "--egg-base", str(build), "build",
+               "--build-base", str(build / "build"), "install", "--prefix", str(prefix),
+               "--record", str(build / "install.log"), "--single-version-externally-managed",
+               "install_data"]
+    done = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    return prefix
+
+
+def has_colcon() -> bool:
+    return bool(shutil.which("colcon")) or Path(sys.executable).with_name("colcon").exists()
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory):
+    """Builds the package into a fresh prefix; returns (executable, environment)."""
+    start = time.monotonic()
+    use_colcon = has_colcon() and os.environ.get("SWEEP_TEST_BUILD") != "setuptools"
+    prefix = build_prefix(tmp_path_factory.mktemp("install"), use_colcon)
+    print(f"built with {'colcon' if use_colcon else 'setup.py'} in "
+          f"{time.monotonic() - start:.1f} s")
+    exe = prefix / "lib" / "sweep_ros" / "sweep_node"
+    assert exe.is_file() and os.access(exe, os.X_OK), f"{exe} missing"
+    assert (prefix / "share" / "sweep_ros" / "config" / "sweep_node.yaml").is_file()
+    assert (prefix / "share" / "sweep_ros" / "launch" / "sweep.launch.py").is_file()
+    assert (prefix / "share" / "ament_index" / "resource_index" / "packages" /
+            "sweep_ros").is_file()
+    site = prefix / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / \
+        "site-packages"
+    # what sourcing the underlay (this venv) and then install/setup.bash does
+    env = dict(os.environ, **_ros_env(), PYTHONPATH=str(site),
+               AMENT_PREFIX_PATH=os.pathsep.join([str(prefix), sys.prefix]))
+    # the executable's interpreter imports the installed copy, not the source tree
+    shebang = exe.read_text().splitlines()[0].removeprefix("#!").strip()
+    where = subprocess.run([shebang, "-c", "import sweep_ros.node as n; print(n.__file__)"],
+                           env=env, capture_output=True, text=True, timeout=60, cwd=site)
+    assert where.stdout.strip().startswith(str(site)), where.stdout + where.stderr
+    return exe, env
+
+
+class Running:
+    """A sweep_node subprocess; its output goes to a log file read on failure."""
+
+    def __init__(self, installed, tmp_path: Path, overrides: dict, name: str = "run"):
+        exe, env = installed
+        self.params = tmp_path / f"{name}.yaml"
+        self.params.write_text(yaml.safe_dump({"/**": {"ros__parameters": overrides}}))
+        self.log_path = tmp_path / f"{name}.log"
+        self._log = open(self.log_path, "w")
+        self.proc = subprocess.Popen([str(exe), "--ros-args", "--params-file", str(self.params)],
+                                     env=env, cwd=tmp_path, stdout=self._log,
+                                     stderr=subprocess.STDOUT)
+
+    @property
+    def log(self) -> str:
+        if not self._log.closed:
+            self._log.flush()
+        return self.log_path.read_text()
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def stop(self, sig: int = signal.SIGINT, timeout: float = 15.0) -> int:
+        if self.alive():
+            self.proc.send_signal(sig)
+        try:
+            return self.proc.wait(timeout=timeout)
+        finally:
+            if self.alive():
+                self.proc.kill()
+                self.proc.wait()
+            self._log.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# the test side of DDS
+# ---------------------------------------------------------------------------------------------
+
+
+class Probe:
+    """A node in this process: subscriptions that keep what arrives, publishers, clients."""
+
+    def __init__(self, context):
+        self.node = Node("sweep_test_probe", context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+        self.poses: list[PoseArray] = []
+        self.agents: list[PointCloud2] = []
+        self.diagnostics: list[DiagnosticArray] = []
+        self.node.create_subscription(PoseArray, "/poses", self.poses.append, qos)
+        self.node.create_subscription(PointCloud2, "/agents", self.agents.append, qos)
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append,
+                                      qos)
+        self.cmd_vel = self.node.create_publisher(Twist, "/cmd_vel", qos)
+        self.goal = self.node.create_publisher(PointStamped, "/goal", qos)
+        self.field = self.node.create_publisher(PointCloud2, "/velocity_field", qos)
+
+    def spin_until(self, pred, timeout: float, what: str, proc: Running | None = None):
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.02)
+            value = pred()
+            if value:
+                return value
+            if proc is not None and not proc.alive():
+                pytest.fail(f"sweep_node exited while waiting for {what}:\n{proc.log}")
+        last = self.diagnostics[-1].status[0] if self.diagnostics else None
+        pytest.fail(f"timed out after {timeout:g} s waiting for {what} (last diagnostics: "
+                    f"{last})"
+                    + (f"\n{proc.log}" if proc is not None else ""))
+
+    def spin_for(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.02)
+
+    def call(self, srv_type, name: str, request, proc: Running):
+        client = self.node.create_client(srv_type, name)
+        self.spin_until(lambda: client.service_is_ready(), DISCOVERY_S, f"service {name}", proc)
+        future = client.call_async(request)
+        self.spin_until(future.done, 10.0, f"reply of {name}", proc)
+        self.node.destroy_client(client)
+        return future.result()
+
+    def connect(self, proc: Running) -> None:
+        """Waits for discovery both ways and the first state."""
+        for pub in (self.cmd_vel, self.goal, self.field):
+            self.spin_until(lambda p=pub: p.get_subscription_count() > 0, DISCOVERY_S,
+                            f"sweep_node subscribing {pub.topic_name}", proc)
+        self.spin_until(lambda: self.agents and self.poses, DISCOVERY_S, "first state", proc)
+
+    def close(self):
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+
+@pytest.fixture
+def probe():
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    p = Probe(context)
+    yield p
+    p.close()
+    rclpy.shutdown(context=context)
+
+
+def mean_velocity(cloud: PointCloud2) -> np.ndarray:
+    names = [f.name for f in cloud.fields]
+    assert names == list(topics.AGENT_FIELDS)
+    cols = np.frombuffer(bytes(cloud.data), "<f4").reshape(cloud.width, len(names))
+    return cols[:, [names.index("vx"), names.index("vy")]].mean(axis=0)
+
+
+def stamp(msg) -> int:
+    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
+
+def heading_is(probe: Probe, direction, speed: float, since_ns: int):
+    """Predicate: the newest agents cloud after since_ns moves along direction at ~speed."""
+    d = np.asarray(direction, float) / np.linalg.norm(direction)
+
+    def check():
+        if not probe.agents or stamp(probe.agents[-1]) <= since_ns:
+            return False
+        v = mean_velocity(probe.agents[-1])
+        return abs(np.linalg.norm(v) - speed) < 0.2 * speed and v @ d > 0.95 * np.linalg.norm(v)
+    return check
+
+
+def grid_cloud(x, y, vx, vy, fields=("x", "y", "vx", "vy")) -> PointCloud2:
+    X, Y = np.meshgrid(np.asarray(x, float), np.asarray(y, float))
+    cols = np.stack([X, Y, np.full_like(X, vx), np.full_like(X, vy)], axis=-1).astype("<f4")
+    m = PointCloud2(height=len(y), width=len(x), is_bigendian=False, point_step=16,
+                    row_step=16 * len(x), is_dense=True)
+    m.fields = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1)
+                for i, n in enumerate(fields)]
+    m.data = cols.tobytes()
+    return m
+
+
+def diag_value(probe: Probe, key: str):
+    if not probe.diagnostics:
+        return None
+    return {kv.key: kv.value for kv in probe.diagnostics[-1].status[0].values}.get(key)
+
+
+# ---------------------------------------------------------------------------------------------
+# tests
+# ---------------------------------------------------------------------------------------------
+
+
+def test_commands_services_parameters_and_recording(installed, probe, tmp_path):
+    scene_path = tmp_path / "scene.yaml"
+    scene_path.write_text(yaml.safe_dump(SCENE))
+    record = tmp_path / "run.mcap"
+    node = Running(installed, tmp_path, {
+        "scene": str(scene_path), "dt": DT, "seed": 7, "rate_hz": 50.0, "steps_per_tick": 2,
+        "record": str(record), "max_speed": 5.0, "marker_rate_hz": 5.0, "publish_clock": True,
+        "record_flush_interval_s": 0.2})
+    try:
+        probe.connect(node)
+        first = probe.poses[0]
+        assert first.header.frame_id == "map" and len(first.poses) == 20
+
+        # 1. cmd_vel: uniform +x
+        probe.cmd_vel.publish(Twist(linear=Vector3(x=1.0, y=0.0)))
+        t0 = stamp(probe.agents[-1])
+        probe.spin_until(heading_is(probe, [1, 0], 1.0, t0), 10.0, "motion along +x", node)
+        # 2. goal far in +y: goal-directed at the scene's speed 1.3 m/s
+        g = PointStamped()
+        g.header.frame_id = "map"
+        g.point.x, g.point.y = 2.0, 500.0
+        probe.goal.publish(g)
+        t1 = stamp(probe.agents[-1])
+        probe.spin_until(heading_is(probe, [0, 1], 1.3, t1), 10.0, "motion towards the goal",
+                         node)
+        # 3. a valid grid: uniform -x at 0.8 m/s over the whole scene (clamped outside)
+        probe.field.publish(grid_cloud([-50.0, 0.0, 50.0], [-50.0, 50.0], -0.8, 0.0))
+        t2 = stamp(probe.agents[-1])
+        probe.spin_until(heading_is(probe, [-1, 0], 0.8, t2), 10.0, "motion along the grid",
+                         node)
+
+        # 4. malformed commands: refused, node alive, engine untouched
+        nan_twist = Twist()
+        nan_twist.linear.x = float("nan")
+        inf_twist = Twist()
+        inf_twist.linear.y = float("inf")
+        fast_twist = Twist()
+        fast_twist.linear.x = 100.0
+        bad_goal = PointStamped()
+        bad_goal.point.x = float("nan")
+        wrong_fields = grid_cloud([0.0, 1.0], [0.0, 1.0], 1.0, 0.0, fields=("x", "y", "u", "v"))
+        short = grid_cloud([0.0, 1.0, 2.0], [0.0, 1.0], 1.0, 0.0)
+        short.data = bytes(short.data)[:-16]
+        irregular = grid_cloud([0.0, 1.0, 3.0], [0.0, 1.0], 1.0, 0.0)
+        nan_grid = grid_cloud([0.0, 1.0], [0.0, 1.0], float("nan"), 0.0)
+        for pub, msg in [(probe.cmd_vel, nan_twist), (probe.cmd_vel, inf_twist),
+                         (probe.cmd_vel, fast_twist), (probe.goal, bad_goal),
+                         (probe.field, wrong_fields), (probe.field, short),
+                         (probe.field, irregular), (probe.field, nan_grid)]:
+            pub.publish(msg)
+            probe.spin_for(0.05)
+        probe.spin_until(lambda: diag_value(probe, "commands_rejected") == "8", 10.0,
+                         "diagnostics counting 8 refused commands", node)
+        assert diag_value(probe, "commands_accepted") == "3"
+        assert diag_value(probe, "drift") == "grid"
+        t3 = stamp(probe.agents[-1])
+        probe.spin_until(heading_is(probe, [-1, 0], 0.8, t3), 5.0, "grid motion still", node)
+        assert "command refused" in node.log
+
+        # 5. live parameters: rate_hz changes, dt is refused with a reason
+        set_params = SetParameters.Request(parameters=[
+            Parameter("rate_hz", value=40.0).to_parameter_msg()])
+        res = probe.call(SetParameters, "/sweep_node/set_parameters", set_params, node)
+        assert res.results[0].successful, res.results[0].reason
+        set_params = SetParameters.Request(parameters=[
+            Parameter("dt", value=0.02).to_parameter_msg()])
+        res = probe.call(SetParameters, "/sweep_node/set_parameters", set_params, node)
+        assert not res.results[0].successful and "restart" in res.results[0].reason
+        # real-time-factor mode, switched on live: simulated time runs at twice wall time
+        set_params = SetParameters.Request(parameters=[
+            Parameter("real_time_factor", value=2.0).to_parameter_msg()])
+        res = probe.call(SetParameters, "/sweep_node/set_parameters", set_params, node)
+        assert res.results[0].successful, res.results[0].reason
+        probe.spin_until(lambda: 1.8 < float(diag_value(probe, "real_time_factor") or 0) < 2.2,
+                         8.0, "real-time factor 2 in diagnostics", node)
+
+        # 6. pause, then exactly one step
+        assert probe.call(SetBool, "/pause", SetBool.Request(data=True), node).success
+        probe.spin_for(0.5)
+        n_before, last = len(probe.poses), stamp(probe.poses[-1])
+        k = round(last / (DT * 1e9))
+        res = probe.call(Trigger, "/step", Trigger.Request(), node)
+        assert res.success, res.message
+        probe.spin_until(lambda: len(probe.poses) > n_before, 5.0, "the stepped state", node)
+        probe.spin_for(0.5)
+        assert [stamp(m) for m in probe.poses[n_before:]] == [topics.stamp_ns((k + 1) * DT)]
+        # 7. reset: initial poses again (while paused), at t = 0
+        n_before = len(probe.poses)
+        assert probe.call(Trigger, "/reset", Trigger.Request(), node).success
+        probe.spin_until(lambda: len(probe.poses) > n_before, 5.0, "the reset state", node)
+        again = probe.poses[-1]
+        assert stamp(again) == 0
+        got = np.array([[p.position.x, p.position.y] for p in again.poses])
+        np.testing.assert_array_equal(got, np.array(POSITIONS))
+        # stepping is refused once running again
+        assert probe.call(SetBool, "/pause", SetBool.Request(data=False), node).success
+        assert not probe.call(Trigger, "/step", Trigger.Request(), node).success
+        probe.spin_until(lambda: stamp(probe.poses[-1]) > 0, 5.0, "running after reset", node)
+        assert node.alive()
+    finally:
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
+    assert "Traceback" not in node.log, node.log
+
+    _check_recording(record)
+
+
+def _check_recording(record: Path) -> None:
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    from rosbags.highlevel import AnyReader
+
+    info = scan_recording(record)
+    assert not info.truncated and info.profile == "ros2"
+    counts = {t: c.message_count for t, c in info.channels.items()}
+    assert counts["/cmd_vel"] == 1 and counts["/goal"] == 1 and counts["/velocity_field"] == 1
+    assert counts["/poses"] == counts["/agents"] == counts["/clock"] > 20
+    assert counts["/walls"] >= 1 and counts["/markers"] >= 2 and counts["/diagnostics"] >= 1
+    meta = info.metadata
+    run = meta["sweep_ros"]
+    assert run["seed"] == "7" and yaml.safe_load(run["scene"])["name"] == "test_open_20"
+    assert yaml.safe_load(run["parameters"])["rate_hz"] == 50.0 and "versions" in run
+    commands = [meta[k] for k in sorted(meta) if k.startswith("command_")]
+    assert [c["topic"] for c in commands] == ["/cmd_vel", "/goal", "/velocity_field"]
+    assert [yaml.safe_load(c["field"])["kind"] for c in commands] == ["uniform", "goal", "grid"]
+    assert all(int(c["step"]) * DT == pytest.approx(float(c["t"])) for c in commands)
+    assert "reset_000001" in meta and meta["summary"]["commands_rejected"] == "8"
+
+    # mcap_ros2 decodes every message of every channel
+    seen: dict[str, int] = {}
+    last_log: dict[str, int] = {}
+    with open(record, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for schema, channel, message, msg in reader.iter_decoded_messages(log_time_order=False):
+            seen[channel.topic] = seen.get(channel.topic, 0) + 1
+            assert message.log_time >= last_log.get(channel.topic, 0), channel.topic
+            last_log[channel.topic] = message.log_time
+            if channel.topic == "/cmd_vel":
+                assert msg.linear.x == 1.0
+            if channel.topic == "/markers" and msg.markers[0].action == 0:
+                assert len(msg.markers) == 20 and msg.markers[0].type == 3
+    assert seen == counts
+    # command log time = the simulated time of the step it applies to
+    pose_times = [m.log_time_ns for m in read_recording(record, ["/poses"])]
+    assert pose_times == sorted(pose_times) and len(set(pose_times)) == len(pose_times)
+
+    # rosbags reads the same file
+    with AnyReader([record]) as reader:
+        n = 0
+        for conn, _, raw in reader.messages():
+            msg = reader.deserialize(raw, conn.msgtype)
+            if conn.topic == "/poses":
+                assert len(msg.poses) == 20
+            n += 1
+        assert n == sum(counts.values())
+
+
+def test_sigkill_leaves_readable_recording(installed, probe, tmp_path):
+    record = tmp_path / "killed.mcap"
+    node = Running(installed, tmp_path, {
+        "rate_hz": 20.0, "steps_per_tick": 1, "record": str(record),
+        "record_flush_interval_s": 0.1, "publish_markers": False})
+    try:
+        probe.spin_until(lambda: len(probe.poses) >= 15, DISCOVERY_S + 5, "15 states", node)
+        received = len(probe.poses)
+        probe.spin_for(0.3)  # at least one flush after those
+    finally:
+        code = node.stop(signal.SIGKILL)
+    assert code == -signal.SIGKILL
+    reader = read_recording(record)
+    poses = [m for m in reader if m.topic == "/poses"]
+    assert reader.truncated is True
+    assert len(poses) >= received - 2  # all but what arrived within the last flush interval
+    assert reader.metadata["sweep_ros"]["seed"] == "0"
+    for i, m in enumerate(poses):
+        t, frame, q = cdr.decode_pose_array(m.data)
+        assert frame == "map" and q.shape == (200, 2) and t == topics.stamp_ns(i * DT)
+
+
+def test_infeasible_step_pauses_and_reports(installed, probe, tmp_path):
+    """A disk growing between two walls: at t = 0.21 s no placement exists. The node pauses,
+    reports ERROR, never publishes a state past t = 0.20 s, and resumes after reset."""
+    scene_path = tmp_path / "squeeze.yaml"
+    scene_path.write_text(yaml.safe_dump({
+        "agents": {"positions": [[0.5, 0.0]], "radius": 0.3,
+                   "radius_law": {"kind": "linear", "rate": 1.0}},
+        "walls": [{"kind": "halfplane", "normal": [1, 0], "offset": 0.0},
+                  {"kind": "halfplane", "normal": [-1, 0], "offset": -1.0}]}))
+    node = Running(installed, tmp_path, {"scene": str(scene_path), "rate_hz": 20.0,
+                                         "steps_per_tick": 1})
+    try:
+        probe.spin_until(lambda: probe.diagnostics and
+                         probe.diagnostics[-1].status[0].level == b"\x02", DISCOVERY_S + 5,
+                         "ERROR diagnostics", node)
+        status = probe.diagnostics[-1].status[0]
+        assert "infeasible" in status.message and diag_value(probe, "paused") == "true"
+        last_ok = topics.stamp_ns(0.20)
+        assert all(stamp(m) <= last_ok for m in probe.poses)  # what arrived after discovery
+        res = probe.call(Trigger, "/step", Trigger.Request(), node)
+        assert not res.success and "no feasible configuration" in res.message
+        probe.spin_for(0.3)
+        assert all(stamp(m) <= last_ok for m in probe.poses)
+        assert probe.call(Trigger, "/reset", Trigger.Request(), node).success
+        probe.spin_until(lambda: stamp(probe.poses[-1]) == 0, 5.0, "the reset state", node)
+        assert node.alive()
+    finally:
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
+    assert "simulation paused" in node.log
+
+
+@pytest.mark.parametrize("overrides,names", [
+    ({"dt": -1.0}, "dt"),
+    ({"rate_hz": 5}, "rate_hz"),                   # an int where a double is declared
+    ({"frame_id": "/map", "noise_sigma": -0.5}, "frame_id|noise_sigma"),
+    ({"scene": "/no/such/scene.yaml"}, "scene"),
+    ({"solver_eps_abs": 1e-15, "solver_max_iter": 0}, "solver_max_iter"),
+])
+def test_bad_parameters_refused_at_start(installed, tmp_path, overrides, names):
+    node = Running(installed, tmp_path, overrides)
+    try:
+        code = node.proc.wait(timeout=30)
+    finally:
+        node.stop(signal.SIGKILL)
+    log = node.log
+    assert code == 2, log
+    for name in names.split("|"):
+        assert f"sweep_node: error: parameter {name}" in log, log
