@@ -26,6 +26,7 @@ setup(
         "PyYAML>=6",
         "mcap>=1.6",
         "tqdm>=4.60",
+        "matplotlib>=3.7",
     ],
     zip_safe=True,
     maintainer="sweep_ros developers",

@@ -10,7 +10,7 @@ from dataclasses import asdict
 from importlib import resources
 from pathlib import Path
 
-from . import topics
+from . import analysis_cli, paths, topics
 from .errors import SweepError
 from .projection import SolverOptions
 from .recording import Recorder
@@ -32,10 +32,13 @@ def load_scene(path: str | None) -> Scene:
     return Scene.from_yaml(path or default_scene_path())
 
 
-def run_metadata(scene: Scene, sim: Simulator, t_end: float | None) -> dict[str, str]:
+def run_metadata(scene: Scene, sim: Simulator, t_end: float | None,
+                 record_every: int | None = None) -> dict[str, str]:
     """What a recording needs to be re-simulated: scene, seed, dt, scheme, solver, versions."""
     return {"scene": scene.to_yaml(), "seed": str(sim.seed), "dt": repr(sim.dt),
-            "t_end": "" if t_end is None else repr(t_end), "scheme": sim.scheme.name,
+            "t_end": "" if t_end is None else repr(t_end),
+            "record_every": "" if record_every is None else str(record_every),
+            "scheme": sim.scheme.name,
             "solver": json.dumps(asdict(sim.scheme.solver)), "versions": json.dumps(versions())}
 
 
@@ -47,7 +50,9 @@ def _run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     stats = {"min_gap": math.inf, "contacts_max": 0, "contacts_sum": 0, "steps": 0}
 
-    with Recorder(out, metadata=run_metadata(scene, sim, args.t_end)) as rec:
+    meta = run_metadata(scene, sim, args.t_end, args.record_every)
+    meta["path_dt"] = repr(args.path_dt) if args.path_dt else ""
+    with Recorder(out, metadata=meta) as rec:
         for name, msgtype in topics.TYPES.items():
             rec.add_channel("/" + name, msgtype)
 
@@ -65,7 +70,10 @@ def _run(args: argparse.Namespace) -> int:
 
         record(sim)
         start = time.perf_counter()
-        sim.run(args.t_end, progress=not args.quiet, callback=record)
+        if args.path_dt:
+            paths.run(sim, args.t_end, args.path_dt, progress=not args.quiet, callback=record)
+        else:
+            sim.run(args.t_end, progress=not args.quiet, callback=record)
         wall = time.perf_counter() - start
     steps = stats["steps"]
     summary = {
@@ -107,8 +115,12 @@ def build_parser() -> argparse.ArgumentParser:
                      help="QP tolerance, m (default %(default)g)")
     run.add_argument("--max-iter", type=int, default=SolverOptions.max_iter,
                      help="proxsuite iterations before the exact fallback")
+    run.add_argument("--path-dt", type=float, default=None, metavar="FINE",
+                     help="draw the Brownian path at FINE s and sum dt/FINE increments per step, "
+                          "so runs at different dt share one path (sweep compare)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_run)
+    analysis_cli.register(sub)
     return parser
 
 

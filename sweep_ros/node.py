@@ -146,6 +146,7 @@ class SweepNode(Node):
         self._p = self._declare_parameters()
         self._closed = False
         self.recorder: RecordWriter | None = None
+        self._parameter_changes = 0
         try:
             self.scene = load_scene(os.path.expanduser(self._p["scene"]))
             self.sim = Simulator(self.scene, dt=self._p["dt"], seed=self._p["seed"],
@@ -509,6 +510,12 @@ class SweepNode(Node):
                 self._last_tick_start = None
             elif p.name == "noise_sigma":
                 self._apply_sigma()
+                if self.recorder is not None:  # replay needs every live change of the model
+                    self._parameter_changes += 1
+                    self.recorder.metadata(f"parameter_{self._parameter_changes:06d}", {
+                        "name": p.name, "value": json.dumps(p.value),
+                        "step": str(self.sim.n_steps),
+                        "log_time_ns": str(self._log_ns(self.sim.t))})
             elif p.name == "marker_height":
                 self._agent_markers = messages.AgentMarkers(self.frame_id, p.value)
                 self._publish_walls()
