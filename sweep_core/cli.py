@@ -1,4 +1,5 @@
-"""The ``sweep`` command: ``sweep run [SCENE] ...`` runs a scene headless and records it."""
+"""The ``sweep`` command: ``run`` a scene headless and record it, ``analyze``, ``replay`` and
+``compare`` recordings, ``bench accuracy`` and ``bench speed``."""
 from __future__ import annotations
 
 import argparse
@@ -10,7 +11,7 @@ from dataclasses import asdict
 from importlib import resources
 from pathlib import Path
 
-from . import analysis_cli, paths, topics
+from . import analysis_cli, bench, paths, topics
 from .errors import SweepError
 from .projection import SolverOptions
 from .recording import Recorder
@@ -121,6 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_run)
     analysis_cli.register(sub)
+    bench.register(sub)
     return parser
 
 

@@ -68,7 +68,7 @@ class Projection:
 
     y: (N, 2) projected positions (m); rows: the rows built; lam_pair (P,), lam_single (M,):
     multipliers (>= 0) of the rows, the reaction of each contact is lam * gradient;
-    active: number of rows with a positive multiplier or zero residual; qp_size: number of
+    active: number of rows that hold with equality (residual <= ROW_TOLERANCE); qp_size: number of
     agents in the QP (0 when the prediction was already feasible); solves: QP solves done.
     """
 
@@ -278,8 +278,9 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
         if 2.0 * moved <= cut:
             break
         cut = 3.0 * moved
-    active = int(np.count_nonzero((lam_p > 0) | (rp <= ROW_TOLERANCE))
-                 + np.count_nonzero((lam_s > 0) | (rs <= ROW_TOLERANCE)))
+    # a row is active when it holds with equality (to the solver tolerance); an interior-point
+    # solver leaves tiny positive multipliers on slack rows, so multipliers are not counted
+    active = int(np.count_nonzero(rp <= ROW_TOLERANCE) + np.count_nonzero(rs <= ROW_TOLERANCE))
     return Projection(y, rows, lam_p, lam_s, active, qp_size, solves)
 
 
