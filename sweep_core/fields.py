@@ -6,7 +6,7 @@ bounds |U| (m/s) and feeds the constraint cutoff.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field as dc_field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -205,7 +205,7 @@ def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift") -> F
                       offset=checks.vec2(spec.get("offset", [0.0, 0.0]), f"{field}.offset"))
     if kind == "per_agent":
         return PerAgent(velocities=checks.array(spec["velocities"], f"{field}.velocities",
-                                                (n_agents, 2), f"(one [vx, vy] per agent)"))
+                                                (n_agents, 2), "(one [vx, vy] per agent)"))
     if kind == "grid":
         return grid_field(spec["x"], spec["y"], spec["vx"], spec["vy"], field)
     return NoDrift()

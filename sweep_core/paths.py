@@ -85,21 +85,5 @@ def run(sim: Simulator, t_end: float, path_dt: float, progress: bool = False,
         raise SceneError("path_dt", f"the simulator is at step {sim.n_steps}, not at t = 0",
                          "call sim.reset() first")
     path = FinePath(sim.seed, sim.dt, path_dt, sim.scene.n_agents)
-    t_end = checks.number(t_end, "t_end", nonnegative=True)
-    steps = int(round(t_end / sim.dt))
-    sim.scene.check_horizon(t_end)
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=steps, unit="step", dynamic_ncols=True)
-    try:
-        for _ in range(steps):
-            step(sim, path)
-            if callback is not None:
-                callback(sim)
-            if bar is not None:
-                bar.update()
-    finally:
-        if bar is not None:
-            bar.close()
+    sim.run(t_end, progress=progress, callback=callback, increments=path.increment)
     return path

@@ -175,8 +175,13 @@ class Simulator:
             self._advance(None if dB is None else dB[k])
 
     def run(self, t_end: float, progress: bool = False,
-            callback: Callable[["Simulator"], None] | None = None) -> None:
-        """Step until t_end (s), calling callback(self) after every step."""
+            callback: Callable[["Simulator"], None] | None = None,
+            increments: Callable[[], np.ndarray] | None = None) -> None:
+        """Step until t_end (s), calling callback(self) after every step.
+
+        increments: source of the Brownian increments (N, 2), called once per step in which
+        sigma is not zero everywhere; by default they are drawn from the seeded path.
+        """
         t_end = checks.number(t_end, "t_end", nonnegative=True)
         steps = int(round((t_end - self.t) / self.dt))
         if steps < 0:
@@ -188,7 +193,8 @@ class Simulator:
             bar = tqdm(total=steps, unit="step", dynamic_ncols=True)
         try:
             for _ in range(steps):
-                self._advance(None)
+                self._advance(increments() if increments is not None and np.any(self._sigma)
+                              else None)
                 if callback is not None:
                     callback(self)
                 if bar is not None:

@@ -2,13 +2,11 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import sweep_core as sc
-from sweep_core import cdr
 from sweep_core.cli import main
 from sweep_core.recording import read_metadata
 
