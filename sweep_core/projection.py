@@ -218,10 +218,15 @@ def _clarabel(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverO
     Interior-point iterations do not depend on the multipliers being unique, so dense jams
     (reference §6) cost no more than loose crowds."""
     n, m = c.shape[1], c.shape[0]
+    if m == 0:
+        return target.copy(), np.zeros(0), True
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = 1e-12
     settings.max_iter = 200
+    # the supernodal 'faer' factorisation (the default in Clarabel 0.11) is several times
+    # slower than qdldl on these mesh-like KKT systems (374 ms against 2.7 s at 4000 jammed)
+    settings.direct_solve_method = "qdldl"
     solver = clarabel.DefaultSolver(sp.identity(n, format="csc"), -target, sp.csc_matrix(-c),
                                     -(b + opts.eps_abs), [clarabel.NonnegativeConeT(m)], settings)
     sol = solver.solve()
