@@ -115,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--eps-abs", type=float, default=SolverOptions.eps_abs,
                      help="QP tolerance, m (default %(default)g)")
     run.add_argument("--max-iter", type=int, default=SolverOptions.max_iter,
-                     help="proxsuite iterations before the exact fallback")
+                     help="iteration cap of the proxsuite backend")
     run.add_argument("--path-dt", type=float, default=None, metavar="FINE",
                      help="draw the Brownian path at FINE s and sum dt/FINE increments per step, "
                           "so runs at different dt share one path (sweep compare)")
