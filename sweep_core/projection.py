@@ -156,10 +156,8 @@ def _clusters(c: sp.csc_matrix) -> tuple[int, np.ndarray, np.ndarray]:
 def _solve_qp(target: np.ndarray, c: sp.csc_matrix, b: np.ndarray, opts: SolverOptions
               ) -> tuple[np.ndarray, np.ndarray, bool]:
     """min 1/2 |x - target|^2 s.t. c x >= b, cluster by cluster (clusters of agents linked by
-    rows are independent QPs). A cluster of up to ``exact_max`` variables is solved exactly by
-    :func:`_ldp`; a larger one by proxsuite, falling back to :func:`_ldp` (up to
-    ``dense_fallback`` variables) where proxsuite does not converge, as happens when the
-    multipliers are not unique in dense jams (reference §6)."""
+    rows are independent QPs): single-row clusters in closed form, the others by
+    :func:`_solve_cluster`. Returns x, multipliers >= 0 and whether every cluster was solved."""
     count, col_label, row_label = _clusters(c)
     x, lam = target.copy(), np.zeros(c.shape[0])
     cr = c.tocsr()
@@ -179,7 +177,7 @@ def _solve_qp(target: np.ndarray, c: sp.csc_matrix, b: np.ndarray, opts: SolverO
         cols = order_c[starts_c[k]:starts_c[k + 1]]
         rws = order_r[starts_r[k]:starts_r[k + 1]]
         sub = cr[rws][:, cols]
-        found = _best(target[cols], sub, b[rws], opts)
+        found = _solve_cluster(target[cols], sub, b[rws], opts)
         if found is None:
             return x, lam, False
         xk, lk = found
@@ -187,28 +185,20 @@ def _solve_qp(target: np.ndarray, c: sp.csc_matrix, b: np.ndarray, opts: SolverO
     return x, lam, True
 
 
-def _best(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverOptions
-          ) -> tuple[np.ndarray, np.ndarray] | None:
-    """Solve one cluster with the chosen backend; where it does not converge the active-set
-    solver is tried, and of the candidates whose rows hold (to ROW_TOLERANCE) the one
-    nearest to the target is returned."""
-    first = _proxsuite_csr if opts.backend == "proxsuite" else _clarabel
-    solvers = [first, _ldp_csr]
-    best, best_dist = None, np.inf
-    for solver in solvers:
-        if solver is _ldp_csr and c.shape[1] > opts.dense_fallback:
-            continue
-        x, lam, ok = solver(target, c, b, opts)
-        if not ok or not np.all(np.isfinite(x)):
-            continue
-        if (c @ x - b).min() < -ROW_TOLERANCE:
-            continue
-        dist = float(np.sum((x - target) ** 2))
-        if dist < best_dist:
-            best, best_dist = (x, lam), dist
-        if solver is solvers[0]:
-            break  # the first choice converged and is feasible
-    return best
+def _solve_cluster(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverOptions
+                   ) -> tuple[np.ndarray, np.ndarray] | None:
+    """Solve one cluster with the chosen backend; where it fails, or its answer breaks a row
+    by more than ROW_TOLERANCE, with the exact active-set solver (clusters of up to
+    ``dense_fallback`` variables). None if neither gives an answer whose rows hold."""
+    attempts = [lambda: (_proxsuite(target, c.tocsc(), b, opts) if opts.backend == "proxsuite"
+                         else _clarabel(target, c, b, opts))]
+    if c.shape[1] <= opts.dense_fallback:
+        attempts.append(lambda: _ldp(target, c.toarray(), b))
+    for attempt in attempts:
+        x, lam, ok = attempt()
+        if ok and np.all(np.isfinite(x)) and (c @ x - b).min() >= -ROW_TOLERANCE:
+            return x, lam
+    return None
 
 
 def _clarabel(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverOptions
@@ -232,14 +222,6 @@ def _clarabel(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverO
     sol = solver.solve()
     ok = str(sol.status) in ("Solved", "AlmostSolved")
     return np.array(sol.x), np.maximum(np.array(sol.z), 0.0), ok
-
-
-def _ldp_csr(target, c, b, opts):
-    return _ldp(target, c.toarray(), b)
-
-
-def _proxsuite_csr(target, c, b, opts):
-    return _proxsuite(target, c.tocsc(), b, opts)
 
 
 def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
