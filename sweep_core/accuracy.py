@@ -330,22 +330,29 @@ def study_rbm_ou(cfg: StudyConfig, log=print) -> list[Measurement]:
     return out
 
 
+def _deterministic_sup(cfg: StudyConfig, problem: str, scene: Scene, t_end: float, dt0: float,
+                       log, error: Callable[[Simulator], float]) -> list[Measurement]:
+    """Sup over the grid of error(sim) (m) for every variant and dt level of a sigma = 0
+    problem with an exact solution."""
+    out = []
+    for v in variants(cfg, False):
+        for dt in _levels(dt0, cfg.levels):
+            worst = [0.0]
+            wall, sub = _run(scene, v, dt, None, int(round(t_end / dt)),
+                             lambda s: worst.__setitem__(0, max(worst[0], error(s))))
+            out.append(Measurement(problem, "sup", v.label, dt, v.tol, worst[0], 0.0,
+                                   wall / t_end, sub, 1))
+    log(f"  {problem}: done")
+    return out
+
+
 def study_moving_wall(cfg: StudyConfig, log=print) -> list[Measurement]:
     x0, r, c0, vel, t_end, dt0 = 0.5, 0.25, -1.0, 0.5, 3.5, cfg.det_dt0
     scene = Scene.from_dict({
         "agents": {"positions": [[x0, 0.0]], "radius": r},
         "walls": [{"kind": "halfplane", "normal": [1, 0], "offset": c0, "velocity": vel}]})
-    out = []
-    for v in variants(cfg, False):
-        for dt in _levels(dt0, cfg.levels):
-            steps = int(round(t_end / dt))
-            err = [0.0]
-            wall, sub = _run(scene, v, dt, None, steps, lambda s: err.__setitem__(0, max(
-                err[0], abs(s.positions[0, 0] - max(x0, c0 + vel * s.t + r)))))
-            out.append(Measurement("moving_wall", "sup", v.label, dt, v.tol, err[0], 0.0,
-                                   wall / t_end, sub, 1))
-    log("  moving_wall: done")
-    return out
+    return _deterministic_sup(cfg, "moving_wall", scene, t_end, dt0, log, lambda s: abs(
+        s.positions[0, 0] - max(x0, c0 + vel * s.t + r)))
 
 
 def circle_exact(t: np.ndarray, rho: float, speed: float, theta0: float) -> np.ndarray:
@@ -366,18 +373,8 @@ def study_circle(cfg: StudyConfig, log=print) -> list[Measurement]:
         "agents": {"positions": [start.tolist()], "radius": r},
         "obstacles": [{"kind": "circle", "center": [0.0, 0.0], "radius": big_r}],
         "drift": {"kind": "uniform", "velocity": [speed, 0.0]}})
-    out = []
-    for v in variants(cfg, False):
-        for dt in _levels(dt0, cfg.levels):
-            steps = int(round(t_end / dt))
-            err = [0.0]
-            wall, sub = _run(scene, v, dt, None, steps, lambda s: err.__setitem__(0, max(
-                err[0], float(np.hypot(*(s.positions[0] - circle_exact(np.array(s.t), rho, speed,
-                                                                         theta0)))))))
-            out.append(Measurement("circle", "sup", v.label, dt, v.tol, err[0], 0.0,
-                                   wall / t_end, sub, 1))
-    log("  circle: done")
-    return out
+    return _deterministic_sup(cfg, "circle", scene, t_end, dt0, log, lambda s: float(
+        np.hypot(*(s.positions[0] - circle_exact(np.array(s.t), rho, speed, theta0)))))
 
 
 # -- problem (b) ------------------------------------------------------------------------------
