@@ -130,18 +130,6 @@ def test_dense_jam_never_overlaps():
     assert sim.contacts > 300  # it really is a jam
 
 
-def test_seeded_runs_are_bit_for_bit_reproducible():
-    scene = sc.Scene.from_dict(hex_jam(5, 6, sigma=0.2))
-    a, b, c = (sc.Simulator(scene, dt=0.01, seed=s) for s in (11, 11, 12))
-    for sim in (a, b, c):
-        sim.step(50)
-    assert np.array_equal(a.positions, b.positions)
-    assert not np.array_equal(a.positions, c.positions)
-    a.reset()
-    a.step(50)
-    assert np.array_equal(a.positions, b.positions)
-
-
 def test_growing_radii_that_cannot_fit_raise_at_the_right_time_and_keep_the_state():
     scene = sc.Scene.from_dict({
         "agents": {"positions": [[0.5, 0.0]], "radius": 0.2,
