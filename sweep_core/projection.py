@@ -224,6 +224,15 @@ def _clarabel(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverO
     return np.array(sol.x), np.maximum(np.array(sol.z), 0.0), ok
 
 
+def first_cutoff(q: np.ndarray, pred: np.ndarray, r1: np.ndarray) -> float:
+    """The cutoff (m) rows are first built with: 3 max_i |p_i - q_i| + 1e-3 max r.
+
+    A margin beyond the provable 2 max|p - q|: a projection usually moves agents a little
+    further than their prediction, and a second build costs more than a few extra rows."""
+    step = np.sqrt(np.einsum("ij,ij->i", pred - q, pred - q))
+    return 3.0 * float(step.max()) + 1e-3 * float(r1.max())
+
+
 def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
             opts: SolverOptions) -> Projection:
     """Project the prediction pred (N, 2) onto C~(t1, q); q (N, 2) at t_n, r1 (N,) at t1.
@@ -234,10 +243,7 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
     if n == 0:
         empty = linearise(geom, t1, q, r1, 0.0)
         return Projection(pred.copy(), empty, np.empty(0), np.empty(0), 0, 0, 0)
-    step = np.sqrt(np.einsum("ij,ij->i", pred - q, pred - q))
-    # margin beyond the provable 2 max|p - q|: a projection usually moves agents a little
-    # further than their prediction, and a second build costs more than a few extra rows
-    cut = 3.0 * float(step.max()) + 1e-3 * float(r1.max())
+    cut = first_cutoff(q, pred, r1)
     solves = 0
     while True:
         rows = linearise(geom, t1, q, r1, cut)

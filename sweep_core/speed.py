@@ -42,8 +42,7 @@ def _baseline(sim: Simulator, pred: np.ndarray, q: np.ndarray, t1: float) -> flo
     """Seconds to assemble the step's linearised QP and solve it as one Clarabel problem."""
     start = time.perf_counter()
     r1 = sim.scene.radii(t1)
-    cut = 3.0 * float(np.sqrt(((pred - q) ** 2).sum(axis=1)).max()) + 1e-3 * float(r1.max())
-    rows = linearise(sim.scene.geometry, t1, q, r1, cut)
+    rows = linearise(sim.scene.geometry, t1, q, r1, projection.first_cutoff(q, pred, r1))
     agents = rows.agents()
     loc = np.full(len(q), -1, dtype=np.intp)
     loc[agents] = np.arange(len(agents))
@@ -58,14 +57,16 @@ def measure(n: int, jammed: bool, steps: int, warmup: int, baseline: bool) -> di
     floor, step, base = [], [], []
     for _ in range(steps):
         q, t1 = sim.positions, sim.t + sim.dt
-        r1 = sim.scene.radii(t1)
-        start = time.perf_counter()
-        linearise(sim.scene.geometry, t1, q, r1, 3.0 * 0.05)
-        floor.append(time.perf_counter() - start)
         start = time.perf_counter()
         sim.step()
         step.append(time.perf_counter() - start)
-        if baseline and sim.last is not None:
+        # the floor of that step: assembly at the cutoff the step itself started from
+        r1 = sim.scene.radii(t1)
+        start = time.perf_counter()
+        linearise(sim.scene.geometry, t1, q, r1,
+                  projection.first_cutoff(q, sim.last.prediction, r1))
+        floor.append(time.perf_counter() - start)
+        if baseline:
             base.append(_baseline(sim, sim.last.prediction, q, t1))
     ms = {k: 1e3 * np.array(v) for k, v in (("floor", floor), ("step", step), ("base", base))}
     out = {"N": n, "scene": "jammed" if jammed else "free", "contacts": sim.contacts}
