@@ -45,7 +45,7 @@ def run_metadata(scene: Scene, sim: Simulator, t_end: float | None,
 
 def _run(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene)
-    solver = SolverOptions.from_values(args.eps_abs, args.max_iter)
+    solver = SolverOptions.from_values(args.eps_abs, args.max_iter, exact_vars=args.exact_vars)
     sim = Simulator(scene, dt=args.dt, seed=args.seed, scheme=args.scheme, solver=solver)
     scene.check_horizon(args.t_end)
     out = Path(args.out)
@@ -116,6 +116,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="QP tolerance, m (default %(default)g)")
     run.add_argument("--max-iter", type=int, default=SolverOptions.max_iter,
                      help="iteration cap of the proxsuite backend")
+    run.add_argument("--exact-vars", type=int, default=SolverOptions.exact_vars, metavar="V",
+                     help="contact clusters of up to V variables (2 per agent) are solved exactly "
+                          "by the active-set solver, larger ones by the interior-point backend "
+                          "(default %(default)d)")
     run.add_argument("--path-dt", type=float, default=None, metavar="FINE",
                      help="draw the Brownian path at FINE s and sum dt/FINE increments per step, "
                           "so runs at different dt share one path (sweep compare)")

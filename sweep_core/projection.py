@@ -40,16 +40,21 @@ class SolverOptions:
         active-set NNLS solver when the backend fails.
     backend: "clarabel" (default: interior point, robust in dense jams) or "proxsuite"
         (proxsuite 0.8.0 can stall inside its solve on degenerate jam QPs; see README).
+    exact_vars: clusters of up to this many variables (2 per agent) are solved first by the
+        exact active-set solver (:func:`_ldp`), the backend only if it fails. Up to about 64
+        agents that solver is also the faster one; above, it costs O(n^3) but is exact where
+        the interior-point backend stops about 1e-6 m short in degenerate jams (README).
     """
 
     eps_abs: float = 1e-10
     max_iter: int = 1000
     dense_fallback: int = 4000
     backend: str = "clarabel"
+    exact_vars: int = 128
 
     @classmethod
     def from_values(cls, eps_abs: float = 1e-10, max_iter: int = 1000,
-                    backend: str = "clarabel") -> "SolverOptions":
+                    backend: str = "clarabel", exact_vars: int = 128) -> "SolverOptions":
         eps = checks.number(eps_abs, "solver.eps_abs", positive=True)
         if eps > 1e-9:
             raise SceneError("solver.eps_abs", f"{eps:g} m would allow overlaps above 1e-9 m",
@@ -59,7 +64,11 @@ class SolverOptions:
         if backend not in ("clarabel", "proxsuite"):
             raise SceneError("solver.backend", f"unknown backend {backend!r}",
                              "use 'clarabel' or 'proxsuite'")
-        return cls(eps, int(max_iter), backend=backend)
+        if (isinstance(exact_vars, bool) or not isinstance(exact_vars, (int, np.integer))
+                or exact_vars < 0):
+            raise SceneError("solver.exact_vars", f"must be an integer >= 0, got {exact_vars!r}",
+                             "use 0 to send every cluster to the backend")
+        return cls(eps, int(max_iter), backend=backend, exact_vars=int(exact_vars))
 
 
 @dataclass(frozen=True)
@@ -69,7 +78,10 @@ class Projection:
     y: (N, 2) projected positions (m); rows: the rows built; lam_pair (P,), lam_single (M,):
     multipliers (>= 0) of the rows, the reaction of each contact is lam * gradient;
     active: number of rows that hold with equality (residual <= ROW_TOLERANCE); qp_size: number of
-    agents in the QP (0 when the prediction was already feasible); solves: QP solves done.
+    agents in the QP (0 when the prediction was already feasible); solves: QP solves done;
+    backend_agents: agents whose cluster was solved by the interior-point backend rather than
+    exactly (closed form or active set), i.e. to the backend's tolerance (about 1e-6 m in
+    degenerate jams) instead of to rounding.
     """
 
     y: np.ndarray
@@ -79,6 +91,7 @@ class Projection:
     active: int
     qp_size: int
     solves: int
+    backend_agents: int = 0
 
 
 def _row_matrix(rows: Rows, loc: np.ndarray, m: int) -> tuple[sp.csc_matrix, np.ndarray]:
@@ -154,10 +167,11 @@ def _clusters(c: sp.csc_matrix) -> tuple[int, np.ndarray, np.ndarray]:
 
 
 def _solve_qp(target: np.ndarray, c: sp.csc_matrix, b: np.ndarray, opts: SolverOptions
-              ) -> tuple[np.ndarray, np.ndarray, bool]:
+              ) -> tuple[np.ndarray, np.ndarray, bool, int]:
     """min 1/2 |x - target|^2 s.t. c x >= b, cluster by cluster (clusters of agents linked by
     rows are independent QPs): single-row clusters in closed form, the others by
-    :func:`_solve_cluster`. Returns x, multipliers >= 0 and whether every cluster was solved."""
+    :func:`_solve_cluster`. Returns x, multipliers >= 0, whether every cluster was solved and
+    the number of variables solved by the backend rather than exactly."""
     count, col_label, row_label = _clusters(c)
     x, lam = target.copy(), np.zeros(c.shape[0])
     cr = c.tocsr()
@@ -173,31 +187,37 @@ def _solve_qp(target: np.ndarray, c: sp.csc_matrix, b: np.ndarray, opts: SolverO
         lam1 = np.maximum(0.0, (b[r1] - row @ target) / np.asarray(row.multiply(row).sum(axis=1)).ravel())
         lam[r1] = lam1
         x += np.asarray(row.T @ lam1).ravel()
+    by_backend = 0
     for k in np.nonzero(n_rows > 1)[0]:
         cols = order_c[starts_c[k]:starts_c[k + 1]]
         rws = order_r[starts_r[k]:starts_r[k + 1]]
         sub = cr[rws][:, cols]
         found = _solve_cluster(target[cols], sub, b[rws], opts)
         if found is None:
-            return x, lam, False
-        xk, lk = found
+            return x, lam, False, by_backend
+        xk, lk, exact = found
         x[cols], lam[rws] = xk, lk
-    return x, lam, True
+        by_backend += 0 if exact else len(cols)
+    return x, lam, True, by_backend
 
 
 def _solve_cluster(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverOptions
-                   ) -> tuple[np.ndarray, np.ndarray] | None:
-    """Solve one cluster with the chosen backend; where it fails, or its answer breaks a row
-    by more than ROW_TOLERANCE, with the exact active-set solver (clusters of up to
-    ``dense_fallback`` variables). None if neither gives an answer whose rows hold."""
-    attempts = [lambda: (_proxsuite(target, c.tocsc(), b, opts) if opts.backend == "proxsuite"
-                         else _clarabel(target, c, b, opts))]
-    if c.shape[1] <= opts.dense_fallback:
-        attempts.append(lambda: _ldp(target, c.toarray(), b))
-    for attempt in attempts:
+                   ) -> tuple[np.ndarray, np.ndarray, bool] | None:
+    """Solve one cluster: clusters of up to ``exact_vars`` variables by the exact active-set
+    solver first, then the backend; larger ones by the backend first, then (up to
+    ``dense_fallback`` variables) the exact solver. An answer is taken only if every row holds
+    to ROW_TOLERANCE. Returns x, multipliers and whether the exact solver produced them; None
+    if no attempt gives an answer whose rows hold."""
+    n = c.shape[1]
+    exact = (True, lambda: _ldp(target, c.toarray(), b))
+    backend = (False, lambda: (_proxsuite(target, c.tocsc(), b, opts)
+                               if opts.backend == "proxsuite" else _clarabel(target, c, b, opts)))
+    attempts = ([exact, backend] if n <= opts.exact_vars
+                else [backend] + ([exact] if n <= opts.dense_fallback else []))
+    for is_exact, attempt in attempts:
         x, lam, ok = attempt()
         if ok and np.all(np.isfinite(x)) and (c @ x - b).min() >= -ROW_TOLERANCE:
-            return x, lam
+            return x, lam, is_exact
     return None
 
 
@@ -220,7 +240,9 @@ def _clarabel(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverO
     solver = clarabel.DefaultSolver(sp.identity(n, format="csc"), -target, sp.csc_matrix(-c),
                                     -(b + opts.eps_abs), [clarabel.NonnegativeConeT(m)], settings)
     sol = solver.solve()
-    ok = str(sol.status) in ("Solved", "AlmostSolved")
+    # "AlmostSolved" means Clarabel's reduced tolerances (about 1e-5 here), far from the
+    # projection although the rows may hold: refused, so the exact solver takes over
+    ok = str(sol.status) == "Solved"
     return np.array(sol.x), np.maximum(np.array(sol.z), 0.0), ok
 
 
@@ -250,14 +272,14 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
         rp, rs = rows.residuals(pred)
         lam_p, lam_s = np.zeros(len(rp)), np.zeros(len(rs))
         y = pred.copy()
-        qp_size = 0
+        qp_size = by_backend = 0
         if (len(rp) and rp.min() < 0) or (len(rs) and rs.min() < 0):
             agents = rows.agents()
             qp_size = len(agents)
             loc = np.full(n, -1, dtype=np.intp)
             loc[agents] = np.arange(qp_size)
             c, b = _row_matrix(rows, loc, qp_size)
-            x, lam, ok = _solve_qp(pred[agents].ravel(), c, b, opts)
+            x, lam, ok, by_backend = _solve_qp(pred[agents].ravel(), c, b, opts)
             solves += 1
             y[agents] = x.reshape(-1, 2)
             rp, rs = rows.residuals(y)
@@ -274,7 +296,7 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
     # a row is active when it holds with equality (to the solver tolerance); an interior-point
     # solver leaves tiny positive multipliers on slack rows, so multipliers are not counted
     active = int(np.count_nonzero(rp <= ROW_TOLERANCE) + np.count_nonzero(rs <= ROW_TOLERANCE))
-    return Projection(y, rows, lam_p, lam_s, active, qp_size, solves)
+    return Projection(y, rows, lam_p, lam_s, active, qp_size, solves, by_backend // 2)
 
 
 def _culprits(rows: Rows, rp: np.ndarray, rs: np.ndarray, count: int = 6) -> list[int]:

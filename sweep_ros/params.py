@@ -79,6 +79,10 @@ SPECS: tuple[ParamSpec, ...] = (
               False, 1e-15, 1e-9),
     ParamSpec("solver_max_iter", _DEFAULT_SOLVER.max_iter, "QP iterations before the exact "
               "fallback solver.", False, 1, 1000000),
+    ParamSpec("solver_exact_vars", _DEFAULT_SOLVER.exact_vars, "Contact clusters of up to this "
+              "many variables (2 per agent) are solved exactly by the active-set solver; larger "
+              "ones by the interior-point backend (about 1e-6 m in degenerate jams).",
+              False, 0, 100000),
 )
 
 BY_NAME: dict[str, ParamSpec] = {s.name: s for s in SPECS}
@@ -149,7 +153,8 @@ def check_value(name: str, value: Any) -> str | None:
 
 def solver_options(values: Mapping[str, Any]) -> SolverOptions:
     """SolverOptions from the solver_* parameters (raises SceneError naming solver.*)."""
-    return SolverOptions.from_values(values["solver_eps_abs"], values["solver_max_iter"])
+    return SolverOptions.from_values(values["solver_eps_abs"], values["solver_max_iter"],
+                                     exact_vars=values["solver_exact_vars"])
 
 
 def check_start(values: Mapping[str, Any]) -> list[str]:

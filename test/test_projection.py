@@ -3,10 +3,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.optimize import nnls
 
 import sweep_core as sc
 from sweep_core import projection
 from sweep_core.constraints import linearise
+
+from scenes import hex_jam
 
 
 def random_crowd(rng: np.random.Generator, n: int, box: float, r: float) -> np.ndarray:
@@ -54,3 +57,66 @@ def test_far_pairs_are_never_built():
     d = np.hypot(*(q[rows.pair_i] - q[rows.pair_j]).T) - 0.4
     assert np.all(d <= 0.05)
     assert len(rows.single_b) == 0  # no walls, no wall rows
+
+
+def kkt_gap(scene: sc.Scene, t1: float, q: np.ndarray, pred: np.ndarray, y: np.ndarray
+            ) -> tuple[float, float]:
+    """A check independent of the solvers: the worst row residual at y (every row built), and
+    how far y - pred is from the cone of the gradients of the rows active at y (m)."""
+    rows = linearise(scene.geometry, t1, q, scene.radii(t1), np.inf)
+    n = len(q)
+    c, b = projection._row_matrix(rows, np.arange(n), n)
+    s = c @ y.ravel() - b
+    active = s <= 1e-8
+    _, dist = nnls(c[active].T.toarray(), (y - pred).ravel())
+    return float(s.min()), float(dist)
+
+
+def jam_steps(spec: dict, seed: int, steps: int, opts: sc.SolverOptions):
+    """(scene, t1, q, prediction, projection) of each step of a jam after two warm-up steps."""
+    scene = sc.Scene.from_dict(spec)
+    sim = sc.Simulator(scene, dt=0.01, seed=seed, solver=opts)
+    sim.step(2)
+    for _ in range(steps):
+        q, t1 = sim.positions, sim.t + sim.dt
+        sim.step()
+        yield scene, t1, q, sim.last.prediction, sim.last.projection
+
+
+def random_jam(seed: int, n: int = 40) -> dict:
+    """n disks placed at random in a 3.2 m box, all heading for its centre, with noise."""
+    q = random_crowd(np.random.default_rng(seed), n, 3.2, 0.2)
+    return {"agents": {"positions": q.tolist(), "radius": 0.2},
+            "drift": {"kind": "goal", "goal": [1.6, 1.6], "speed": 2.0},
+            "noise": {"sigma": 0.2}}
+
+
+@pytest.mark.parametrize("spec", [hex_jam(6, 6), hex_jam(8, 8), random_jam(0), random_jam(1),
+                                  random_jam(2)], ids=["hex36", "hex64", "rand0", "rand1", "rand2"])
+def test_jams_are_projected_exactly(spec):
+    """Dense, degenerate jams (more active rows than coordinates): the step's projection is
+    the exact one (active-set reference over every row) to 1e-8 m, not only to the
+    interior-point tolerance, and every row holds."""
+    for scene, t1, q, pred, proj in jam_steps(spec, seed=3, steps=6, opts=sc.SolverOptions()):
+        want = reference(scene, t1, q, pred)
+        assert np.max(np.abs(proj.y - want)) < 1e-8
+        worst, dist = kkt_gap(scene, t1, q, pred, proj.y)
+        assert worst >= -1e-9 and dist < 1e-8
+        assert proj.backend_agents == 0
+
+
+def test_larger_jams_are_exact_on_request():
+    """A 100-agent jam is one cluster of 200 variables: above exact_vars it goes to the
+    interior-point backend (counted in backend_agents); raising exact_vars makes it exact."""
+    spec = hex_jam(10, 10)
+    default = list(jam_steps(spec, seed=4, steps=3, opts=sc.SolverOptions()))
+    exact = list(jam_steps(spec, seed=4, steps=3, opts=sc.SolverOptions(exact_vars=400)))
+    assert max(p.backend_agents for *_, p in default) == 100
+    for scene, t1, q, pred, proj in exact:
+        assert proj.backend_agents == 0
+        assert np.max(np.abs(proj.y - reference(scene, t1, q, pred))) < 1e-8
+
+
+def test_exact_vars_is_validated():
+    with pytest.raises(sc.SceneError, match="solver.exact_vars"):
+        sc.SolverOptions.from_values(exact_vars=-1)
