@@ -2,6 +2,7 @@
 
     sweep bench accuracy [--quick] [--out bench_out] [--seed 0] [--problems rbm_wall crowd ...]
     sweep bench speed ...   (sweep_core.speed, registered here too)
+    sweep bench recording ...   (sweep_core.recording_bench)
 
 See :mod:`sweep_core.accuracy` for what is measured and how.
 """
@@ -22,14 +23,16 @@ def _accuracy(args: argparse.Namespace) -> int:
 
 
 def register(subparsers) -> None:
-    """Add ``bench`` (``bench accuracy``, and ``bench speed`` from :mod:`sweep_core.speed`)
-    to the ``sweep`` command's subparsers."""
-    from . import speed
+    """Add ``bench`` (``bench accuracy``, ``bench speed`` from :mod:`sweep_core.speed` and
+    ``bench recording`` from :mod:`sweep_core.recording_bench`) to the ``sweep`` command's
+    subparsers."""
+    from . import recording_bench, speed
     from .accuracy import PROBLEMS
 
     bench = subparsers.add_parser("bench", help="measured studies of the engine")
     sub = bench.add_subparsers(dest="bench", required=True)
     speed.register(sub)
+    recording_bench.register(sub)
     acc = sub.add_parser(
         "accuracy", help="error against dt, scheme and solver tolerance; Pareto plot",
         description="Error (95 % CI) against dt, scheme and solver tolerance on exact "

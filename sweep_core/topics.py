@@ -4,6 +4,8 @@ Shared by ``sweep run`` and the ROS node, so a recording looks the same whicheve
 """
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from . import cdr
@@ -34,3 +36,12 @@ def encode_state(state: State, frame_id: str = "map") -> dict[str, bytes]:
     ns = stamp_ns(state.t)
     return {POSES: cdr.encode_pose_array(ns, frame_id, state.positions),
             AGENTS: cdr.encode_point_cloud2(ns, frame_id, agent_fields(state))}
+
+
+def record_state(write: Callable[[str, int, bytes], None], state: State,
+                 frame_id: str = "map") -> None:
+    """Hand the payloads of a state to ``write("/" + topic, stamp_ns, data)``: what ``sweep run``
+    does on the stepping thread for every recorded step (``sweep bench recording`` times it)."""
+    ns = stamp_ns(state.t)
+    for name, data in encode_state(state, frame_id).items():
+        write("/" + name, ns, data)

@@ -12,7 +12,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import queue
 import signal
 import sys
 import threading
@@ -35,7 +34,7 @@ from visualization_msgs.msg import MarkerArray
 
 from sweep_core import InfeasibleError, SceneError, Simulator, SweepError, cdr, topics
 from sweep_core.cli import load_scene, run_metadata
-from sweep_core.recording import DEFAULT_QOS_PROFILES, Recorder
+from sweep_core.recording import DEFAULT_QOS_PROFILES, BackgroundRecorder
 
 from . import messages, msgdefs, params
 
@@ -61,70 +60,6 @@ def _qos_yaml(depth: int, transient_local: bool = False) -> str:
     return text
 
 
-class RecordWriter:
-    """Writes to a Recorder from a background thread; ``write``/``metadata`` only enqueue.
-
-    Channels are added up front (before the thread writes). An error of the Recorder (disk
-    full, ...) stops recording and is kept in ``error``; what was flushed stays readable.
-    """
-
-    def __init__(self, path: str, metadata: dict[str, str], flush_interval_s: float) -> None:
-        self.path = path
-        self.recorder = Recorder(path, metadata=metadata, flush_interval_s=flush_interval_s)
-        self.error: str | None = None
-        self.written = 0
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
-        self._thread = threading.Thread(target=self._run, name="sweep_node recorder",
-                                        daemon=True)
-        self._started = False
-
-    def add_channel(self, topic: str, msgtype: str, definition: str | None, qos: str) -> None:
-        self.recorder.add_channel(topic, msgtype, definition, offered_qos_profiles=qos)
-
-    def start(self) -> None:
-        self._started = True
-        self._thread.start()
-
-    def write(self, topic: str, log_time_ns: int, data: bytes) -> None:
-        if self.error is None:
-            self._queue.put((topic, log_time_ns, data))
-
-    def metadata(self, name: str, data: dict[str, str]) -> None:
-        if self.error is None:
-            self._queue.put((name, None, data))
-
-    @property
-    def backlog(self) -> int:
-        return self._queue.qsize()
-
-    def _run(self) -> None:
-        while True:
-            item = self._queue.get()
-            if item is None:
-                return
-            if self.error is not None:
-                continue
-            name, log_time, data = item
-            try:
-                if log_time is None:
-                    self.recorder.add_metadata(name, data)
-                else:
-                    self.recorder.write(name, log_time, data)
-                    self.written += 1
-            except SweepError as err:
-                self.error = str(err)
-
-    def close(self) -> None:
-        """Writes what is queued, the summary and the footer."""
-        if self._started:
-            self._queue.put(None)
-            self._thread.join()
-        try:
-            self.recorder.close()
-        except SweepError as err:
-            self.error = self.error or str(err)
-
-
 class _Window:
     """Timing accumulated between two diagnostics messages."""
 
@@ -145,7 +80,7 @@ class SweepNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         self._p = self._declare_parameters()
         self._closed = False
-        self.recorder: RecordWriter | None = None
+        self.recorder: BackgroundRecorder | None = None
         self._parameter_changes = 0
         try:
             self.scene = load_scene(os.path.expanduser(self._p["scene"]))
@@ -254,15 +189,17 @@ class SweepNode(Node):
                         "after a reset log times go on from the last one (records reset_*)",
         })
         try:
-            self.recorder = RecordWriter(os.path.expanduser(self._p["record"]), meta,
-                                         self._p["record_flush_interval_s"])
+            self.recorder = BackgroundRecorder(
+                os.path.expanduser(self._p["record"]), metadata=meta,
+                flush_interval_s=self._p["record_flush_interval_s"])
             for topic, msgtype in names.items():
                 definition = None if msgtype in cdr.SCHEMAS else msgdefs.definition(msgtype)
                 qos = _qos_yaml(1, True) if topic == self.pub_walls.topic_name else _qos_yaml(10)
-                self.recorder.add_channel(topic, msgtype, definition, qos)
+                self.recorder.add_channel(topic, msgtype, definition, offered_qos_profiles=qos)
         except (SweepError, msgdefs.MsgDefError) as err:
+            if self.recorder is not None:
+                self.recorder.close()
             raise StartError([f"parameter record: {err}"]) from err
-        self.recorder.start()
 
     def _apply_sigma(self) -> None:
         sigma = self._p["noise_sigma"]

@@ -418,6 +418,39 @@ def test_point_cloud2_round_trip(n, names):
         np.testing.assert_array_equal(cloud.fields[k], fields[k])
 
 
+def test_reused_buffers_carry_nothing_between_calls():
+    """The encoders reuse one output buffer per layout and thread: a yaw does not leak into the
+    next identity orientation, returned bytes never change, and threads do not mix."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    n = 7
+    pos = _positions(n, seed=3)
+    plain = cdr.encode_pose_array(STAMP, "map", pos)
+    turned = cdr.encode_pose_array(STAMP + 1, "map", 2 * pos, _yaw(n, seed=4))
+    assert cdr.encode_pose_array(STAMP, "map", pos) == plain
+    assert cdr.decode_pose_array_full(plain)[2][:, 3:].tolist() == [[0.0, 0.0, 0.0, 1.0]] * n
+    assert cdr.decode_pose_array(turned)[0] == STAMP + 1
+    np.testing.assert_array_equal(cdr.decode_pose_array(turned)[2], 2 * pos)
+    # a non-contiguous input and another frame id (another layout) in between
+    wide = np.column_stack([pos, pos])[:, 1:3]
+    assert cdr.decode_pose_array(cdr.encode_pose_array(0, "odom", wide))[2].tolist() == \
+        wide.tolist()
+    fields = _cloud_fields(["a", "b"], n, seed=5)
+    cloud = cdr.encode_point_cloud2(STAMP, "map", fields)
+    cdr.encode_point_cloud2(STAMP, "map", {"a": np.full(n, np.nan), "b": np.zeros(n)})
+    assert cdr.encode_point_cloud2(STAMP, "map", fields) == cloud
+
+    def job(seed: int) -> bool:
+        p = _positions(n, seed=seed)
+        f = _cloud_fields(["a", "b"], n, seed=seed)
+        want = (cdr.encode_pose_array(seed, "map", p), cdr.encode_point_cloud2(seed, "map", f))
+        return all((cdr.encode_pose_array(seed, "map", p),
+                    cdr.encode_point_cloud2(seed, "map", f)) == want for _ in range(200))
+
+    with ThreadPoolExecutor(4) as pool:
+        assert all(pool.map(job, range(8)))
+
+
 def test_point_cloud2_casts_and_flags_non_finite():
     n = 4
     cloud = cdr.decode_point_cloud2(cdr.encode_point_cloud2(

@@ -21,6 +21,7 @@ from sweep_core import cdr
 from sweep_core.errors import RecordingError, SweepError
 from sweep_core.recording import (
     DEFAULT_QOS_PROFILES,
+    BackgroundRecorder,
     Recorder,
     read_metadata,
     read_recording,
@@ -231,6 +232,34 @@ def test_custom_definition_and_empty_recording(tmp_path):
 # ---------------------------------------------------------------------------------------------
 # Errors
 # ---------------------------------------------------------------------------------------------
+
+
+def test_background_recorder_writes_in_order_and_keeps_errors(tmp_path):
+    path = tmp_path / "bg.mcap"
+    with BackgroundRecorder(path, metadata=META, max_backlog=4, flush_interval_s=None) as rec:
+        rec.add_channel("/clock", cdr.CLOCK)
+        for i in range(N_STEPS):
+            rec.write("/clock", _stamp(i), cdr.encode_clock(_stamp(i)))
+            if i == 9:
+                rec.flush()  # the first ten are on disk, readable from the unfinished file
+                assert [m.log_time_ns for m in read_recording(path)] == \
+                    [_stamp(k) for k in range(10)]
+        rec.metadata("late", {"k": "v"})
+    assert rec.error is None and rec.written == N_STEPS and rec.backlog == 0
+    got = [cdr.decode_clock(m.data) for m in read_recording(path)]
+    assert got == [_stamp(i) for i in range(N_STEPS)]
+    assert read_metadata(path) == {"sweep_ros": META, "late": {"k": "v"}}
+
+    # an error of the Recorder stops recording; what came before stays readable
+    rec = BackgroundRecorder(tmp_path / "bad.mcap", flush_interval_s=None)
+    rec.add_channel("/clock", cdr.CLOCK)
+    rec.write("/clock", 5, cdr.encode_clock(5))
+    rec.write("/nope", 6, b"")
+    rec.close()
+    rec.write("/clock", 7, cdr.encode_clock(7))  # dropped, no exception
+    rec.close()  # idempotent
+    assert "'/nope' has no channel" in rec.error and rec.written == 1
+    assert [m.log_time_ns for m in read_recording(tmp_path / "bad.mcap")] == [5]
 
 
 def test_errors(tmp_path):
