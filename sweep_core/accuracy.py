@@ -37,7 +37,6 @@ anybody in any variant, so the differences are the cost of modelling each featur
 """
 from __future__ import annotations
 
-import csv
 import dataclasses
 import math
 import time
@@ -48,6 +47,7 @@ from typing import Callable
 import numpy as np
 from scipy import stats
 
+from .bench import write_csv
 from .noise import generator
 from .projection import SolverOptions
 from .scene import Scene
@@ -524,15 +524,6 @@ def format_features(rows: list[dict]) -> str:
         lines.append(f"{r['scene']:<30}{r['ms_per_step']:>9.3f}{r['ratio_to_none']:>8.2f}"
                      f"{r['contacts']:>10}")
     return "\n".join(lines)
-
-
-def write_csv(path: Path, rows: list[dict]) -> None:
-    if not rows:
-        return
-    with path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
 
 
 def _mrow(m: Measurement) -> dict:

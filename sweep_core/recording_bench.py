@@ -19,13 +19,13 @@ writer. Times in ms per step, medians over the measured steps:
 from __future__ import annotations
 
 import argparse
-import csv
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from .bench import write_csv
 from . import topics
 from .recording import BackgroundRecorder
 from .simulator import Simulator
@@ -85,12 +85,8 @@ def run(args: argparse.Namespace) -> int:
             results.append(r)
             print(" ".join(f"{r[c]:>{w}.3f}" if isinstance(r[c], float) else f"{r[c]:>{w}}"
                            for c, w in zip(COLUMNS, widths)), flush=True)
-    out = Path(args.csv)
-    with out.open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=COLUMNS)
-        writer.writeheader()
-        writer.writerows(results)
-    print(f"csv: {out}")
+    write_csv(Path(args.csv), results, COLUMNS)
+    print(f"csv: {args.csv}")
     return 0
 
 

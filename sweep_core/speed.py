@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import csv
 import io
 import math
 import multiprocessing
@@ -36,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from .bench import write_csv
 from . import projection
 from .constraints import linearise
 from .scene import Scene
@@ -301,12 +301,8 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if worker is not None:
             worker.close()
-    out = Path(args.csv)
-    with out.open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=COLUMNS)
-        writer.writeheader()
-        writer.writerows(results)
-    print(f"csv: {out}")
+    write_csv(Path(args.csv), results, COLUMNS)
+    print(f"csv: {args.csv}")
     return 0
 
 
