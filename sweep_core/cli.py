@@ -49,7 +49,8 @@ def _run(args: argparse.Namespace) -> int:
     sim = Simulator(scene, dt=args.dt, seed=args.seed, scheme=args.scheme, solver=solver)
     scene.check_horizon(args.t_end)
     out = Path(args.out)
-    stats = {"min_gap": math.inf, "contacts_max": 0, "contacts_sum": 0, "steps": 0}
+    stats = {"min_gap": math.inf, "contacts_max": 0, "contacts_sum": 0, "steps": 0,
+             "backend_agents_max": 0}
 
     meta = run_metadata(scene, sim, args.t_end, args.record_every)
     meta["path_dt"] = repr(args.path_dt) if args.path_dt else ""
@@ -71,6 +72,7 @@ def _run(args: argparse.Namespace) -> int:
                 stats["min_gap"] = min(stats["min_gap"], state.min_gap)
                 stats["contacts_max"] = max(stats["contacts_max"], state.contacts)
                 stats["contacts_sum"] += state.contacts
+                stats["backend_agents_max"] = max(stats["backend_agents_max"], s.backend_agents)
 
         record(sim)
         start = time.perf_counter()
@@ -90,7 +92,8 @@ def _run(args: argparse.Namespace) -> int:
         "min_gap_m": stats["min_gap"] if steps else sim.min_gap,
         "max_overlap_m": max(0.0, -stats["min_gap"]) if steps else 0.0,
         "contacts_mean": stats["contacts_sum"] / steps if steps else 0.0,
-        "contacts_max": stats["contacts_max"], "recording": str(out),
+        "contacts_max": stats["contacts_max"],
+        "backend_agents_max": stats["backend_agents_max"], "recording": str(out),
         "recording_bytes": out.stat().st_size,
     }
     summary_path = out.with_suffix(".summary.json")

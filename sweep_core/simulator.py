@@ -131,6 +131,12 @@ class Simulator:
         return self._min_gap
 
     @property
+    def backend_agents(self) -> int:
+        """Agents of the last step whose contact cluster was solved by the interior-point
+        backend (to about 1e-6 m in degenerate jams) rather than exactly; 0 before a step."""
+        return 0 if self.last is None else self.last.projection.backend_agents
+
+    @property
     def state(self) -> State:
         return State(self.t, self._k, self.positions, self.radii, self.velocities,
                      self.reaction, self._contacts, self._min_gap)

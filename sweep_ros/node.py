@@ -266,6 +266,7 @@ class SweepNode(Node):
             "real_time_factor": (sim.t - w.sim0) / wall,
             "timer_overruns": self._overruns,
             "active_contacts": sim.contacts,
+            "backend_agents": sim.backend_agents,
             "min_gap_m": sim.min_gap,
             "drift": sim.drift.kind,
             "commands_accepted": self._commands["accepted"],

@@ -27,6 +27,7 @@ def test_run_records_every_step_and_reports(tmp_path, capsys):
     summary = json.loads(out.with_suffix(".summary.json").read_text())
     assert summary["steps"] == 50 and summary["agents"] == 3
     assert summary["max_overlap_m"] <= 1e-9
+    assert summary["backend_agents_max"] == 0  # 3 agents: every cluster solved exactly
     assert "steps_per_s" in capsys.readouterr().out
 
     # the same run in-process, to compare against the recording

@@ -112,6 +112,10 @@ def test_larger_jams_are_exact_on_request():
     default = list(jam_steps(spec, seed=4, steps=3, opts=sc.SolverOptions()))
     exact = list(jam_steps(spec, seed=4, steps=3, opts=sc.SolverOptions(exact_vars=400)))
     assert max(p.backend_agents for *_, p in default) == 100
+    sim = sc.Simulator(sc.Scene.from_dict(spec), dt=0.01, seed=4)
+    assert sim.backend_agents == 0  # before any step
+    sim.step(3)
+    assert sim.backend_agents == sim.last.projection.backend_agents
     for scene, t1, q, pred, proj in exact:
         assert proj.backend_agents == 0
         assert np.max(np.abs(proj.y - reference(scene, t1, q, pred))) < 1e-8
