@@ -214,19 +214,27 @@ def _solve_cluster(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: So
                                if opts.backend == "proxsuite" else _clarabel(target, c, b, opts)))
     attempts = ([exact, backend] if n <= opts.exact_vars
                 else [backend] + ([exact] if n <= opts.dense_fallback else []))
+    last_resort = None
     for is_exact, attempt in attempts:
         x, lam, ok = attempt()
-        if ok and np.all(np.isfinite(x)) and (c @ x - b).min() >= -ROW_TOLERANCE:
+        if not (np.all(np.isfinite(x)) and (c @ x - b).min() >= -ROW_TOLERANCE):
+            continue
+        if ok is True:
             return x, lam, is_exact
-    return None
+        if ok is None and last_resort is None:
+            last_resort = (x, lam, False)
+    # Clarabel's "AlmostSolved" with every row holding: feasible, though further from the
+    # projection; better than stopping the run when nothing else answered
+    return last_resort
 
 
 def _clarabel(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverOptions
-              ) -> tuple[np.ndarray, np.ndarray, bool]:
+              ) -> tuple[np.ndarray, np.ndarray, bool | None]:
     """The cluster QP by Clarabel's interior-point method, rows tightened by eps_abs.
 
     Interior-point iterations do not depend on the multipliers being unique, so dense jams
-    (reference §6) cost no more than loose crowds."""
+    (reference §6) cost no more than loose crowds. Returns x, multipliers and True (solved),
+    None ("AlmostSolved": reduced accuracy) or False."""
     n, m = c.shape[1], c.shape[0]
     if m == 0:
         return target.copy(), np.zeros(0), True
@@ -240,9 +248,10 @@ def _clarabel(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverO
     solver = clarabel.DefaultSolver(sp.identity(n, format="csc"), -target, sp.csc_matrix(-c),
                                     -(b + opts.eps_abs), [clarabel.NonnegativeConeT(m)], settings)
     sol = solver.solve()
-    # "AlmostSolved" means Clarabel's reduced tolerances (about 1e-5 here), far from the
-    # projection although the rows may hold: refused, so the exact solver takes over
-    ok = str(sol.status) == "Solved"
+    # "AlmostSolved" means Clarabel's reduced tolerances (about 1e-5 here), possibly far from
+    # the projection although the rows hold: None, taken only when no other solver answers
+    status = str(sol.status)
+    ok = True if status == "Solved" else (None if status == "AlmostSolved" else False)
     return np.array(sol.x), np.maximum(np.array(sol.z), 0.0), ok
 
 

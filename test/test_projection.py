@@ -124,3 +124,29 @@ def test_larger_jams_are_exact_on_request():
 def test_exact_vars_is_validated():
     with pytest.raises(sc.SceneError, match="solver.exact_vars"):
         sc.SolverOptions.from_values(exact_vars=-1)
+
+
+def test_almost_solved_is_a_last_resort(monkeypatch):
+    """A backend answer flagged "AlmostSolved" is not taken while the exact solver answers,
+    and is taken (rows holding) rather than stopping the run when nothing else does."""
+    spec = hex_jam(5, 5)
+    scene = sc.Scene.from_dict(spec)
+    sim = sc.Simulator(scene, dt=0.01, seed=5, solver=sc.SolverOptions(exact_vars=0))
+    sim.step(2)
+    q, t1 = sim.positions, sim.t + sim.dt
+    sim.step()
+    pred, want = sim.last.prediction, sim.last.projection.y
+    real = projection._clarabel
+
+    def almost(target, c, b, opts):
+        x, lam, _ = real(target, c, b, opts)
+        return x, lam, None
+
+    monkeypatch.setattr(projection, "_clarabel", almost)
+    opts = sc.SolverOptions(exact_vars=0)
+    got = projection.project(scene.geometry, t1, q, pred, scene.radii(t1), opts)
+    assert got.backend_agents == 0  # the exact fallback answered
+    assert np.max(np.abs(got.y - reference(scene, t1, q, pred))) < 1e-8
+    no_exact = sc.SolverOptions(exact_vars=0, dense_fallback=0)
+    got = projection.project(scene.geometry, t1, q, pred, scene.radii(t1), no_exact)
+    assert got.backend_agents == 25 and np.max(np.abs(got.y - want)) < 1e-12
