@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .bench import write_csv
 from . import topics
+from .bench import write_csv
 from .recording import BackgroundRecorder
 from .simulator import Simulator
 from .speed import crowd
