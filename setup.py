@@ -1,14 +1,14 @@
 """ament_python package sweep_ros: the engine sweep_core (no ROS) and the ROS 2 node sweep_ros."""
 from glob import glob
 
-from setuptools import setup
+from setuptools import find_packages, setup
 
 package_name = "sweep_ros"
 
 setup(
     name=package_name,
     version="0.1.0",
-    packages=["sweep_core", "sweep_ros"],
+    packages=find_packages(include=["sweep_core", "sweep_core.*", "sweep_ros"]),
     package_data={"sweep_core": ["scenes/*.yaml", "py.typed"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),

@@ -7,13 +7,13 @@ step. No ROS import anywhere in this package. See the README for the scene schem
 """
 from __future__ import annotations
 
-from .errors import InfeasibleError, RecordingError, SceneError, SweepError
-from .fields import FIELD_KINDS, Field, field_from_spec, grid_field
-from .projection import SolverOptions
-from .scene import Scene
-from .schemes import SCHEMES, Scheme
-from .simulator import State, Simulator
-from .skorokhod import skorokhod
+from sweep_core.errors import InfeasibleError, RecordingError, SceneError, SweepError
+from sweep_core.model.fields import FIELD_KINDS, Field, field_from_spec, grid_field
+from sweep_core.numerics.projection import SolverOptions
+from sweep_core.model.scene import Scene
+from sweep_core.numerics.schemes import SCHEMES, Scheme
+from sweep_core.numerics.simulator import State, Simulator
+from sweep_core.numerics.skorokhod import skorokhod
 
 __version__ = "0.1.0"
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import SceneError
+from sweep_core.errors import SceneError
 
 
 def number(value: Any, field: str, *, positive: bool = False, nonnegative: bool = False) -> float:

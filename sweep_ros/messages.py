@@ -24,8 +24,8 @@ from sensor_msgs.msg import PointField
 from visualization_msgs.msg import Marker, MarkerArray
 
 from sweep_core import SceneError, grid_field
-from sweep_core.constraints import Geometry
-from sweep_core.fields import Goal, Grid, Uniform
+from sweep_core.model.geometry import Geometry
+from sweep_core.model.fields import Goal, Grid, Uniform
 
 #: largest grid (points) a velocity_field command may carry
 MAX_GRID_POINTS = 1_000_000

@@ -32,9 +32,11 @@ from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import MarkerArray
 
-from sweep_core import InfeasibleError, SceneError, Simulator, SweepError, cdr, topics
-from sweep_core.cli import load_scene, run_metadata
-from sweep_core.recording import DEFAULT_QOS_PROFILES, BackgroundRecorder
+from sweep_core import InfeasibleError, SceneError, Simulator, SweepError
+from sweep_core.io import cdr, topics
+from sweep_core.io.metadata import run_metadata
+from sweep_core.model.scene import load_scene
+from sweep_core.io.recording import DEFAULT_QOS_PROFILES, BackgroundRecorder
 
 from . import messages, msgdefs, params
 

@@ -20,7 +20,7 @@ import pytest
 import yaml
 
 import sweep_core as sc
-from sweep_core import analysis
+from sweep_core.analysis import metrics as analysis
 from sweep_core.cli import main
 
 DT, SEED, T_END = 0.01, 7, 3.0
@@ -210,9 +210,9 @@ def _prefix_rows_match(short: analysis.Analysis, full: analysis.Analysis) -> Non
 def test_cut_recording_is_read_to_its_last_complete_chunk(tmp_path, run, capsys):
     """A file whose tail is cut off (as a killed writer leaves it)."""
     _, states, scene = run
-    from sweep_core import topics
-    from sweep_core.cli import run_metadata
-    from sweep_core.recording import Recorder
+    from sweep_core.io import topics
+    from sweep_core.io.metadata import run_metadata
+    from sweep_core.io.recording import Recorder
     full = tmp_path / "full.mcap"
     sim = sc.Simulator(scene, dt=DT, seed=SEED)
     with Recorder(full, metadata=run_metadata(scene, sim, T_END, 1), chunk_size=4096,
@@ -254,7 +254,7 @@ def test_sigkilled_sweep_run_is_analysed(tmp_path):
     assert an.summary["truncated"] and an.summary["frames"] > 10
     states = _states_until(scene, int(an.table[-1, 1]))
     assert np.array_equal(an.table[:, 2], [st.min_gap for st in states])
-    from sweep_core import replay
+    from sweep_core.analysis import replay
     res = replay.replay(out)
     assert res.identical and res.truncated and res.frames_compared == an.summary["frames"]
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sweep_core import cdr
+from sweep_core.io import cdr
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "OFF")
 os.environ.setdefault("ROS_DOMAIN_ID", "57")

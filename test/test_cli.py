@@ -8,7 +8,8 @@ import pytest
 
 import sweep_core as sc
 from sweep_core.cli import main
-from sweep_core.recording import read_metadata
+from sweep_core.io import topics
+from sweep_core.io.recording import read_metadata
 
 SCENE = """
 agents: {positions: [[0.0, 0.0], [0.6, 0.0], [1.2, 0.0]], radius: 0.25}
@@ -52,7 +53,7 @@ def test_run_records_every_step_and_reports(tmp_path, capsys):
     with open(out, "rb") as f:
         clouds = [m for _, _, _, m in make_reader(f, decoder_factories=[DecoderFactory()])
                   .iter_decoded_messages(topics=["/agents"])]
-    assert [fl.name for fl in clouds[-1].fields] == list(sc.topics.AGENT_FIELDS)
+    assert [fl.name for fl in clouds[-1].fields] == list(topics.AGENT_FIELDS)
     meta = read_metadata(out)["sweep_ros"]
     assert meta["seed"] == "4" and float(meta["dt"]) == 0.01
     assert sc.Scene.from_dict(__import__("yaml").safe_load(meta["scene"])).n_agents == 3
@@ -81,7 +82,7 @@ def _csv_rows(path):
 
 
 def test_bench_speed_writes_finite_numbers(tmp_path, capsys):
-    from sweep_core import speed
+    from sweep_core.bench import speed
     out = tmp_path / "speed.csv"
     assert main(["bench", "speed", "--sizes", "50", "--steps", "3", "--warmup", "1",
                  "--timeout", "20", "--csv", str(out)]) == 0
@@ -106,7 +107,7 @@ def test_bench_speed_writes_finite_numbers(tmp_path, capsys):
 
 
 def test_bench_recording_writes_finite_numbers(tmp_path):
-    from sweep_core import recording_bench
+    from sweep_core.bench import recording as recording_bench
     out = tmp_path / "rec.csv"
     assert main(["bench", "recording", "--sizes", "50", "--steps", "3", "--warmup", "1",
                  "--csv", str(out)]) == 0

@@ -11,8 +11,9 @@ from sensor_msgs.msg import PointCloud2, PointField
 from visualization_msgs.msg import Marker, MarkerArray
 
 import sweep_core as sc
-from sweep_core import cdr
-from sweep_core.cli import load_scene
+from sweep_core.io import cdr
+from sweep_core.model import fields
+from sweep_core.model.scene import load_scene
 from sweep_ros import messages, msgdefs, params
 from sweep_ros.messages import CommandError
 
@@ -29,7 +30,7 @@ def twist(vx=0.0, vy=0.0, wz=0.0):
 
 def test_twist_gives_uniform_field():
     f = messages.uniform_from_twist(twist(0.5, -0.25, wz=3.0), max_speed=2.0)
-    assert isinstance(f, sc.fields.Uniform)
+    assert isinstance(f, fields.Uniform)
     np.testing.assert_array_equal(f(0.0, np.zeros((3, 2))), [[0.5, -0.25]] * 3)
 
 
@@ -50,7 +51,7 @@ def point(x, y, frame=""):
 def test_goal_field_and_refusals():
     f = messages.goal_from_point(point(10.0, 0.0, "map"), speed=1.3, slow_radius=0.5,
                                  frame_id="map")
-    assert isinstance(f, sc.fields.Goal) and f.speed == 1.3 and f.slow_radius == 0.5
+    assert isinstance(f, fields.Goal) and f.speed == 1.3 and f.slow_radius == 0.5
     np.testing.assert_allclose(f(0.0, np.array([[0.0, 0.0]])), [[1.3, 0.0]])
     assert messages.goal_from_point(point(1.0, 2.0), 1.0, 0.5, "map").goal.tolist() == [1, 2]
     for bad, match in [(point(math.nan, 0.0), "non-finite"), (point(0.0, math.inf), "non-finite"),

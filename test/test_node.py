@@ -28,8 +28,8 @@ from sensor_msgs.msg import PointCloud2, PointField
 from diagnostic_msgs.msg import DiagnosticArray
 from std_srvs.srv import SetBool, Trigger
 
-from sweep_core import cdr, topics
-from sweep_core.recording import read_recording, scan_recording
+from sweep_core.io import cdr, topics
+from sweep_core.io.recording import read_recording, scan_recording
 
 REPO = Path(__file__).resolve().parents[1]
 DISCOVERY_S = 10.0

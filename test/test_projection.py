@@ -6,8 +6,9 @@ import pytest
 from scipy.optimize import nnls
 
 import sweep_core as sc
-from sweep_core import projection
-from sweep_core.constraints import linearise
+from sweep_core.numerics import projection
+from sweep_core.numerics.projection import clusters, exact
+from sweep_core.numerics.constraints import linearise
 
 from scenes import hex_jam
 
@@ -25,8 +26,8 @@ def reference(scene: sc.Scene, t1: float, q: np.ndarray, pred: np.ndarray) -> np
     """Projection onto C~ with every pair and wall row built (no cutoff), solved exactly."""
     rows = linearise(scene.geometry, t1, q, scene.radii(t1), np.inf)
     n = len(q)
-    c, b = projection._row_matrix(rows, np.arange(n), n)
-    x, _, ok = projection._ldp(pred.ravel(), c.toarray(), b)
+    c, b = clusters.row_matrix(rows, np.arange(n), n)
+    x, _, ok = exact.ldp(pred.ravel(), c.toarray(), b)
     assert ok
     return x.reshape(-1, 2)
 
@@ -65,7 +66,7 @@ def kkt_gap(scene: sc.Scene, t1: float, q: np.ndarray, pred: np.ndarray, y: np.n
     how far y - pred is from the cone of the gradients of the rows active at y (m)."""
     rows = linearise(scene.geometry, t1, q, scene.radii(t1), np.inf)
     n = len(q)
-    c, b = projection._row_matrix(rows, np.arange(n), n)
+    c, b = clusters.row_matrix(rows, np.arange(n), n)
     s = c @ y.ravel() - b
     active = s <= 1e-8
     _, dist = nnls(c[active].T.toarray(), (y - pred).ravel())
@@ -136,13 +137,13 @@ def test_almost_solved_is_a_last_resort(monkeypatch):
     q, t1 = sim.positions, sim.t + sim.dt
     sim.step()
     pred, want = sim.last.prediction, sim.last.projection.y
-    real = projection._clarabel
+    real = clusters.solve_clarabel
 
     def almost(target, c, b, opts):
         x, lam, _ = real(target, c, b, opts)
         return x, lam, None
 
-    monkeypatch.setattr(projection, "_clarabel", almost)
+    monkeypatch.setattr(clusters, "solve_clarabel", almost)
     opts = sc.SolverOptions(exact_vars=0)
     got = projection.project(scene.geometry, t1, q, pred, scene.radii(t1), opts)
     assert got.backend_agents == 0  # the exact fallback answered

@@ -17,9 +17,9 @@ from mcap.data_stream import ReadDataStream
 from mcap.records import Chunk, Message
 from mcap.stream_reader import breakup_chunk
 
-from sweep_core import cdr
+from sweep_core.io import cdr
 from sweep_core.errors import RecordingError, SweepError
-from sweep_core.recording import (
+from sweep_core.io.recording import (
     DEFAULT_QOS_PROFILES,
     BackgroundRecorder,
     Recorder,
@@ -380,8 +380,8 @@ CHILD = textwrap.dedent(
     """
     import sys, time
     import numpy as np
-    from sweep_core import cdr
-    from sweep_core.recording import Recorder
+    from sweep_core.io import cdr
+    from sweep_core.io.recording import Recorder
 
     # chunks far bigger than the run: only the time-based flush puts data on disk
     rec = Recorder(sys.argv[1], metadata={"scene": "killed"}, flush_interval_s=0.2,

@@ -14,10 +14,14 @@ import numpy as np
 import pytest
 
 import sweep_core as sc
-from sweep_core import paths, replay, topics
-from sweep_core.cli import main, run_metadata
-from sweep_core.fields import field_from_spec
-from sweep_core.recording import Recorder
+from sweep_core.analysis import compare, replay
+from sweep_core.io import topics
+from sweep_core.numerics import paths
+from sweep_core.analysis.run import load_run
+from sweep_core.cli import main
+from sweep_core.io.metadata import run_metadata
+from sweep_core.model.fields import field_from_spec
+from sweep_core.io.recording import Recorder
 
 DT, SEED = 0.01, 11
 SCENE = sc.Scene.from_dict({
@@ -234,7 +238,7 @@ def test_path_dt_run_replays(tmp_path):
     record(f, segments=((25, {5: GOAL}, {}),), path_dt=0.001)
     res = replay.replay(f)
     assert res.identical and res.frames_compared == 26
-    assert replay.load_run(f).path_dt == 0.001
+    assert load_run(f).path_dt == 0.001
 
 
 # ---------------------------------------------------------------------------------------------
@@ -257,7 +261,7 @@ def three_runs(tmp_path_factory):
 
 def test_compare_on_the_same_brownian_path(three_runs, capsys):
     (fine, s_f), (coarse, s_c), (other, s_o) = three_runs
-    c = replay.compare(fine, coarse)
+    c = compare.compare(fine, coarse)
     dist = np.array([np.linalg.norm(s_f[10 * k].positions - s_c[k].positions, axis=1)
                      for k in range(31)])
     assert c.common_frames == 31 and c.t_last_s == pytest.approx(0.3)
@@ -267,10 +271,10 @@ def test_compare_on_the_same_brownian_path(three_runs, capsys):
     assert c.sup_agent == dist.max(axis=0).argmax()
     assert np.allclose(c.table[:, 2], dist.mean(axis=1))
     assert c.shared_path.startswith("yes")
-    o = replay.compare(fine, other)
+    o = compare.compare(fine, other)
     assert o.shared_path.startswith("NO")
     assert c.sup_m < 0.5 * o.sup_m, (c.sup_m, o.sup_m)
-    assert replay.compare(coarse, coarse).sup_m == 0.0
+    assert compare.compare(coarse, coarse).sup_m == 0.0
 
     assert main(["compare", str(fine), str(coarse), "--json", "--quiet"]) == 0
     out = json.loads(capsys.readouterr().out)
@@ -283,7 +287,7 @@ def test_compare_aligns_on_common_times_only(tmp_path):
     a, b = tmp_path / "a.mcap", tmp_path / "b.mcap"
     s_a = record(a, segments=((4, {}, {}),), dt=0.003)[0]
     s_b = record(b, segments=((6, {}, {}),), dt=0.002)[0]
-    c = replay.compare(a, b)  # t = 0, 0.006 and 0.012 s are common (stamps in whole ns)
+    c = compare.compare(a, b)  # t = 0, 0.006 and 0.012 s are common (stamps in whole ns)
     assert c.common_frames == 3 and c.t_last_s == pytest.approx(0.012)
     assert c.final_max_m == pytest.approx(
         np.linalg.norm(s_a[4].positions - s_b[6].positions, axis=1).max(), rel=1e-12)

@@ -12,10 +12,12 @@ from scipy import stats
 from scipy.integrate import quad
 
 import sweep_core as sc
-from sweep_core import bench, noise
-from sweep_core.accuracy import Measurement, circle_exact, fit_slope
-from sweep_core.projection import project
-from sweep_core.schemes import AdaptiveSubstep, adaptive
+from sweep_core.cli import bench
+from sweep_core.numerics import noise
+from sweep_core.bench.accuracy import Measurement, fit_slope
+from sweep_core.bench.accuracy_problems import circle_exact
+from sweep_core.numerics.projection import project
+from sweep_core.numerics.schemes import AdaptiveSubstep, adaptive
 from scenes import wall_agent
 
 #: schemes beyond the seed's; projected Euler's exact solutions are in test_exact.py
@@ -309,5 +311,5 @@ def test_bench_accuracy_command_writes_tables_and_plots(tmp_path, capsys):
     assert len(rows) == 1 + 6 * 3  # 6 dt levels x 3 schemes
     with pytest.raises(SystemExit):
         parser.parse_args(["bench", "accuracy", "--problems", "nope"])
-    from sweep_core import speed
+    from sweep_core.bench import speed
     assert parser.parse_args(["bench", "speed", "--no-baseline"]).func is speed.run

@@ -1,0 +1,165 @@
+"""Two runs side by side (``sweep compare``).
+
+Compare aligns two recordings on their common times (log time, i.e. simulation time for
+``sweep run``) and reports the pathwise sup-distance max_i |q_i^A(t) - q_i^B(t)| over time and,
+per agent, over time.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sweep_core.analysis.frames import FrameReader, progress_bar
+from sweep_core.analysis.plots import pyplot
+from sweep_core.analysis.report import jsonable, output_paths, write_table
+from sweep_core.analysis.run import NS, RunMeta, load_run
+from sweep_core.errors import RecordingError, SweepError
+
+
+@dataclass
+class Comparison:
+    a: str
+    b: str
+    common_frames: int
+    t_first_s: float
+    t_last_s: float
+    sup_m: float
+    sup_t_s: float
+    sup_agent: int
+    final_max_m: float
+    final_mean_m: float
+    per_agent_sup_m: list[float]
+    per_agent_t_s: list[float]
+    shared_path: str
+    truncated: list[str]
+    notes: list[str]
+    table: np.ndarray  # t, max over agents, mean over agents
+
+    def to_dict(self) -> dict:
+        d = {k: v for k, v in self.__dict__.items() if k != "table"}
+        return jsonable(d)
+
+
+def _path_note(ma: RunMeta, mb: RunMeta) -> str:
+    sig = [m.scene is not None and not np.any(m.scene.sigma) and not m.parameters.get(
+        "noise_sigma", -1.0) > 0 for m in (ma, mb)]
+    if all(sig):
+        return "no noise (sigma = 0): deterministic runs"
+    if ma.seed is None or mb.seed is None or ma.dt is None or mb.dt is None:
+        return "unknown (seed or dt missing from the metadata)"
+    res_a, res_b = ma.path_dt or ma.dt, mb.path_dt or mb.dt
+    if ma.seed == mb.seed and math.isclose(res_a, res_b, rel_tol=1e-9):
+        return (f"yes: seed {ma.seed}, path drawn at {res_a:g} s in both (the distance is the "
+                "pathwise error)")
+    return (f"NO: seeds {ma.seed} / {mb.seed}, path resolution {res_a:g} / {res_b:g} s (the "
+            "distance mixes two Brownian paths; fix: sweep run --path-dt FINE on the coarse "
+            "run with the fine run's dt and seed)")
+
+
+def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
+    """Aligns two recordings on their common log times and measures |q^A - q^B|."""
+    ma, mb = load_run(a), load_run(b)
+    notes = []
+    if ma.scene is not None and mb.scene is not None and ma.scene.spec != mb.scene.spec:
+        notes.append("the recorded scenes differ")
+    ra, rb = FrameReader(ma, agents=False), FrameReader(mb, agents=False)
+    ia, ib = iter(ra), iter(rb)
+    fa, fb = next(ia, None), next(ib, None)
+    rows: list[tuple[float, float, float]] = []
+    n = None
+    sup_agent = sup_t = None
+    per = arg = None
+    last = None
+    bar = progress_bar(min(ma.frames, mb.frames) or None, "frame", progress)
+    with bar:
+        while fa is not None and fb is not None:
+            if fa.log_ns < fb.log_ns:
+                fa = next(ia, None)
+                continue
+            if fb.log_ns < fa.log_ns:
+                fb = next(ib, None)
+                continue
+            if n is None:
+                n = len(fa.positions)
+                per, arg = np.zeros(n), np.zeros(n)
+            if len(fa.positions) != n or len(fb.positions) != n:
+                raise RecordingError(f"{ma.path} and {mb.path} have different agent counts "
+                                     f"({len(fa.positions)} and {len(fb.positions)})")
+            t = fa.log_ns / NS
+            d = np.hypot(*(fa.positions - fb.positions).T)
+            worse = d > per
+            per[worse] = d[worse]
+            arg[worse] = t
+            rows.append((t, float(d.max(initial=0.0)), float(d.mean()) if n else 0.0))
+            last = d
+            bar.update()
+            fa, fb = next(ia, None), next(ib, None)
+    if not rows:
+        raise SweepError(f"{ma.path} and {mb.path} have no recorded time in common "
+                         "(fix: compare runs of the same scene whose recorded times overlap, "
+                         "e.g. dt = 0.01 and dt = 0.001)")
+    table = np.array(rows)
+    k = int(np.argmax(table[:, 1]))
+    sup_t = float(table[k, 0])
+    sup_agent = int(np.argmax(per)) if n else -1
+    truncated = [m.path for m in (ma, mb) if m.truncated]
+    return Comparison(
+        a=ma.path, b=mb.path, common_frames=len(rows), t_first_s=float(table[0, 0]),
+        t_last_s=float(table[-1, 0]), sup_m=float(table[:, 1].max()), sup_t_s=sup_t,
+        sup_agent=sup_agent, final_max_m=float(last.max(initial=0.0)),
+        final_mean_m=float(last.mean()) if n else 0.0, per_agent_sup_m=per.tolist(),
+        per_agent_t_s=arg.tolist(), shared_path=_path_note(ma, mb), truncated=truncated,
+        notes=notes, table=table)
+
+
+def format_comparison(c: Comparison) -> str:
+    per = np.asarray(c.per_agent_sup_m)
+    lines = [
+        f"A                  {c.a}",
+        f"B                  {c.b}",
+        f"shared path        {c.shared_path}",
+        f"common times       {c.common_frames} (t = {c.t_first_s:.6g} .. {c.t_last_s:.6g} s)",
+        f"sup distance       {c.sup_m:.6g} m (t = {c.sup_t_s:.6g} s)",
+        f"final distance     max {c.final_max_m:.6g} m, mean {c.final_mean_m:.6g} m",
+    ]
+    if len(per):
+        lines.append(f"per agent sup      median {np.median(per):.6g} m, max {per.max():.6g} m "
+                     f"(agent {c.sup_agent} at t = {c.per_agent_t_s[c.sup_agent]:.6g} s)")
+    lines += [f"truncated          {p} (read up to its last complete chunk)" for p in c.truncated]
+    lines += [f"note               {n}" for n in c.notes]
+    return "\n".join(lines)
+
+
+def write_comparison(c: Comparison, plots: bool = True) -> dict[str, str]:
+    """``A_vs_B.compare.csv`` (t, max and mean distance over agents), ``A_vs_B.agents.csv``
+    (per agent sup), ``A_vs_B.compare.png``, next to A."""
+    pa, pb = Path(c.a), Path(c.b)
+    base = pa.with_name(f"{pa.stem}_vs_{pb.stem}.mcap")
+    out = output_paths(base, ".compare")
+    write_table(out["csv"], ("t_s", "max_distance_m", "mean_distance_m"), c.table)
+    agents_csv = output_paths(base, ".agents")["csv"]
+    per = np.column_stack([np.arange(len(c.per_agent_sup_m)), c.per_agent_sup_m,
+                           c.per_agent_t_s])
+    write_table(agents_csv, ("agent", "sup_distance_m", "t_of_sup_s"), per)
+    files = {"csv": str(out["csv"]), "agents_csv": str(agents_csv)}
+    if plots:
+        plt = pyplot()
+        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.6), dpi=72)
+        ax1.plot(c.table[:, 0], c.table[:, 1], lw=1, label="max over agents")
+        ax1.plot(c.table[:, 0], c.table[:, 2], lw=1, label="mean over agents")
+        ax1.set_xlabel("t (s)")
+        ax1.set_ylabel("|q_A - q_B| (m)")
+        ax1.legend(fontsize=8)
+        ax1.set_title(f"{pa.name} vs {pb.name}")
+        ax2.bar(np.arange(len(c.per_agent_sup_m)), c.per_agent_sup_m, width=1.0)
+        ax2.set_xlabel("agent")
+        ax2.set_ylabel("sup over time (m)")
+        ax2.set_title("per agent")
+        fig.tight_layout()
+        fig.savefig(out["png"])
+        plt.close(fig)
+        files["png"] = str(out["png"])
+    return files

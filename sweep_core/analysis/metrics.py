@@ -1,0 +1,390 @@
+"""Metrics of a recorded run (``sweep analyze``), read from its MCAP file alone.
+
+A recording (from ``sweep run`` or the ROS node) holds, per recorded step, ``/poses``
+(PoseArray, float64 centres) and ``/agents`` (PointCloud2, float32 id, x, y, radius, vx, vy,
+reaction_x, reaction_y), stamped with simulation time, and a metadata record ``sweep_ros``
+(scene YAML, seed, dt, scheme, solver, versions; the node adds ``command_*``, ``reset_*`` and
+``parameter_*`` records). :func:`load_run` reads the metadata, :class:`FrameReader` the
+frames (one per recorded step), :func:`analyze` the metrics.
+
+Precision of each metric:
+
+* minimum gap, contacts, flow through a line, arrival times, density map: from ``/poses``
+  (float64, the engine's own numbers) with radii r_i(t) evaluated from the recorded scene in
+  float64, so the minimum gap is the engine's ``State.min_gap`` bit for bit;
+* speeds and reaction (contact pressure): from ``/agents`` (float32, relative error about 6e-8).
+
+Time is the log time of the messages (equal to simulation time for ``sweep run``; the node
+keeps it increasing over resets). A file cut short (SIGKILL) is read up to its last complete
+chunk and reported as truncated.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sweep_core.errors import RecordingError, SweepError
+from sweep_core.model.geometry import Geometry, gaps
+from sweep_core.analysis.frames import Frame, FrameReader, progress_bar
+from sweep_core.analysis.run import NS, RunMeta, Schedule, load_run
+
+
+#: a constraint whose true value is at most this (m) counts as an active contact
+CONTACT_TOL = 1e-6
+#: width of the speed histogram bins (m/s); speed quantiles are exact to half of it
+SPEED_BIN = 1e-3
+
+
+def parse_line(text: str) -> tuple[float, float, float, float]:
+    """``x0,y0,x1,y1`` -> 4 floats (a segment of non-zero length)."""
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = ()
+    if len(vals) != 4 or not all(math.isfinite(v) for v in vals):
+        raise SweepError(f"--line: {text!r} is not x0,y0,x1,y1 (four numbers, m)")
+    if vals[0] == vals[2] and vals[1] == vals[3]:
+        raise SweepError(f"--line: {text!r} has zero length")
+    return vals  # type: ignore[return-value]
+
+
+def line_crossings(p0: np.ndarray, p1: np.ndarray, line: tuple[float, float, float, float]
+                   ) -> np.ndarray:
+    """Per agent: +1 if the move p0 -> p1 crosses the segment in the positive direction, -1 in
+    the negative one, 0 otherwise.
+
+    Positive is along the normal (y1 - y0, -(x1 - x0)), i.e. from left to right looking from
+    (x0, y0) to (x1, y1). A point on the line counts as on its positive side.
+    """
+    a = np.array(line[:2])
+    d = np.array(line[2:]) - a
+    nrm = np.array([d[1], -d[0]])
+    s0 = (p0 - a) @ nrm
+    s1 = (p1 - a) @ nrm
+    up = (s0 < 0) & (s1 >= 0)
+    down = (s0 >= 0) & (s1 < 0)
+    out = np.zeros(len(p0), dtype=np.int64)
+    moved = up | down
+    if moved.any():
+        frac = s0[moved] / (s0[moved] - s1[moved])
+        x = p0[moved] + frac[:, None] * (p1[moved] - p0[moved])
+        u = (x - a) @ d / (d @ d)
+        inside = (u >= 0) & (u <= 1)
+        idx = np.nonzero(moved)[0][inside]
+        out[idx] = np.where(up[idx], 1, -1)
+    return out
+
+
+class _Hist2D:
+    """Counts of points per square cell, on a grid that grows as needed."""
+
+    def __init__(self, cell: float) -> None:
+        self.cell = cell
+        self.counts = np.zeros((0, 0), dtype=np.int64)
+        self.ix0 = self.iy0 = 0
+
+    def add(self, q: np.ndarray) -> None:
+        if not len(q):
+            return
+        ix = np.floor(q[:, 0] / self.cell).astype(np.int64)
+        iy = np.floor(q[:, 1] / self.cell).astype(np.int64)
+        h, w = self.counts.shape
+        if self.counts.size == 0:
+            self.ix0, self.iy0 = int(ix.min()), int(iy.min())
+        lo_x, lo_y = min(self.ix0, int(ix.min())), min(self.iy0, int(iy.min()))
+        hi_x, hi_y = max(self.ix0 + w, int(ix.max()) + 1), max(self.iy0 + h, int(iy.max()) + 1)
+        if (lo_x, lo_y, hi_x - lo_x, hi_y - lo_y) != (self.ix0, self.iy0, w, h):
+            grown = np.zeros((hi_y - lo_y, hi_x - lo_x), dtype=np.int64)
+            grown[self.iy0 - lo_y:self.iy0 - lo_y + h, self.ix0 - lo_x:self.ix0 - lo_x + w] = \
+                self.counts
+            self.counts, self.ix0, self.iy0 = grown, lo_x, lo_y
+        np.add.at(self.counts, (iy - self.iy0, ix - self.ix0), 1)
+
+
+@dataclass
+class Analysis:
+    """Result of :func:`analyze`: ``summary`` (JSON-ready), ``table`` (one row per frame,
+    columns ``COLUMNS``), ``density`` (agents/m^2, rows along y) with its origin and cell,
+    ``speed_hist`` (counts per SPEED_BIN), ``arrival`` and ``evacuation`` times per agent
+    (s from the first frame, NaN if never)."""
+
+    COLUMNS = ("t_s", "step", "min_gap_m", "contacts", "reaction_total_m", "pressure_m_per_s",
+               "speed_mean_m_per_s", "speed_max_m_per_s", "crossings_net", "arrived")
+
+    meta: RunMeta
+    summary: dict
+    table: np.ndarray
+    density: np.ndarray
+    density_origin: tuple[float, float]
+    cell: float
+    speed_hist: np.ndarray
+    arrival: np.ndarray
+    evacuation: np.ndarray
+
+
+def _quantile(hist: np.ndarray, p: float) -> float | None:
+    total = int(hist.sum())
+    if total == 0:
+        return None
+    i = int(np.searchsorted(np.cumsum(hist), p * total))
+    return (i + 0.5) * SPEED_BIN
+
+
+def _time_for(times: np.ndarray, n_agents: int, fraction: float) -> float | None:
+    """Time at which ceil(fraction N) agents have a finite time (None if never)."""
+    need = max(1, math.ceil(fraction * n_agents - 1e-9))
+    done = np.sort(times[np.isfinite(times)])
+    return float(done[need - 1]) if len(done) >= need else None
+
+
+def _finite(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+def _empty_geometry() -> Geometry:
+    e2, e1, ei = np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=np.intp)
+    return Geometry(e2, e1, e1, e2, e2, e2, e1, ei, ei, ei)
+
+
+def _stats(values: np.ndarray, how: Any) -> float | None:
+    """how(values) over the finite values, or None if there are none."""
+    ok = values[np.isfinite(values)]
+    return float(how(ok)) if len(ok) else None
+
+
+class _Metrics:
+    """Accumulates the metrics frame by frame (one pass, bounded memory per agent and cell)."""
+
+    def __init__(self, meta: RunMeta, line: tuple[float, float, float, float] | None,
+                 arrive_radius: float | None, cell: float) -> None:
+        self.meta, self.line, self.arrive_radius = meta, line, arrive_radius
+        self.schedule = Schedule(meta)
+        self.geometry = meta.scene.geometry if meta.scene is not None else _empty_geometry()
+        self.rows: list[tuple] = []
+        self.hist = np.zeros(0, dtype=np.int64)
+        self.density = _Hist2D(cell)
+        self.n: int | None = None
+        self.t0 = 0
+        self.worst: tuple[float, float, str] | None = None  # (gap, t, between)
+        self.prev: tuple[int, np.ndarray] | None = None
+        self.net, self.positive, self.negative = 0, 0, 0
+        self.arrival = self.evacuation = np.zeros(0)
+        self.speed_sum, self.speed_count, self.speed_max = 0.0, 0, 0.0
+        self.goal_seen = False
+        self.radii_used: set[float] = set()
+
+    def add(self, fr: Frame) -> None:
+        meta, q = self.meta, fr.positions
+        if self.n is None:
+            self.n, self.t0 = len(q), fr.log_ns
+            self.arrival = np.full(self.n, np.nan)
+            self.evacuation = np.full(self.n, np.nan)
+            if meta.scene is not None and meta.scene.n_agents != self.n:
+                raise RecordingError(f"{meta.path}: {self.n} poses but the recorded scene has "
+                                     f"{meta.scene.n_agents} agents")
+        elif len(q) != self.n:
+            raise RecordingError(f"{meta.path}: frame at t = {fr.log_ns / NS:g} s has "
+                                 f"{len(q)} poses, the first had {self.n}")
+        t = (fr.log_ns - self.t0) / NS
+        seg = meta.segment_of(fr.log_ns)
+        step = meta.step_of(fr.stamp_ns) if meta.dt is not None else -1
+        g = self._gaps(fr, step)
+        react_total, sp_mean, sp_max = self._agents(fr.agents, step)
+        if self.line is not None:
+            self._flow(seg, q, t)
+        if self._arrivals(seg, step, q, t):
+            self.goal_seen = True
+        self.density.add(q)
+        dt = meta.dt
+        self.rows.append((t, step, g.min_gap, g.contacts, react_total,
+                          react_total / dt if dt else math.nan, sp_mean, sp_max,
+                          self.net if self.line is not None else math.nan,
+                          np.count_nonzero(np.isfinite(self.arrival)) if self.goal_seen
+                          else math.nan))
+        if math.isfinite(g.min_gap) and (self.worst is None or g.min_gap < self.worst[0]):
+            if g.min_pair <= g.min_single:
+                between = f"agents {g.worst_pair[0]} and {g.worst_pair[1]}"
+            else:
+                a, kind, item, _ = g.worst_single
+                between = f"agent {a} and {self.geometry.describe(kind, item)}"
+            self.worst = (g.min_gap, t, between)
+
+    def _gaps(self, fr: Frame, step: int) -> Any:
+        """True constraint values: float64 poses and float64 radii r_i(t) from the scene."""
+        scene, dt = self.meta.scene, self.meta.dt
+        if scene is not None:
+            t_sim = step * dt if dt is not None else fr.stamp_ns / NS
+            return gaps(scene.geometry, t_sim, fr.positions, scene.radii(t_sim), CONTACT_TOL)
+        # no scene in the metadata: disks only, with the float32 radii of /agents
+        r = (fr.agents["radius"].astype(np.float64) if fr.agents is not None
+             else np.zeros(len(fr.positions)))
+        return gaps(self.geometry, 0.0, fr.positions, r, CONTACT_TOL)
+
+    def _agents(self, ag: dict[str, np.ndarray] | None, step: int) -> tuple[float, float, float]:
+        """Total reaction, mean and max speed of a frame (float32 /agents), NaN if unknown."""
+        if ag is None:
+            return math.nan, math.nan, math.nan
+        f64 = {k: ag[k].astype(np.float64) for k in ("reaction_x", "reaction_y", "vx", "vy")}
+        react_total = float(np.hypot(f64["reaction_x"], f64["reaction_y"]).sum())
+        if step == 0 or not self.n:  # no step taken yet: velocities are zero by definition
+            return react_total, math.nan, math.nan
+        v = np.hypot(f64["vx"], f64["vy"])
+        self.speed_sum += float(v.sum())
+        self.speed_count += len(v)
+        self.speed_max = max(self.speed_max, float(v.max()))
+        counts = np.bincount(np.floor(v / SPEED_BIN).astype(np.int64))
+        if len(counts) > len(self.hist):
+            self.hist = np.concatenate([self.hist,
+                                        np.zeros(len(counts) - len(self.hist), np.int64)])
+        self.hist[:len(counts)] += counts
+        return react_total, float(v.mean()), float(v.max())
+
+    def _flow(self, seg: int, q: np.ndarray, t: float) -> None:
+        """Crossings of the line since the previous frame of the same segment."""
+        if self.prev is not None and self.prev[0] == seg:
+            c = line_crossings(self.prev[1], q, self.line)
+            self.positive += int(np.count_nonzero(c > 0))
+            self.negative += int(np.count_nonzero(c < 0))
+            self.net += int(c.sum())
+            self.evacuation[(c > 0) & np.isnan(self.evacuation)] = t
+        self.prev = (seg, q)
+
+    def _arrivals(self, seg: int, step: int, q: np.ndarray, t: float) -> bool:
+        """Marks agents within the arrival radius of the goal in effect; False if no goal."""
+        spec = self.schedule.spec_at(seg, step)
+        if spec.get("kind") != "goal":
+            return False
+        radius = (self.arrive_radius if self.arrive_radius is not None
+                  else float(spec.get("slow_radius", 0.5)))
+        self.radii_used.add(radius)
+        d = np.hypot(*(q - np.asarray(spec["goal"], dtype=np.float64)).T)
+        self.arrival[(d <= radius) & np.isnan(self.arrival)] = t
+        return True
+
+    def result(self, reader: FrameReader) -> Analysis:
+        meta, cell = self.meta, self.density.cell
+        table = np.array(self.rows, dtype=np.float64).reshape(-1, len(Analysis.COLUMNS))
+        frames = len(table)
+        if frames == 0:
+            raise RecordingError(f"{meta.path}: no complete frame (poses) in the recording"
+                                 + (f" ({reader.error})" if reader.error else ""))
+        n, worst = self.n or 0, self.worst
+        duration = float(table[-1, 0] - table[0, 0])
+        dens = self.density.counts / (frames * cell * cell)
+        origin = (self.density.ix0 * cell, self.density.iy0 * cell)
+        summary: dict[str, Any] = {
+            "recording": meta.path,
+            "truncated": bool(reader.truncated),
+            "read_until": reader.error if reader.truncated else None,
+            "scene": meta.scene.name if meta.scene is not None else None,
+            "agents": n,
+            "frames": frames,
+            "duration_s": duration,
+            "t_last_s": float(table[-1, 0]),
+            "last_step": int(table[-1, 1]),
+            "dt_s": meta.dt,
+            "segments": len(meta.resets) + 1,
+            "commands": len(meta.commands),
+            "min_gap": {
+                "min_m": _finite(worst[0]) if worst else None,
+                "t_s": worst[1] if worst else None,
+                "between": worst[2] if worst else None,
+                "precision": "float64 (/poses, radii from the scene)" if meta.scene is not None
+                             else "float64 centres, float32 radii (no scene in the metadata)",
+            },
+            "contacts": {
+                "mean": float(np.mean(table[:, 3])),
+                "max": int(np.max(table[:, 3])),
+                "tolerance_m": CONTACT_TOL,
+                "precision": "float64 (/poses): constraints with gap <= tolerance",
+            },
+            "reaction": {
+                "total_mean_m": _stats(table[:, 4], np.mean),
+                "total_max_m": _stats(table[:, 4], np.max),
+                "pressure_mean_m_per_s": _stats(table[:, 5], np.mean),
+                "precision": "float32 (/agents): sum over agents of |prediction - result|; "
+                             "pressure = that / dt",
+            },
+            "speed": {
+                "mean_m_per_s": self.speed_sum / self.speed_count if self.speed_count else None,
+                "max_m_per_s": self.speed_max if self.speed_count else None,
+                "p10_m_per_s": _quantile(self.hist, 0.10),
+                "p50_m_per_s": _quantile(self.hist, 0.50),
+                "p90_m_per_s": _quantile(self.hist, 0.90),
+                "samples": self.speed_count,
+                "precision": f"float32 (/agents): |v| of each agent's last step, step 0 "
+                             f"excluded; quantiles to {SPEED_BIN / 2:g} m/s",
+            },
+            "flow": None,
+            "arrivals": None,
+            "density": {
+                "cell_m": cell,
+                "max_per_m2": float(dens.max()) if dens.size else 0.0,
+                "x0_m": origin[0], "y0_m": origin[1],
+                "shape": list(dens.shape),
+                "precision": "float64 (/poses): time-averaged centres per m^2",
+            },
+        }
+        if self.line is not None:
+            summary["flow"] = {
+                "line": list(self.line),
+                "net": self.net, "positive": self.positive, "negative": self.negative,
+                "per_s": self.net / duration if duration > 0 else None,
+                "evacuated": int(np.count_nonzero(np.isfinite(self.evacuation))),
+                "t_first_s": _stats(self.evacuation, np.min),
+                "t_50_s": _time_for(self.evacuation, n, 0.5),
+                "t_90_s": _time_for(self.evacuation, n, 0.9),
+                "t_all_s": _time_for(self.evacuation, n, 1.0),
+                "precision": "float64 (/poses); crossings between recorded frames, positive "
+                             "along (y1 - y0, x0 - x1)",
+            }
+        if self.goal_seen:
+            radii = sorted(self.radii_used)
+            summary["arrivals"] = {
+                "radius_m": radii[0] if len(radii) == 1 else radii,
+                "arrived": int(np.count_nonzero(np.isfinite(self.arrival))),
+                "t_first_s": _stats(self.arrival, np.min),
+                "t_mean_s": _stats(self.arrival, np.mean),
+                "t_50_s": _time_for(self.arrival, n, 0.5),
+                "t_90_s": _time_for(self.arrival, n, 0.9),
+                "t_all_s": _time_for(self.arrival, n, 1.0),
+                "precision": "float64 (/poses); first recorded frame within the radius of the "
+                             "goal in effect (default radius: the goal's slow_radius)",
+            }
+        return Analysis(meta, summary, table, dens, origin, cell, self.hist, self.arrival,
+                        self.evacuation)
+
+
+def analyze(path: str | Path, line: tuple[float, float, float, float] | None = None,
+            arrive_radius: float | None = None, cell: float = 0.5,
+            progress: bool = False) -> Analysis:
+    """Reads a recording and computes every metric (see the module docstring).
+
+    Args:
+        line: counting line x0, y0, x1, y1 (m): flow through it (net agents crossing in the
+            positive direction, see :func:`line_crossings`) and evacuation time per agent (its
+            first positive crossing, at the time of the first frame past the line).
+        arrive_radius: an agent has arrived when its centre is within this distance (m) of
+            the goal in effect (goal scenes and goal commands); default: the goal's
+            slow_radius.
+        cell: side of the density map cells (m).
+        progress: a progress bar on stderr (shown on a terminal only).
+    """
+    if isinstance(cell, bool) or not isinstance(cell, (int, float)) or not (
+            cell > 0 and math.isfinite(cell)):
+        raise SweepError(f"--cell: must be a positive number of metres, got {cell!r}")
+    if arrive_radius is not None and not (arrive_radius > 0 and math.isfinite(arrive_radius)):
+        raise SweepError(f"--arrive-radius: must be a positive number of metres, "
+                         f"got {arrive_radius!r}")
+    meta = load_run(path)
+    metrics = _Metrics(meta, line, arrive_radius, float(cell))
+    reader = FrameReader(meta)
+    with progress_bar(meta.frames or None, "frame", progress) as bar:
+        for fr in reader:
+            metrics.add(fr)
+            bar.update()
+    return metrics.result(reader)

@@ -1,0 +1,252 @@
+"""Re-simulate a recording and check it bit for bit (``sweep replay``).
+
+Replay builds the simulator from the metadata record ``sweep_ros`` alone (scene, seed, dt,
+scheme, solver settings; ``path_dt`` when the Brownian path was drawn finer than dt, see
+:mod:`sweep_core.paths`), applies the recorded commands at their recorded steps (metadata
+``command_*`` written by the node: the drift spec in effect from step ``step`` on), restarts at
+each recorded reset (``reset_*``), applies recorded ``noise_sigma`` changes (``parameters`` at
+start, ``parameter_*`` live), and compares the raw float64 centres of every recorded
+``/poses`` message with the simulator's, bit for bit. Steps that were not recorded (``sweep run
+--record-every K``, node ticks of several steps) are simulated but not compared. The same
+numpy / scipy / solver versions give the same floats; the recorded versions are checked and a
+difference is reported.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sweep_core.analysis.frames import FrameReader, progress_bar
+from sweep_core.analysis.report import jsonable
+from sweep_core.analysis.run import RunMeta, load_run, require_replayable
+from sweep_core.errors import InfeasibleError, RecordingError, SweepError
+from sweep_core.io.versions import versions
+from sweep_core.model.fields import field_from_spec
+from sweep_core.numerics import paths
+from sweep_core.numerics.simulator import Simulator
+
+#: versions whose difference can change the floats of a run
+_SHAPING = ("numpy", "scipy", "proxsuite", "clarabel")
+#: attempts at one step that keeps failing (the node retries a failed step after a resume,
+#: drawing new increments each time)
+MAX_ATTEMPTS = 100
+
+
+@dataclass
+class Divergence:
+    """The first recorded state the replay does not reproduce."""
+
+    step: int
+    t_s: float
+    segment: int
+    agent: int
+    recorded: list[float]
+    replayed: list[float]
+    distance_m: float
+    agents_differing: int
+    max_distance_m: float
+    reason: str = "positions differ"
+
+
+@dataclass
+class ReplayResult:
+    path: str
+    identical: bool
+    frames_compared: int
+    steps_simulated: int
+    last_step: int
+    last_t_s: float
+    segments: int
+    commands_applied: int
+    truncated: bool
+    read_until: str | None
+    divergence: Divergence | None
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        d = dict(self.__dict__)
+        d["divergence"] = None if self.divergence is None else dict(self.divergence.__dict__)
+        return jsonable(d)
+
+
+def version_notes(meta: RunMeta) -> list[str]:
+    """Differences between the recorded versions and these that can change floats."""
+    now = versions()
+    out = []
+    for name in _SHAPING:
+        rec = meta.versions.get(name)
+        if rec is not None and rec != now.get(name):
+            out.append(f"{name} {now.get(name)} here, {rec} in the recording: bit identity is "
+                       "only guaranteed with the recorded versions")
+    return out
+
+
+def make_simulator(meta: RunMeta) -> Simulator:
+    """A simulator at t = 0 exactly as the recording describes it."""
+    require_replayable(meta)
+    return Simulator(meta.scene, dt=meta.dt, seed=meta.seed, scheme=meta.scheme,
+                     solver=meta.solver_options())
+
+
+class _Replayer:
+    """Steps a simulator through the recorded segments, commands and parameter changes."""
+
+    def __init__(self, meta: RunMeta) -> None:
+        self.meta = meta
+        self.sim = make_simulator(meta)
+        self.path = (paths.FinePath(meta.seed, meta.dt, meta.path_dt, meta.scene.n_agents)
+                     if meta.path_dt else None)
+        self.segment = 0
+        self.events: list[tuple[int, int, str, Any]] = []
+        self.applied = 0
+        self.simulated = 0
+        self.retries = 0
+        self.noise_sigma = self.meta.parameters.get("noise_sigma", -1.0)
+        self._start(0)
+
+    def _sigma(self, value: Any) -> None:
+        self.noise_sigma = value
+        if value is None or value == -1.0:
+            self.sim.set_sigma(self.meta.scene.sigma)
+        else:
+            self.sim.set_sigma(float(value) if np.ndim(value) == 0
+                               else np.asarray(value, dtype=np.float64))
+
+    def _start(self, segment: int) -> None:
+        """Back to t = 0 for a segment: the node's reset (scene drift, sigma, then the
+        noise_sigma parameter in effect)."""
+        self.segment = segment
+        self.sim.reset()
+        if self.path is not None:
+            self.path.reset()
+        epoch = self.meta.resets[segment - 1] if segment else 0
+        for ch in self.meta.parameter_changes:  # the value in effect at the reset
+            if ch.name == "noise_sigma" and ch.segment < segment and ch.log_time_ns < epoch:
+                self.noise_sigma = ch.value
+        self._sigma(self.noise_sigma)
+        ev = [(c.step, c.index, "command", c.spec) for c in self.meta.commands
+              if c.segment == segment]
+        ev += [(c.step, c.index, "parameter", c) for c in self.meta.parameter_changes
+               if c.segment == segment and c.name == "noise_sigma"]
+        self.events = sorted(ev, key=lambda e: (e[0], e[2], e[1]))
+
+    def advance_to(self, segment: int, step: int) -> None:
+        if segment != self.segment:
+            self._start(segment)
+        if step < self.sim.n_steps:
+            raise RecordingError(f"{self.meta.path}: a state of step {step} is recorded after "
+                                 f"step {self.sim.n_steps} without a reset")
+        while self.sim.n_steps < step:
+            k = self.sim.n_steps
+            while self.events and self.events[0][0] <= k:
+                _, _, kind, what = self.events.pop(0)
+                if kind == "command":
+                    self.sim.set_drift(field_from_spec(what, self.meta.scene.n_agents))
+                    self.applied += 1
+                else:
+                    self._sigma(what.value)
+            for attempt in range(MAX_ATTEMPTS):
+                try:
+                    if self.path is not None:
+                        paths.step(self.sim, self.path)
+                    else:
+                        self.sim.step()
+                    break
+                except InfeasibleError:
+                    if attempt == MAX_ATTEMPTS - 1:
+                        raise
+                    self.retries += 1
+            self.simulated += 1
+
+
+def _bits_equal(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per agent: both coordinates have the same float64 bits."""
+    a = np.ascontiguousarray(a, dtype=np.float64).view(np.uint64)
+    b = np.ascontiguousarray(b, dtype=np.float64).view(np.uint64)
+    return np.all(a == b, axis=1)
+
+
+def replay(path: str | Path, progress: bool = False) -> ReplayResult:
+    """Re-simulates ``path`` and compares every recorded pose bit for bit (see module doc).
+
+    Stops at the first differing frame and reports its step and agent (the first agent whose
+    centre differs; ``max_distance_m`` over all agents).
+    """
+    meta = load_run(path)
+    rep = _Replayer(meta)
+    reader = FrameReader(meta, agents=False)
+    notes = version_notes(meta)
+    compared, last_step, last_t = 0, 0, 0.0
+    div: Divergence | None = None
+    bar = progress_bar(meta.frames or None, "frame", progress)
+    with bar:
+        for fr in reader:
+            bar.update()
+            seg = meta.segment_of(fr.log_ns)
+            step = meta.step_of(fr.stamp_ns)
+            t = step * meta.dt
+            try:
+                rep.advance_to(seg, step)
+            except SweepError as err:
+                q = fr.positions
+                div = Divergence(step, t, seg, -1, [], [], math.inf, len(q), math.inf,
+                                 f"the replay cannot reach this step: {err}")
+                break
+            q, mine = fr.positions, rep.sim.positions
+            if q.shape != mine.shape:
+                div = Divergence(step, t, seg, -1, [], [], math.inf, len(q), math.inf,
+                                 f"{len(q)} poses recorded, {len(mine)} agents replayed")
+                break
+            same = _bits_equal(q, mine)
+            if not same.all():
+                bad = np.nonzero(~same)[0]
+                dist = np.hypot(*(q - mine).T)
+                i = int(bad[0])
+                div = Divergence(step, t, seg, i, q[i].tolist(), mine[i].tolist(),
+                                 float(dist[i]), int(len(bad)), float(dist.max()))
+                break
+            compared += 1
+            last_step, last_t = step, t
+    if reader.truncated is None:  # stopped early at a divergence: the file was not read out
+        reader.truncated = meta.truncated
+        reader.error = meta.error
+    if compared == 0 and div is None:
+        raise RecordingError(f"{meta.path}: no complete frame (poses) to replay"
+                             + (f" ({reader.error})" if reader.error else ""))
+    if rep.retries:
+        notes.append(f"{rep.retries} infeasible step attempts were retried, as the node does "
+                     "when resumed")
+    return ReplayResult(
+        path=meta.path, identical=div is None, frames_compared=compared,
+        steps_simulated=rep.simulated, last_step=last_step, last_t_s=last_t,
+        segments=len(meta.resets) + 1, commands_applied=rep.applied,
+        truncated=bool(reader.truncated), read_until=reader.error if reader.truncated else None,
+        divergence=div, notes=notes)
+
+
+def format_replay(res: ReplayResult) -> str:
+    lines = []
+    if res.truncated:
+        lines.append(f"truncated recording: read up to its last complete chunk "
+                     f"({res.read_until})")
+    lines.append(f"frames compared    {res.frames_compared} (last: step {res.last_step}, "
+                 f"t = {res.last_t_s:.6g} s)")
+    lines.append(f"steps simulated    {res.steps_simulated} in {res.segments} segment(s), "
+                 f"{res.commands_applied} command(s) applied")
+    d = res.divergence
+    if d is None:
+        lines.append("result             IDENTICAL: every recorded pose reproduced bit for bit")
+    elif d.agent < 0:
+        lines.append(f"result             DIVERGED at step {d.step} (t = {d.t_s:.6g} s, "
+                     f"segment {d.segment}): {d.reason}")
+    else:
+        lines.append(f"result             DIVERGED at step {d.step} (t = {d.t_s:.6g} s, "
+                     f"segment {d.segment}), first agent {d.agent}: recorded "
+                     f"{d.recorded}, replayed {d.replayed} ({d.distance_m:.3g} m); "
+                     f"{d.agents_differing} agents differ, at most by {d.max_distance_m:.3g} m")
+    lines += [f"note               {n}" for n in res.notes]
+    return "\n".join(lines)

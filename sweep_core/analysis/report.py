@@ -1,0 +1,95 @@
+"""Output of the analysis tools: file names beside the recording, CSV tables, JSON-safe values and
+the printed summary."""
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sweep_core.analysis.metrics import Analysis
+from sweep_core.analysis.plots import plot_analysis
+
+
+
+def output_paths(recording: str | Path, suffix: str) -> dict[str, Path]:
+    p = Path(recording)
+    return {ext: p.with_name(f"{p.stem}{suffix}.{ext}") for ext in ("csv", "png")}
+
+
+def _fmt(x: float) -> str:
+    if isinstance(x, float) and not math.isfinite(x):
+        return "" if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    if isinstance(x, float) and x == int(x) and abs(x) < 2**53:
+        return str(int(x))
+    return repr(float(x))
+
+
+def write_table(path: Path, header: tuple[str, ...] | list[str], rows: np.ndarray) -> None:
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for row in rows:
+            w.writerow([_fmt(float(v)) for v in row])
+
+
+def write_outputs(an: Analysis, plots: bool = True) -> dict[str, str]:
+    """``RUN.analysis.csv`` (per frame), ``RUN.density.csv`` (x, y of each cell centre,
+    agents/m^2), ``RUN.analysis.png``; returns their paths."""
+    out = output_paths(an.meta.path, ".analysis")
+    write_table(out["csv"], Analysis.COLUMNS, an.table)
+    dens_path = output_paths(an.meta.path, ".density")["csv"]
+    iy, ix = np.nonzero(an.density)
+    cells = np.column_stack([an.density_origin[0] + (ix + 0.5) * an.cell,
+                             an.density_origin[1] + (iy + 0.5) * an.cell, an.density[iy, ix]])
+    write_table(dens_path, ("x_m", "y_m", "agents_per_m2"), cells)
+    files = {"csv": str(out["csv"]), "density_csv": str(dens_path)}
+    if plots:
+        plot_analysis(an, out["png"])
+        files["png"] = str(out["png"])
+    return files
+
+
+def jsonable(obj: Any) -> Any:
+    """inf / NaN -> None, numpy scalars -> Python, recursively."""
+    if isinstance(obj, dict):
+        return {k: jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, (np.floating, float)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def format_summary(summary: dict, skip: tuple[str, ...] = ("precision",)) -> str:
+    """The summary as aligned ``key  value`` lines (nested keys joined with '.')."""
+    flat: list[tuple[str, str]] = []
+
+    def walk(prefix: str, obj: Any) -> None:
+        if isinstance(obj, dict):
+            for k, v in obj.items():
+                if k not in skip:
+                    walk(f"{prefix}.{k}" if prefix else k, v)
+        elif obj is None:
+            flat.append((prefix, "-"))
+        elif isinstance(obj, float):
+            flat.append((prefix, f"{obj:.6g}"))
+        elif isinstance(obj, list):
+            flat.append((prefix, ", ".join(f"{v:g}" if isinstance(v, float) else str(v)
+                                           for v in obj)))
+        else:
+            flat.append((prefix, str(obj)))
+
+    walk("", summary)
+    width = max(len(k) for k, _ in flat)
+    return "\n".join(f"{k:<{width}}  {v}" for k, v in flat)
+
+
+def dumps(obj: Any) -> str:
+    """``obj`` as indented JSON (numpy values made JSON-safe by :func:`jsonable`)."""
+    return json.dumps(jsonable(obj), indent=2)

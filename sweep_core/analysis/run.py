@@ -1,0 +1,234 @@
+"""What a recording says about its run: the ``sweep_ros`` metadata record (scene, seed, dt,
+scheme, solver) and the node's command, reset and parameter records (:func:`load_run`,
+:class:`RunMeta`, :class:`Schedule`)."""
+from __future__ import annotations
+
+import bisect
+import json
+import re
+from dataclasses import dataclass, field, fields as dc_fields
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from sweep_core.errors import RecordingError, SweepError
+from sweep_core.io import cdr
+from sweep_core.io.recording import ChannelInfo, scan_recording
+from sweep_core.model.scene import Scene
+from sweep_core.numerics.projection import SolverOptions
+
+
+#: nanoseconds per second
+NS = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class Command:
+    """A velocity-field command as the node records it (metadata ``command_NNNNNN``): the
+    drift ``spec`` (``Field.to_spec()``) replaces the drift before step ``step`` -> step + 1
+    of segment ``segment`` (a segment is the run between two resets)."""
+
+    index: int
+    topic: str
+    step: int
+    log_time_ns: int
+    spec: dict
+    segment: int
+
+
+@dataclass(frozen=True)
+class ParameterChange:
+    """A live parameter change recorded by the node (metadata ``parameter_NNNNNN``: keys
+    ``name``, ``value`` (JSON), ``step``, ``log_time_ns``); in effect from step ``step`` on."""
+
+    index: int
+    name: str
+    value: Any
+    step: int
+    log_time_ns: int
+    segment: int
+
+
+@dataclass
+class RunMeta:
+    """What a recording says about its run (None where it does not say)."""
+
+    path: str
+    raw: dict[str, str]
+    scene: Scene | None
+    dt: float | None
+    seed: int | None
+    scheme: str
+    solver: dict
+    t_end: float | None
+    record_every: int | None
+    path_dt: float | None
+    versions: dict
+    parameters: dict
+    commands: list[Command]
+    parameter_changes: list[ParameterChange]
+    resets: list[int]
+    poses_topic: str
+    agents_topic: str | None
+    frames: int
+    truncated: bool
+    error: str | None
+    problems: list[str] = field(default_factory=list)
+
+    @property
+    def dt_ns(self) -> int | None:
+        return None if self.dt is None else int(round(self.dt * NS))
+
+    def segment_of(self, log_ns: int) -> int:
+        """0 before the first reset, k after the k-th."""
+        return bisect.bisect_right(self.resets, log_ns)
+
+    def step_of(self, stamp_ns: int) -> int:
+        """The step of a state stamped stamp_ns (simulation time)."""
+        if self.dt is None:
+            raise RecordingError(f"{self.path}: no dt in the metadata, steps are unknown")
+        return int(round(stamp_ns / (self.dt * NS)))
+
+    def commands_in(self, segment: int) -> list[Command]:
+        return [c for c in self.commands if c.segment == segment]
+
+    def solver_options(self) -> SolverOptions:
+        names = {f.name for f in dc_fields(SolverOptions)}
+        unknown = sorted(set(self.solver) - names)
+        if unknown:
+            raise RecordingError(f"{self.path}: solver settings {unknown} are unknown to this "
+                                 "version of sweep_core (fix: replay with the version that "
+                                 "recorded it, see its versions metadata)")
+        return SolverOptions(**self.solver)
+
+
+def _number(raw: dict[str, str], key: str, cast: type, problems: list[str]) -> Any:
+    text = raw.get(key, "")
+    if text == "":
+        return None
+    try:
+        return cast(text)
+    except ValueError:
+        problems.append(f"metadata {key}={text!r} is not a {cast.__name__}")
+        return None
+
+
+def _json(text: str | None, what: str, problems: list[str]) -> Any:
+    if not text:
+        return None
+    try:
+        return json.loads(text)
+    except ValueError:
+        problems.append(f"metadata {what} is not JSON")
+        return None
+
+
+def _indexed(metadata: dict[str, dict[str, str]], prefix: str) -> list[tuple[int, dict]]:
+    pat = re.compile(rf"^{prefix}_(\d+)$")
+    out = [(int(m.group(1)), rec) for name, rec in metadata.items() if (m := pat.match(name))]
+    return sorted(out, key=lambda x: x[0])
+
+
+def _pick_topic(channels: dict[str, ChannelInfo], default: str, msgtype: str,
+                declared: dict | None) -> str | None:
+    if default in channels:
+        return default
+    suffix = default  # e.g. "/poses": a namespaced node records "/crowd/poses"
+    cands = [t for t, c in channels.items() if t.endswith(suffix) and c.msgtype == msgtype]
+    if not cands and declared:
+        cands = [t for t, m in declared.items() if t.endswith(suffix) and m == msgtype]
+    return sorted(cands, key=len)[0] if cands else None
+
+
+def load_run(path: str | Path) -> RunMeta:
+    """Metadata, topics, frame count and truncation of a recording.
+
+    Raises:
+        RecordingError: not an MCAP file, or no PoseArray topic ``.../poses`` in it.
+    """
+    info = scan_recording(path)
+    problems: list[str] = []
+    raw = dict(info.metadata.get("sweep_ros", {}))
+    scene = None
+    if raw.get("scene"):
+        try:
+            scene = Scene.from_dict(yaml.safe_load(raw["scene"]) or {})
+        except (SweepError, yaml.YAMLError) as err:
+            problems.append(f"the recorded scene does not load: {err}")
+    dt = _number(raw, "dt", float, problems)
+    seed = _number(raw, "seed", int, problems)
+    declared = _json(raw.get("topics"), "topics", problems)
+    poses = _pick_topic(info.channels, "/poses", cdr.POSE_ARRAY, declared)
+    if poses is None:
+        raise RecordingError(f"{info.path}: no geometry_msgs/msg/PoseArray topic '/poses' "
+                             f"(topics: {sorted(info.channels)}) (fix: analyse a recording "
+                             "made by sweep run or sweep_node)")
+    agents = _pick_topic(info.channels, "/agents", cdr.POINT_CLOUD2, declared)
+    resets = sorted(int(rec.get("log_time_ns", 0))
+                    for _, rec in _indexed(info.metadata, "reset"))
+    meta = RunMeta(
+        path=info.path, raw=raw, scene=scene, dt=dt, seed=seed,
+        scheme=raw.get("scheme", "projected_euler"),
+        solver=_json(raw.get("solver"), "solver", problems) or {},
+        t_end=_number(raw, "t_end", float, problems),
+        record_every=_number(raw, "record_every", int, problems),
+        path_dt=_number(raw, "path_dt", float, problems),
+        versions=_json(raw.get("versions"), "versions", problems) or {},
+        parameters=_json(raw.get("parameters"), "parameters", problems) or {},
+        commands=[], parameter_changes=[], resets=resets, poses_topic=poses,
+        agents_topic=agents,
+        frames=info.channels[poses].message_count if poses in info.channels else 0,
+        truncated=info.truncated, error=info.error, problems=problems)
+    for k, rec in _indexed(info.metadata, "command"):
+        spec = _json(rec.get("field"), f"command_{k:06d}.field", problems)
+        try:
+            step, log_ns = int(rec["step"]), int(rec["log_time_ns"])
+        except (KeyError, ValueError):
+            problems.append(f"metadata command_{k:06d} has no valid step / log_time_ns")
+            continue
+        if isinstance(spec, dict):
+            meta.commands.append(Command(k, rec.get("topic", ""), step, log_ns, spec,
+                                         meta.segment_of(log_ns)))
+    for k, rec in _indexed(info.metadata, "parameter"):
+        try:
+            change = ParameterChange(k, rec["name"], json.loads(rec["value"]), int(rec["step"]),
+                                     int(rec["log_time_ns"]), 0)
+        except (KeyError, ValueError):
+            problems.append(f"metadata parameter_{k:06d} is incomplete (name, value, step, "
+                            "log_time_ns)")
+            continue
+        meta.parameter_changes.append(ParameterChange(
+            change.index, change.name, change.value, change.step, change.log_time_ns,
+            meta.segment_of(change.log_time_ns)))
+    return meta
+
+
+def require_replayable(meta: RunMeta) -> None:
+    """Raise unless the metadata fully describes the run (scene, dt, seed, scheme, solver)."""
+    missing = [k for k, v in (("scene", meta.scene), ("dt", meta.dt), ("seed", meta.seed))
+               if v is None]
+    if missing or meta.problems:
+        why = ", ".join([f"no {m}" for m in missing] + meta.problems)
+        raise RecordingError(f"{meta.path}: the metadata record 'sweep_ros' does not describe "
+                             f"the run ({why}) (fix: use a recording made by sweep run or "
+                             "sweep_node)")
+
+
+class Schedule:
+    """The drift spec in effect at (segment, step): the scene's, replaced by each command from
+    its step on (a command with step k is in effect for the step k -> k + 1)."""
+
+    def __init__(self, meta: RunMeta) -> None:
+        base = meta.scene.drift.to_spec() if meta.scene is not None else {"kind": "none"}
+        self._base = base
+        self._by_segment: dict[int, tuple[list[int], list[dict]]] = {}
+        for c in sorted(meta.commands, key=lambda c: (c.segment, c.step, c.index)):
+            steps, specs = self._by_segment.setdefault(c.segment, ([], []))
+            steps.append(c.step)
+            specs.append(c.spec)
+
+    def spec_at(self, segment: int, step: int) -> dict:
+        steps, specs = self._by_segment.get(segment, ([], []))
+        k = bisect.bisect_right(steps, step)
+        return specs[k - 1] if k else self._base

@@ -1,0 +1,171 @@
+"""Running the accuracy study: tables, CSV files and plots (``sweep bench accuracy``)."""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sweep_core.bench.tables import write_csv
+from sweep_core.numerics.schemes import SCHEMES
+
+from sweep_core.bench.accuracy import (Measurement, PROBLEMS, Slope, StudyConfig, Variant, group_slopes)
+from sweep_core.bench.accuracy_problems import STUDIES, study_features
+
+
+def format_table(ms: list[Measurement]) -> str:
+    head = (f"{'problem':<12}{'metric':<7}{'scheme':<17}{'tol':<17}{'dt':>10}{'error':>11}"
+            f"{'+-95%':>10}{'wall s/s':>10}{'sub':>6}")
+    lines = [head, "-" * len(head)]
+    for m in ms:
+        lines.append(f"{m.problem:<12}{m.metric:<7}{m.scheme:<17}{m.tol:<17}{m.dt:>10.3g}"
+                     f"{m.error:>11.3e}{m.ci:>10.2e}{m.wall_per_s:>10.3g}{m.substeps:>6.2f}")
+    return "\n".join(lines)
+
+
+def format_slopes(slopes: list[Slope]) -> str:
+    head = f"{'problem':<12}{'metric':<7}{'scheme':<17}{'tol':<17}{'slope':>7}  {'95% interval':<17}note"
+    lines = [head, "-" * len(head)]
+    for s in slopes:
+        shown = f"{s.slope:>7.2f}  [{s.lo:.2f}, {s.hi:.2f}]" if np.isfinite(s.slope) else (
+            f"{'-':>7}  {'':<15}")
+        lines.append(f"{s.problem:<12}{s.metric:<7}{s.scheme:<17}{s.tol:<17}{shown:<26}{s.note}")
+    return "\n".join(lines)
+
+
+def format_features(rows: list[dict]) -> str:
+    lines = [f"{'free-flow crowd, 120 agents':<30}{'ms/step':>9}{'x none':>8}{'contacts':>10}",
+             "-" * 57]
+    for r in rows:
+        lines.append(f"{r['scene']:<30}{r['ms_per_step']:>9.3f}{r['ratio_to_none']:>8.2f}"
+                     f"{r['contacts']:>10}")
+    return "\n".join(lines)
+
+
+def _mrow(m: Measurement) -> dict:
+    return {"problem": m.problem, "metric": m.metric, "scheme": m.scheme, "tol": m.tol,
+            "dt": m.dt, "error": m.error, "ci95": m.ci, "wall_s_per_sim_s": m.wall_per_s,
+            "substeps_per_step": m.substeps, "samples": m.samples}
+
+
+def plot(ms: list[Measurement], out: Path) -> list[Path]:
+    """error_vs_dt.png and pareto.png (error against wall time per simulated second)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
+
+    default_tol = Variant("", SCHEMES["projected_euler"]).tol
+    panels: dict[tuple[str, str], list[Measurement]] = {}
+    for m in ms:
+        panels.setdefault((m.problem, m.metric), []).append(m)
+    keys = list(panels)
+    cols = min(3, math.ceil(math.sqrt(len(keys))))
+    rows = max(1, math.ceil(len(keys) / cols))
+    written = []
+    for name, xkey, xlabel in (("error_vs_dt.png", "dt", "dt (s)"),
+                               ("pareto.png", "wall_per_s", "wall time per simulated second (s)")):
+        fig, axes = plt.subplots(rows, cols, figsize=(4.0 * cols, 3.1 * rows), squeeze=False)
+        for ax, key in zip(axes.flat, keys):
+            lines: dict[tuple[str, str], list[Measurement]] = {}
+            for m in panels[key]:
+                lines.setdefault((m.scheme, m.tol), []).append(m)
+            drawn = 0
+            for (scheme, tol), g in lines.items():
+                g = [m for m in sorted(g, key=lambda m: -m.dt) if m.error > 1e-13]
+                if not g:
+                    continue
+                drawn += 1
+                x = np.array([getattr(m, xkey) for m in g])
+                y = np.array([m.error for m in g])
+                ci = np.array([m.ci for m in g])
+                label = scheme if tol == default_tol else f"{scheme} {tol}"
+                ax.errorbar(x, y, yerr=[np.minimum(ci, 0.9 * y), ci], marker="o", ms=3, lw=1,
+                            capsize=2, label=label)
+            if xkey == "dt":
+                dts = np.array(sorted({m.dt for m in panels[key]}))
+                ref = [m.error for m in panels[key] if m.error > 1e-13]
+                if ref and len(dts) > 1:
+                    y0 = float(np.median(ref))
+                    for p, style in ((0.5, ":"), (1.0, "--")):
+                        ax.plot(dts, y0 * (dts / dts[len(dts) // 2]) ** p, "k" + style, lw=0.7,
+                                label=f"slope {p:g}")
+            ax.set_title(f"{key[0]} ({key[1]})", fontsize=9)
+            if not drawn:
+                ax.text(0.5, 0.5, "exact to rounding\n(every error < 1e-13 m)",
+                        ha="center", va="center", transform=ax.transAxes, fontsize=8)
+                ax.set_xticks([])
+                ax.set_yticks([])
+                continue
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.xaxis.set_minor_formatter(NullFormatter())
+            ax.set_xlabel(xlabel, fontsize=8)
+            ax.set_ylabel("error (m)", fontsize=8)
+            ax.tick_params(labelsize=7)
+            ax.legend(fontsize=6)
+        for ax in list(axes.flat)[len(keys):]:
+            ax.axis("off")
+        fig.tight_layout()
+        path = out / name
+        fig.savefig(path, dpi=72)
+        plt.close(fig)
+        written.append(path)
+    return written
+
+
+def run_study(cfg: StudyConfig, out: Path, problems: tuple[str, ...] = PROBLEMS,
+              log=print) -> tuple[list[Measurement], list[Slope], list[dict]]:
+    """Run the chosen problems, print the tables, write CSVs and plots into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    ms: list[Measurement] = []
+    start = time.perf_counter()
+    for name in problems:
+        if name in STUDIES:
+            t0 = time.perf_counter()
+            ms.extend(STUDIES[name](cfg, log))
+            log(f"  {name}: {time.perf_counter() - t0:.1f} s")
+    features = study_features(cfg, log) if "features" in problems else []
+    slopes = group_slopes(ms, cfg.seed)
+    if ms:
+        log(format_table(ms))
+        log("")
+        log(format_slopes(slopes))
+        write_csv(out / "accuracy.csv", [_mrow(m) for m in ms])
+        write_csv(out / "slopes.csv", [dataclasses.asdict(s) for s in slopes])
+        for p in plot(ms, out):
+            log(f"wrote {p}")
+    if features:
+        log("")
+        log(format_features(features))
+        write_csv(out / "features.csv", features)
+    log(f"study took {time.perf_counter() - start:.1f} s; CSV and PNG in {out}")
+    return ms, slopes, features
+
+
+def _accuracy(args: argparse.Namespace) -> int:
+    cfg = StudyConfig.make(args.quick, args.seed)
+    print(f"sweep bench accuracy: {'quick' if cfg.quick else 'full'} study, {cfg.levels} dt "
+          f"levels, problems {' '.join(args.problems)}", flush=True)
+    run_study(cfg, Path(args.out), tuple(args.problems), log=lambda s: print(s, flush=True))
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``accuracy`` to the subparsers of ``sweep bench``."""
+    acc = sub.add_parser(
+        "accuracy", help="error against dt, scheme and solver tolerance; Pareto plot",
+        description="Error (95 % CI) against dt, scheme and solver tolerance on exact "
+                    "problems and a crowd, fitted log-log slopes, error-vs-dt and Pareto plots, "
+                    "and the per-step cost of walls, noise and radius laws.")
+    acc.add_argument("--quick", action="store_true",
+                     help="fewer paths and a shorter crowd run (under a minute)")
+    acc.add_argument("--out", default="bench_out",
+                     help="directory for CSV and PNG files (default bench_out)")
+    acc.add_argument("--seed", type=int, default=0, help="seed of the Brownian paths")
+    acc.add_argument("--problems", nargs="+", default=list(PROBLEMS), choices=PROBLEMS,
+                     metavar="NAME", help=f"subset of: {' '.join(PROBLEMS)} (default all)")
+    acc.set_defaults(func=_accuracy)

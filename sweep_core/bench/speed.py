@@ -1,0 +1,324 @@
+"""``sweep bench speed``: step time against the floor and whole-set QP baselines.
+
+For each N and scene (a hexagonal jam pushed to its centre, and free flow), after a warm-up,
+on the states the simulator itself visits (times in ms, distances in m):
+
+* floor: neighbour search + constraint assembly of the step (``constraints.linearise`` at the
+  cutoff the step started from), the work no exact method avoids;
+* step: a full ``Simulator.step()`` (prediction, assembly, projection, feasibility check);
+* baselines: assembly plus the step's linearised QP, min 1/2 |x - p|^2 s.t. C x >= b over every
+  row built at that cutoff and every agent in a row (no clusters, no closed forms), solved as
+  one problem by Clarabel (in this process) and by proxsuite (sparse proxqp, with the
+  simulator's solver settings, in a worker process under a wall-clock limit per solve: proxsuite
+  0.8.0 stalls inside its solve on degenerate jams; a stalled worker is killed and the column
+  reads n/a, with the reason under the row);
+* cromosim, when it is installed (never a dependency): assembly plus the same rows and
+  prediction through ``cromosim.micro.projection`` with its default method and tolerances
+  (velocity form: U = (y - q) / dt, each row as its gap at q and unit vector; every agent of
+  the crowd), in the same worker under the same limit.
+
+Median, min and max over the measured steps; ``*_solved`` is converged / attempted solves
+among the steps with rows (a stalled one counts); ``*_dist_m`` is the largest distance
+between an agent's position from that solver and from the step. A CSV is written beside the
+table.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import math
+import multiprocessing
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sweep_core.numerics import projection
+from sweep_core.numerics.projection.clusters import row_matrix
+from sweep_core.numerics.projection.interior import solve_clarabel
+from sweep_core.numerics.projection.proxqp import solve_proxsuite
+from sweep_core.bench.tables import write_csv
+from sweep_core.numerics.constraints import Rows, linearise
+from sweep_core.model.scene import Scene
+from sweep_core.numerics.simulator import Simulator
+
+COLUMNS = ("N", "scene", "contacts", "floor_median_ms", "step_median_ms", "step_min_ms",
+           "step_max_ms", "step_over_floor", "clarabel_median_ms", "step_over_clarabel",
+           "proxsuite_median_ms", "step_over_proxsuite", "proxsuite_solved",
+           "proxsuite_max_dist_m", "cromosim_median_ms", "step_over_cromosim",
+           "cromosim_solved", "cromosim_max_dist_m", "notes")
+#: table header and width of each column printed
+_SHOWN = (("N", "N", 6), ("scene", "scene", 7), ("contacts", "contacts", 8),
+          ("floor_median_ms", "floor", 8), ("step_median_ms", "step", 9),
+          ("step_min_ms", "min", 9), ("step_max_ms", "max", 9),
+          ("step_over_floor", "/floor", 7), ("clarabel_median_ms", "clarabel", 9),
+          ("step_over_clarabel", "/clar", 6), ("proxsuite_median_ms", "proxsuite", 9),
+          ("step_over_proxsuite", "/prox", 6), ("proxsuite_solved", "solved", 7),
+          ("proxsuite_max_dist_m", "prox_dist", 9), ("cromosim_median_ms", "cromosim", 9),
+          ("step_over_cromosim", "/crom", 6))
+
+
+def crowd(n: int, jammed: bool, sigma: float = 0.1) -> Scene:
+    """n disks of radius 0.24 m on a hexagonal lattice: touching and pushed to the centre
+    (jammed), or 1.5 m apart under a uniform drift (free flow)."""
+    cols = int(math.ceil(math.sqrt(n)))
+    spacing = 0.5 if jammed else 1.5
+    pos = np.array([(c * spacing + (r % 2) * spacing / 2, r * spacing * math.sqrt(3) / 2)
+                    for r in range(cols) for c in range(cols)][:n])
+    drift = ({"kind": "goal", "goal": pos.mean(axis=0).tolist(), "speed": 1.0}
+             if jammed else {"kind": "uniform", "velocity": [1.0, 0.2]})
+    return Scene.from_dict({"agents": {"positions": pos.tolist(), "radius": 0.24},
+                            "drift": drift, "noise": {"sigma": sigma}})
+
+
+# -- solvers run in the worker process (each returns seconds, converged, answer) ---------------
+
+def _solve_proxsuite(target: np.ndarray, c: Any, b: np.ndarray,
+                     opts: projection.SolverOptions) -> tuple[float, bool, np.ndarray]:
+    if len(b) == 0:
+        return 0.0, True, target
+    start = time.perf_counter()
+    x, _, ok = solve_proxsuite(target, c, b, opts)
+    return time.perf_counter() - start, ok, x
+
+
+def _solve_cromosim(dt: float, xyrv: np.ndarray, contacts: np.ndarray, vd: np.ndarray
+                    ) -> tuple[float, bool, np.ndarray]:
+    """cromosim's velocity-form projection; its fallback to Uzawa (announced on stdout) and
+    a negative ``info`` count as not converged."""
+    said = io.StringIO()
+    with contextlib.redirect_stdout(said):  # its import and its solver talk on stdout
+        from cromosim.micro import projection as cromosim_projection
+
+        start = time.perf_counter()
+        info, _, u, _, _ = cromosim_projection(dt, xyrv, contacts, vd)
+        seconds = time.perf_counter() - start
+    return seconds, info >= 0 and "failed" not in said.getvalue(), np.asarray(u)
+
+
+_SOLVERS = {"proxsuite": _solve_proxsuite, "cromosim": _solve_cromosim}
+
+
+def _serve(conn: Any) -> None:
+    """Worker loop: (solver name, args) in, ("ok", result) or ("error", text) out."""
+    while (task := conn.recv()) is not None:
+        name, args = task
+        try:
+            conn.send(("ok", _SOLVERS[name](*args)))
+        except Exception as err:  # noqa: BLE001 - reported in the table's notes
+            conn.send(("error", f"{type(err).__name__}: {err}"))
+
+
+class _Worker:
+    """A spawned process that runs solver calls one at a time, each under a wall-clock limit;
+    a call past the limit kills the process (a new one is started for the next batch)."""
+
+    def __init__(self) -> None:
+        self._proc: Any = None
+        self._conn: Any = None
+
+    def run(self, name: str, tasks: list[tuple], limit_s: float) -> tuple[list, str]:
+        """Results of the tasks up to the first failure or solve longer than limit_s seconds,
+        and a note saying why it stopped ("" when every task was done)."""
+        if self._proc is None:
+            ctx = multiprocessing.get_context("spawn")
+            self._conn, child = ctx.Pipe()
+            self._proc = ctx.Process(target=_serve, args=(child,), daemon=True)
+            self._proc.start()
+            child.close()
+        results: list = []
+        for k, task in enumerate(tasks):
+            self._conn.send((name, task))
+            try:
+                if not self._conn.poll(limit_s):
+                    self.close(kill=True)
+                    return results, (f"{name} n/a: solve {k + 1} of {len(tasks)} still running "
+                                     f"after {limit_s:g} s, killed")
+                status, value = self._conn.recv()
+            except (EOFError, OSError) as err:
+                self.close(kill=True)
+                return results, f"{name} n/a: worker died in solve {k + 1} ({err!r})"
+            if status == "error":
+                return results, f"{name} n/a: {value}"
+            results.append(value)
+        return results, ""
+
+    def close(self, kill: bool = False) -> None:
+        if self._proc is None:
+            return
+        if kill:
+            self._proc.kill()
+        else:
+            self._conn.send(None)
+        self._proc.join()
+        self._conn.close()
+        self._proc = self._conn = None
+
+
+# -- measuring ----------------------------------------------------------------------------------
+
+def _whole_qp(sim: Simulator, q: np.ndarray, r1: np.ndarray, rows: Rows) -> tuple[float, dict]:
+    """Seconds to assemble the last step's rows (built at the step's first cutoff, as timed
+    for the floor) into one QP, and the QP."""
+    pred = sim.last.prediction
+    start = time.perf_counter()
+    agents = rows.agents()
+    loc = np.full(len(q), -1, dtype=np.intp)
+    loc[agents] = np.arange(len(agents))
+    c, b = row_matrix(rows, loc, len(agents))
+    seconds = time.perf_counter() - start
+    return seconds, {"rows": rows, "agents": agents, "c": c, "b": b, "r1": r1, "q": q,
+                     "pred": pred, "target": pred[agents].ravel(), "y": sim.last.projection.y}
+
+
+def _cromosim_task(qp: dict, dt: float) -> tuple:
+    """cromosim's arguments for a QP: velocities (y - q) / dt, rows as i, j, gap at q, unit
+    vector from i to j (walls: j = -1 and the unit normal pointing into the free side)."""
+    rows, q = qp["rows"], qp["q"]
+    gap_p, gap_s = rows.residuals(q)
+    pairs = np.column_stack([rows.pair_i, rows.pair_j, gap_p, -rows.pair_e])
+    singles = np.column_stack([rows.single_a, np.full(len(gap_s), -1.0), gap_s, rows.single_n])
+    xyrv = np.column_stack([q, qp["r1"], np.ones(len(q))])
+    return dt, xyrv, np.vstack([pairs, singles]), (qp["pred"] - q) / dt
+
+
+def _external(worker: _Worker, name: str, qps: list[dict], build: list[float], dt: float,
+              limit_s: float, opts: projection.SolverOptions) -> dict:
+    """Median ms (assembly + solve), solved count and largest distance to the step's answer."""
+    if name == "proxsuite":
+        tasks = [(qp["target"], qp["c"], qp["b"], opts) for qp in qps]
+    else:
+        tasks = [_cromosim_task(qp, dt) for qp in qps]
+    results, note = worker.run(name, tasks, limit_s)
+    # solved / attempted among the steps with rows (the solve that failed or stalled counts)
+    solved = sum(ok for (_, ok, _), qp in zip(results, qps) if len(qp["b"]))
+    attempted = len(results) + (1 if note and len(results) < len(qps) else 0)
+    posed = sum(1 for qp in qps[:attempted] if len(qp["b"]))
+    dist = 0.0
+    for (_, _, x), qp in zip(results, qps):
+        if name == "proxsuite":
+            y = qp["pred"].copy()
+            y[qp["agents"]] = np.reshape(x, (-1, 2))
+        else:
+            y = qp["q"] + dt * np.reshape(x, (-1, 2))
+        dist = max(dist, float(np.sqrt(((y - qp["y"]) ** 2).sum(axis=1)).max(initial=0.0)))
+    done = not note and len(results) == len(qps)
+    ms = [1e3 * (s + b) for (s, _, _), b in zip(results, build)]
+    return {"median_ms": float(np.median(ms)) if done else math.nan,
+            "solved": f"{solved}/{posed}" if posed else "no QP",
+            "max_dist_m": dist if results else math.nan, "note": note}
+
+
+def measure(n: int, jammed: bool, steps: int, warmup: int, baseline: bool,
+            worker: _Worker | None = None, limit_s: float = 30.0,
+            cromosim: bool = False) -> dict:
+    """One row of the table (see the module docstring and COLUMNS)."""
+    sim = Simulator(crowd(n, jammed), dt=0.01, seed=0)
+    sim.step(warmup)
+    floor, step, build, clarabel, qps = [], [], [], [], []
+    opts = sim.scheme.solver
+    for _ in range(steps):
+        q, t1 = sim.positions, sim.t + sim.dt
+        start = time.perf_counter()
+        sim.step()
+        step.append(time.perf_counter() - start)
+        # the floor of that step: assembly at the cutoff the step itself started from
+        r1 = sim.scene.radii(t1)
+        start = time.perf_counter()
+        rows = linearise(sim.scene.geometry, t1, q, r1,
+                         projection.first_cutoff(q, sim.last.prediction, r1))
+        floor.append(time.perf_counter() - start)
+        if baseline:
+            seconds, qp = _whole_qp(sim, q, r1, rows)
+            seconds += floor[-1]  # the baselines assemble the same rows
+            start = time.perf_counter()
+            if len(qp["b"]):
+                solve_clarabel(qp["target"], qp["c"].tocsr(), qp["b"], opts)
+            clarabel.append(seconds + time.perf_counter() - start)
+            build.append(seconds)
+            qps.append(qp)
+    ms = {k: 1e3 * np.array(v) for k, v in (("floor", floor), ("step", step),
+                                             ("clarabel", clarabel))}
+    out: dict[str, Any] = {"N": n, "scene": "jammed" if jammed else "free",
+                           "contacts": sim.contacts, "notes": ""}
+    for k, v in ms.items():
+        out[f"{k}_median_ms"] = float(np.median(v)) if len(v) else math.nan
+    out["step_min_ms"], out["step_max_ms"] = float(ms["step"].min()), float(ms["step"].max())
+    notes = []
+    for name in ("proxsuite", "cromosim"):
+        res = {"median_ms": math.nan, "solved": "", "max_dist_m": math.nan, "note": ""}
+        if baseline and worker is not None and (name == "proxsuite" or cromosim):
+            res = _external(worker, name, qps, build, sim.dt, limit_s, opts)
+        out[f"{name}_median_ms"], out[f"{name}_max_dist_m"] = res["median_ms"], res["max_dist_m"]
+        out[f"{name}_solved"] = res["solved"]
+        if res["note"]:
+            notes.append(res["note"])
+    out["notes"] = "; ".join(notes)
+    for k in ("floor", "clarabel", "proxsuite", "cromosim"):
+        out[f"step_over_{k}"] = out["step_median_ms"] / out[f"{k}_median_ms"]
+    return out
+
+
+def cromosim_missing() -> str | None:
+    """Why ``cromosim.micro`` cannot be imported here, or None when it can."""
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):  # it prints about optional modules
+            import cromosim.micro  # noqa: F401
+    except Exception as err:  # noqa: BLE001 - any failure means: skip the column
+        return f"{type(err).__name__}: {err}"
+    return None
+
+
+def _cell(value: Any, width: int) -> str:
+    if isinstance(value, float):
+        if math.isnan(value):
+            return f"{'n/a':>{width}}"
+        return f"{value:>{width}.3g}" if abs(value) < 1e-2 and value else f"{value:>{width}.3f}"
+    return f"{value:>{width}}"
+
+
+def run(args: argparse.Namespace) -> int:
+    baseline = not args.no_baseline
+    missing = cromosim_missing() if baseline else "baselines off"
+    if missing:
+        print(f"cromosim: skipped ({missing}); it is never a dependency of sweep_ros")
+    else:
+        from importlib.metadata import version
+        print(f"cromosim {version('cromosim')}: cromosim.micro.projection (its default "
+              "method) on the same rows, every agent of the crowd")
+    print("times in ms (median over the steps unless min/max), dist in m; /X = step / X")
+    print(" ".join(f"{head:>{w}}" for _, head, w in _SHOWN), flush=True)
+    worker = _Worker() if baseline else None
+    results = []
+    try:
+        for n in args.sizes:
+            for jammed in (True, False):
+                r = measure(n, jammed, args.steps, args.warmup, baseline, worker,
+                            args.timeout, cromosim=missing is None)
+                results.append(r)
+                print(" ".join(_cell(r[c], w) for c, _, w in _SHOWN), flush=True)
+                if r["notes"]:
+                    print(f"{'':>14}{r['notes']}", flush=True)
+    finally:
+        if worker is not None:
+            worker.close()
+    write_csv(Path(args.csv), results, COLUMNS)
+    print(f"csv: {args.csv}")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``speed`` to the ``bench`` subcommands."""
+    p = sub.add_parser("speed", help="step time vs floor and whole-set QP baselines")
+    p.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 4000, 10000])
+    p.add_argument("--steps", type=int, default=30, help="measured steps (default 30)")
+    p.add_argument("--warmup", type=int, default=20, help="steps before measuring")
+    p.add_argument("--no-baseline", action="store_true",
+                   help="skip the whole-set QPs (Clarabel, proxsuite, cromosim)")
+    p.add_argument("--timeout", type=float, default=30.0, metavar="S",
+                   help="wall-clock limit of one proxsuite (or cromosim) solve, s; the first "
+                        "solve past it ends that column for the N and scene (default 30)")
+    p.add_argument("--csv", default="bench_speed.csv", help="CSV file to write")
+    p.set_defaults(func=run)

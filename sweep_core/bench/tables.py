@@ -1,0 +1,17 @@
+"""CSV output shared by the bench studies."""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import Sequence
+
+
+def write_csv(path: Path, rows: list[dict], columns: Sequence[str] | None = None) -> None:
+    """The rows as a CSV with a header: ``columns``, or the keys of the first row. Nothing is
+    written for no rows without columns."""
+    if columns is None and not rows:
+        return
+    with Path(path).open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(columns or rows[0]))
+        w.writeheader()
+        w.writerows(rows)

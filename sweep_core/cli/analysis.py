@@ -1,0 +1,86 @@
+"""``sweep analyze``, ``sweep replay`` and ``sweep compare``: recordings after the run.
+
+Wired into ``sweep`` by one call, ``register(sub)``, in :func:`sweep_core.cli.build_parser`.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+
+from sweep_core.analysis import compare, metrics, replay, report
+
+__all__ = ["register"]
+
+
+def _analyze(args: argparse.Namespace) -> int:
+    line = metrics.parse_line(args.line) if args.line else None
+    an = metrics.analyze(args.recording, line=line, arrive_radius=args.arrive_radius,
+                          cell=args.cell, progress=not args.quiet)
+    an.summary["outputs"] = report.write_outputs(an, plots=not args.no_plots)
+    if args.json:
+        print(json.dumps(report.jsonable(an.summary), indent=2))
+    else:
+        if an.summary["truncated"]:
+            print(f"truncated recording: read up to its last complete chunk "
+                  f"({an.summary['read_until']})")
+        print(report.format_summary(an.summary))
+    return 0
+
+
+def _replay(args: argparse.Namespace) -> int:
+    res = replay.replay(args.recording, progress=not args.quiet)
+    print(report.dumps(res.to_dict()) if args.json else replay.format_replay(res))
+    return 0 if res.identical else 1
+
+
+def _compare(args: argparse.Namespace) -> int:
+    cmp = compare.compare(args.a, args.b, progress=not args.quiet)
+    files = compare.write_comparison(cmp, plots=not args.no_plots)
+    if args.json:
+        d = cmp.to_dict()
+        d["outputs"] = files
+        print(report.dumps(d))
+    else:
+        print(compare.format_comparison(cmp))
+        print(f"{'outputs':<18} {', '.join(files.values())}")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Adds the ``analyze``, ``replay`` and ``compare`` subcommands to ``sweep``."""
+    p = sub.add_parser("analyze", help="metrics of a recording: gaps, contacts, pressure, "
+                       "speeds, flow, arrivals, density (CSV, PNG, summary)",
+                       description="Writes RUN.analysis.csv (one row per recorded step), "
+                       "RUN.density.csv and RUN.analysis.png next to RUN.mcap and prints a "
+                       "summary. A recording cut short is read up to its last complete chunk.")
+    p.add_argument("recording", help="MCAP file from sweep run or sweep_node")
+    p.add_argument("--line", metavar="x0,y0,x1,y1",
+                   help="counting line (m): flow through it, positive from left to right "
+                        "looking from (x0, y0) to (x1, y1), and evacuation times")
+    p.add_argument("--arrive-radius", type=float, default=None, metavar="R",
+                   help="arrived = within R m of the goal in effect (default: its slow_radius)")
+    p.add_argument("--cell", type=float, default=0.5, help="density map cell, m (default 0.5)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_analyze)
+
+    p = sub.add_parser("replay", help="re-simulate a recording from its metadata and check "
+                       "every recorded pose bit for bit",
+                       description="Exit status 0: identical; 1: diverged (the first step and "
+                       "agent are reported); 2: the recording cannot be replayed.")
+    p.add_argument("recording", help="MCAP file from sweep run or sweep_node")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_replay)
+
+    p = sub.add_parser("compare", help="pathwise distance between two runs of one scene on "
+                       "their common times (e.g. dt = 0.01 vs 0.001 on one Brownian path)",
+                       description="Writes A_vs_B.compare.csv, A_vs_B.agents.csv and "
+                       "A_vs_B.compare.png next to A.")
+    p.add_argument("a", help="first recording")
+    p.add_argument("b", help="second recording")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--no-plots", action="store_true", help="no PNG")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_compare)

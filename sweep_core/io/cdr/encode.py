@@ -1,0 +1,171 @@
+"""CDR encoders: numpy arrays to the bytes of PoseArray, PointCloud2 and Clock messages
+(see :mod:`sweep_core.io.cdr`)."""
+from __future__ import annotations
+
+import struct
+from functools import lru_cache
+from typing import Mapping
+
+import numpy as np
+
+from sweep_core.io.cdr.wire import ENCAPSULATION, PAD, header_prefix, pack_2u32, pack_3u32, scratch, split_stamp
+
+
+def encode_clock(stamp_ns: int) -> bytes:
+    """``rosgraph_msgs/msg/Clock`` with ``clock`` = ``stamp_ns`` (12 bytes)."""
+    sec, nanosec = split_stamp(stamp_ns, "stamp_ns")
+    return ENCAPSULATION + struct.pack("<iI", sec, nanosec)
+
+
+def encode_pose_array(
+    stamp_ns: int,
+    frame_id: str,
+    positions: np.ndarray,
+    yaw: np.ndarray | None = None,
+) -> bytes:
+    """``geometry_msgs/msg/PoseArray`` of N poses.
+
+    Args:
+        stamp_ns: header stamp in nanoseconds.
+        frame_id: header frame id.
+        positions: (N, 2) x, y in metres (z = 0); must be finite.
+        yaw: (N,) heading in radians about +z, or None for the identity orientation; must
+            be finite.
+
+    Raises:
+        ValueError: naming the argument, on a bad stamp, frame id, shape or non-finite value.
+    """
+    prefix = header_prefix(stamp_ns, frame_id)
+    try:
+        pos = np.asarray(positions, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"positions: must be an (N, 2) array of numbers ({err})") from None
+    if pos.ndim != 2 or pos.shape[1] != 2:
+        raise ValueError(f"positions: has shape {pos.shape}, expected (N, 2)")
+    n = pos.shape[0]
+    if not np.isfinite(pos).all():
+        i = int(np.argwhere(~np.isfinite(pos))[0, 0])
+        raise ValueError(f"positions: row {i} is not finite ({pos[i].tolist()})")
+    if yaw is not None:
+        try:
+            th = np.asarray(yaw, dtype=np.float64)
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"yaw: must be an (N,) array of numbers ({err})") from None
+        if th.shape != (n,):
+            raise ValueError(f"yaw: has shape {th.shape}, expected ({n},) to match positions")
+        if not np.isfinite(th).all():
+            i = int(np.argwhere(~np.isfinite(th))[0, 0])
+            raise ValueError(f"yaw: entry {i} is not finite ({th[i]!r})")
+    if n == 0:
+        return prefix + b"\x00\x00\x00\x00"
+    # Bytes before the poses: prefix, uint32 length, padding to 8 (payload-relative).
+    seq_off = len(prefix) - 4
+    head = len(prefix) + 4 + (-(seq_off + 4) % 8)
+    # One output buffer with 4 spare leading bytes, so the poses block (payload offset
+    # multiple of 8 = buffer offset 4 mod 8) is 8-byte aligned in memory and filled in place.
+    # z, qx, qy stay zero from its allocation; the state says what qz, qw hold.
+    entry = scratch(("PoseArray", n, len(prefix)), 4 + head + 56 * n)
+    buf = entry[0]
+    buf[4 : 4 + len(prefix)] = np.frombuffer(prefix, dtype=np.uint8)
+    buf[4 + len(prefix) : 4 + len(prefix) + 4] = np.frombuffer(struct.pack("<I", n), np.uint8)
+    poses = buf[4 + head :].view("<f8").reshape(n, 7)  # x y z qx qy qz qw
+    # x, y of each pose copied as one 16-byte item (complex128 is just a pair of float64)
+    poses[:, 0:2].view(np.complex128)[:, 0] = np.ascontiguousarray(pos).view(np.complex128)[:, 0]
+    if yaw is None:
+        if entry[1] != "identity":
+            poses[:, 5] = 0.0
+            poses[:, 6] = 1.0
+            entry[1] = "identity"
+    else:
+        half = 0.5 * th
+        np.sin(half, out=poses[:, 5])
+        np.cos(half, out=poses[:, 6])
+        entry[1] = "yaw"
+    return buf[4:].tobytes()
+
+
+@lru_cache(maxsize=64)
+def _fields_block(names: tuple[str, ...]) -> bytes:
+    """The ``PointField[] fields`` sequence for FLOAT32 fields at offsets 0, 4, 8, ...
+
+    Starts and ends on a 4-byte boundary, so its bytes do not depend on where it is placed.
+    """
+    parts = [struct.pack("<I", len(names))]
+    for i, name in enumerate(names):
+        raw = name.encode("utf-8") + b"\x00"
+        parts.append(struct.pack("<I", len(raw)))
+        parts.append(raw)
+        parts.append(PAD[-len(raw) % 4])
+        # offset, datatype FLOAT32 (7) + 3 bytes padding, count 1
+        parts.append(struct.pack("<IB3xI", 4 * i, 7, 1))
+    return b"".join(parts)
+
+
+def encode_point_cloud2(stamp_ns: int, frame_id: str, fields: Mapping[str, np.ndarray]) -> bytes:
+    """``sensor_msgs/msg/PointCloud2``: an unorganised cloud of N points, every field FLOAT32.
+
+    ``height`` = 1, ``width`` = N, fields in the mapping's order at offsets 0, 4, 8, ...
+    (datatype 7, count 1), ``point_step`` = 4 F, ``row_step`` = 4 F N, little endian, ``data`` the
+    float32 columns interleaved point by point. Values are cast to float32; NaN and inf are
+    allowed (e.g. "no value"), and ``is_dense`` is true exactly when every value is finite.
+
+    Args:
+        stamp_ns: header stamp in nanoseconds.
+        frame_id: header frame id.
+        fields: non-empty mapping of field name to an (N,) array; all of one length N.
+
+    Raises:
+        ValueError: naming the argument (``fields[...]`` for a column), on a bad stamp, frame
+            id, name, shape or a non-numeric column.
+    """
+    prefix = header_prefix(stamp_ns, frame_id)
+    if not isinstance(fields, Mapping) or len(fields) == 0:
+        raise ValueError("fields: must be a non-empty mapping of field name to an (N,) array")
+    names = tuple(fields)
+    n = -1
+    cols = []
+    for name in names:
+        if not isinstance(name, str) or not name or "\x00" in name:
+            raise ValueError(f"fields: field names must be non-empty str without NUL, got {name!r}")
+        try:
+            col = np.asarray(fields[name])
+        except (TypeError, ValueError) as err:
+            raise ValueError(
+                f"fields[{name!r}]: must be an (N,) array of numbers ({err})"
+            ) from None
+        if col.dtype.kind not in "biuf":
+            raise ValueError(f"fields[{name!r}]: must hold numbers, got dtype {col.dtype}")
+        if col.ndim != 1:
+            raise ValueError(f"fields[{name!r}]: has shape {col.shape}, expected (N,)")
+        if n < 0:
+            n = col.shape[0]
+        elif col.shape[0] != n:
+            raise ValueError(
+                f"fields[{name!r}]: has {col.shape[0]} values, expected {n} like "
+                f"fields[{names[0]!r}]"
+            )
+        cols.append(col)
+    nf = len(names)
+    point_step = 4 * nf
+    nbytes = point_step * n
+    head = b"".join(
+        (
+            prefix,
+            pack_2u32(1, n),
+            _fields_block(names),
+            b"\x00\x00\x00\x00",  # is_bigendian = false + 3 bytes padding
+            pack_3u32(point_step, nbytes, nbytes),  # point_step, row_step, len(data)
+        )
+    )
+    # One output buffer; the data block starts 4-aligned, so it is filled in place as float32.
+    buf = scratch(("PointCloud2", n, names, len(head)), len(head) + nbytes + 1)[0]
+    buf[: len(head)] = np.frombuffer(head, dtype=np.uint8)
+    block = buf[len(head) : len(head) + nbytes].view("<f4").reshape(n, nf)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for i, col in enumerate(cols):
+            block[:, i] = col
+    # checked after the cast: a finite float64 too large for float32 becomes inf
+    buf[-1] = 1 if np.isfinite(block).all() else 0  # is_dense
+    return buf.tobytes()
+
+

@@ -1,0 +1,211 @@
+"""Wished-velocity fields U(t, q): the drift of the sweeping process.
+
+Every field maps positions q, shape (N, 2) in metres, to velocities, shape (N, 2) in m/s, and
+is Lipschitz in q (the well-posedness assumption of the model, reference §3). ``max_speed``
+bounds |U| (m/s) and feeds the constraint cutoff.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sweep_core import checks
+from sweep_core.errors import SceneError
+
+
+class Field:
+    """Base class. Subclasses implement ``__call__`` and ``to_spec``."""
+
+    kind = "none"
+
+    def __call__(self, t: float, q: np.ndarray) -> np.ndarray:
+        return np.zeros_like(q)
+
+    @property
+    def is_zero(self) -> bool:
+        return False
+
+    def to_spec(self) -> dict:
+        return {"kind": self.kind}
+
+
+class NoDrift(Field):
+    kind = "none"
+
+    @property
+    def is_zero(self) -> bool:
+        return True
+
+
+@dataclass(frozen=True)
+class Uniform(Field):
+    """U = velocity for every agent."""
+
+    velocity: np.ndarray
+    kind = "uniform"
+
+    def __call__(self, t: float, q: np.ndarray) -> np.ndarray:
+        return np.broadcast_to(self.velocity, q.shape).copy()
+
+    @property
+    def is_zero(self) -> bool:
+        return not np.any(self.velocity)
+
+    def to_spec(self) -> dict:
+        return {"kind": self.kind, "velocity": self.velocity.tolist()}
+
+
+@dataclass(frozen=True)
+class Goal(Field):
+    """U = speed (g - q) / max(|g - q|, slow_radius): full speed towards the goal, slowing
+    down linearly inside ``slow_radius`` (m) so the field is Lipschitz (constant 2 speed / slow_radius)."""
+
+    goal: np.ndarray
+    speed: float
+    slow_radius: float = 0.5
+    kind = "goal"
+
+    def __call__(self, t: float, q: np.ndarray) -> np.ndarray:
+        d = self.goal - q
+        dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+        return d * (self.speed / np.maximum(dist, self.slow_radius))[:, None]
+
+    def to_spec(self) -> dict:
+        return {"kind": self.kind, "goal": self.goal.tolist(), "speed": self.speed,
+                "slow_radius": self.slow_radius}
+
+
+@dataclass(frozen=True)
+class Linear(Field):
+    """U(q_i) = A q_i + offset."""
+
+    matrix: np.ndarray
+    offset: np.ndarray
+    kind = "linear"
+
+    def __call__(self, t: float, q: np.ndarray) -> np.ndarray:
+        return q @ self.matrix.T + self.offset
+
+    def to_spec(self) -> dict:
+        return {"kind": self.kind, "matrix": self.matrix.tolist(), "offset": self.offset.tolist()}
+
+
+@dataclass(frozen=True)
+class PerAgent(Field):
+    """A constant velocity per agent, shape (N, 2)."""
+
+    velocities: np.ndarray
+    kind = "per_agent"
+
+    def __call__(self, t: float, q: np.ndarray) -> np.ndarray:
+        return self.velocities.copy()
+
+    @property
+    def is_zero(self) -> bool:
+        return not np.any(self.velocities)
+
+    def to_spec(self) -> dict:
+        return {"kind": self.kind, "velocities": self.velocities.tolist()}
+
+
+@dataclass(frozen=True)
+class Grid(Field):
+    """A sampled field on a regular grid, bilinearly interpolated.
+
+    ``x`` (W,) and ``y`` (H,) are strictly increasing, evenly spaced node coordinates (m);
+    ``vx``, ``vy`` have shape (H, W) (row = y index). Outside the grid the field takes the
+    value at the nearest point of the grid (coordinates are clamped), so it stays Lipschitz.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    vx: np.ndarray
+    vy: np.ndarray
+    kind = "grid"
+
+    def __call__(self, t: float, q: np.ndarray) -> np.ndarray:
+        fx, ix = _cell(self.x, q[:, 0])
+        fy, iy = _cell(self.y, q[:, 1])
+        out = np.empty_like(q)
+        for c, v in enumerate((self.vx, self.vy)):
+            v00, v01 = v[iy, ix], v[iy, ix + 1]
+            v10, v11 = v[iy + 1, ix], v[iy + 1, ix + 1]
+            out[:, c] = (1 - fy) * ((1 - fx) * v00 + fx * v01) + fy * ((1 - fx) * v10 + fx * v11)
+        return out
+
+    def to_spec(self) -> dict:
+        return {"kind": self.kind, "x": self.x.tolist(), "y": self.y.tolist(),
+                "vx": self.vx.tolist(), "vy": self.vy.tolist()}
+
+
+def _cell(nodes: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cell index and fraction of coordinates s on sorted nodes, clamped to the grid."""
+    if nodes.size == 1:
+        return np.zeros_like(s), np.zeros(s.shape, dtype=np.intp)
+    s = np.clip(s, nodes[0], nodes[-1])
+    i = np.clip(np.searchsorted(nodes, s, side="right") - 1, 0, nodes.size - 2)
+    return (s - nodes[i]) / (nodes[i + 1] - nodes[i]), i
+
+
+def grid_field(x: np.ndarray, y: np.ndarray, vx: np.ndarray, vy: np.ndarray,
+               field: str = "drift") -> Grid:
+    """Validate and build a :class:`Grid` field (see its docstring for shapes)."""
+    x = checks.array(x, f"{field}.x", (None,))
+    y = checks.array(y, f"{field}.y", (None,))
+    for name, nodes in (("x", x), ("y", y)):
+        if nodes.size < 1:
+            raise SceneError(f"{field}.{name}", "is empty", "give at least one node per axis")
+        if nodes.size > 1:
+            step = np.diff(nodes)
+            if np.any(step <= 0):
+                raise SceneError(f"{field}.{name}", "must be strictly increasing",
+                                 "sort the grid nodes")
+            if np.max(np.abs(step - step[0])) > 1e-6 * abs(step[0]):
+                raise SceneError(f"{field}.{name}", "is an irregular grid",
+                                 "resample onto evenly spaced nodes")
+    vx = checks.array(vx, f"{field}.vx", (y.size, x.size), "(rows along y, columns along x)")
+    vy = checks.array(vy, f"{field}.vy", (y.size, x.size), "(rows along y, columns along x)")
+    if x.size == 1:  # degenerate axis: duplicate so interpolation is well defined
+        x, vx, vy = np.array([x[0], x[0] + 1.0]), np.repeat(vx, 2, 1), np.repeat(vy, 2, 1)
+    if y.size == 1:
+        y, vx, vy = np.array([y[0], y[0] + 1.0]), np.repeat(vx, 2, 0), np.repeat(vy, 2, 0)
+    return Grid(x=x, y=y, vx=vx, vy=vy)
+
+
+_KEYS = {
+    "none": set(),
+    "uniform": {"velocity"},
+    "goal": {"goal", "speed"},
+    "linear": {"matrix"},
+    "per_agent": {"velocities"},
+    "grid": {"x", "y", "vx", "vy"},
+}
+_OPTIONAL = {"goal": {"slow_radius"}, "linear": {"offset"}}
+FIELD_KINDS = tuple(_KEYS)
+
+
+def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift") -> Field:
+    """Build a drift field from its scene dict (see the README's scene schema)."""
+    if spec is None:
+        return NoDrift()
+    checks.mapping(spec, field)
+    kind = checks.kind(spec, field, _KEYS, default="none")
+    checks.mapping(spec, field, allowed={"kind"} | _KEYS[kind] | _OPTIONAL.get(kind, set()),
+                   required=_KEYS[kind])
+    if kind == "uniform":
+        return Uniform(velocity=checks.vec2(spec["velocity"], f"{field}.velocity"))
+    if kind == "goal":
+        return Goal(goal=checks.vec2(spec["goal"], f"{field}.goal"),
+                    speed=checks.number(spec["speed"], f"{field}.speed", nonnegative=True),
+                    slow_radius=checks.number(spec.get("slow_radius", 0.5), f"{field}.slow_radius",
+                                              positive=True))
+    if kind == "linear":
+        return Linear(matrix=checks.array(spec["matrix"], f"{field}.matrix", (2, 2)),
+                      offset=checks.vec2(spec.get("offset", [0.0, 0.0]), f"{field}.offset"))
+    if kind == "per_agent":
+        return PerAgent(velocities=checks.array(spec["velocities"], f"{field}.velocities",
+                                                (n_agents, 2), "(one [vx, vy] per agent)"))
+    if kind == "grid":
+        return grid_field(spec["x"], spec["y"], spec["vx"], spec["vy"], field)
+    return NoDrift()

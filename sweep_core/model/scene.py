@@ -1,0 +1,252 @@
+"""Scenes: the one schema shared by YAML files, dicts, the CLI and the node.
+
+A scene is validated completely when it is built; nothing steps an invalid scene. Units:
+metres and seconds. The keys are a public contract, documented in the README:
+
+    name, description                      free text
+    horizon                                optional end time (s) the scene is meant for
+    agents.positions   [[x, y], ...]       centres at t = 0
+    agents.radius      scalar or list      base radii (> 0)
+    agents.radius_law  {kind: constant | linear (rate) | sine (amplitude, period)}
+    agents.speed       preferred speed (m/s) used when a goal command arrives (default 1.3)
+    walls              [{kind: halfplane, normal, offset, velocity?} | {kind: segment, a, b}]
+    obstacles          [{kind: circle, center, radius}]
+    drift              see fields.FIELD_KINDS
+    noise              {sigma: scalar or per-agent list}
+"""
+from __future__ import annotations
+
+import copy
+from importlib import resources
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from sweep_core import checks
+from sweep_core.model.geometry import Geometry, gaps
+from sweep_core.errors import SceneError
+from sweep_core.model.fields import Field, field_from_spec
+from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
+
+#: overlap (m) tolerated in a given initial configuration (rounding of touching disks)
+INITIAL_TOLERANCE = 1e-9
+
+_TOP_KEYS = {"name", "description", "horizon", "agents", "walls", "obstacles", "drift", "noise"}
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """A validated scene.
+
+    positions: (N, 2) centres at t = 0 (m); radius: (N,) base radii (m);
+    radius_law: r_i(t) = radius_i + radius_law.offset(t); geometry: walls and obstacles;
+    drift: the wished velocity field U; sigma: (N,) noise intensities (m / sqrt(s));
+    speed: preferred speed for goal commands (m/s); horizon: intended end time (s) or None;
+    spec: the normalised dict this scene was built from (round-trips through YAML).
+    """
+
+    name: str
+    positions: np.ndarray
+    radius: np.ndarray
+    radius_law: RadiusLaw
+    geometry: Geometry
+    drift: Field
+    sigma: np.ndarray
+    speed: float
+    horizon: float | None
+    spec: dict
+
+    @property
+    def n_agents(self) -> int:
+        return len(self.positions)
+
+    def radii(self, t: float) -> np.ndarray:
+        """Radii r_i(t), shape (N,), m."""
+        law = self.radius_law
+        return self.radius if law.is_constant else self.radius + law.offset(t)
+
+    def check_horizon(self, t_end: float) -> None:
+        """Refuse a horizon within which some radius reaches 0."""
+        if self.n_agents == 0:
+            return
+        floor = float(self.radius.min()) + self.radius_law.min_offset(t_end)
+        if floor <= 0:
+            rate = getattr(self.radius_law, "rate", None)
+            when = (f" at t = {float(self.radius.min()) / -rate:.6g} s" if rate else "")
+            raise SceneError("agents.radius_law",
+                             f"radii reach {floor:.6g} m <= 0 within the horizon {t_end:g} s{when}",
+                             "a shorter horizon, a smaller shrink rate or amplitude, or larger radii")
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.spec, sort_keys=False)
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> "Scene":
+        """Load and validate a scene file."""
+        path = Path(path)
+        try:
+            text = path.read_text()
+        except OSError as err:
+            raise SceneError("scene", f"cannot read {str(path)!r}: {err.strerror}",
+                             "give the path of a scene YAML file") from err
+        try:
+            data = yaml.safe_load(text)
+        except yaml.YAMLError as err:
+            raise SceneError("scene", f"{path} is not valid YAML: {err}".replace("\n", " ")) from err
+        return cls.from_dict(data if data is not None else {}, name=path.stem)
+
+    @classmethod
+    def from_dict(cls, data: dict, name: str = "scene") -> "Scene":
+        """Validate a scene dict (see the module docstring) and build the scene."""
+        return _build(data, name)
+
+
+def _list(value: Any, field: str) -> list:
+    if value is None:
+        return []
+    if not isinstance(value, list):
+        raise SceneError(field, f"must be a list, got {type(value).__name__}")
+    return value
+
+
+def _compact(values: np.ndarray, given: Any) -> float | list:
+    """A per-agent array back in the form it was given: a scalar or a list."""
+    return values.tolist() if np.ndim(given) else float(given)
+
+
+def _build(data: Any, default_name: str) -> Scene:
+    checks.mapping(data, "scene", allowed=_TOP_KEYS, required={"agents"})
+    spec: dict = {"name": str(data.get("name", default_name))}
+    if "description" in data:
+        spec["description"] = str(data["description"])
+    horizon = None
+    if data.get("horizon") is not None:
+        horizon = checks.number(data["horizon"], "horizon", positive=True)
+        spec["horizon"] = horizon
+
+    agents = checks.mapping(data["agents"], "agents",
+                            allowed={"positions", "radius", "radius_law", "speed"},
+                            required={"positions", "radius"})
+    raw_pos = agents["positions"]
+    positions = (np.empty((0, 2)) if isinstance(raw_pos, list) and not raw_pos
+                 else checks.array(raw_pos, "agents.positions", (None, 2), "as [[x, y], ...]"))
+    n = len(positions)
+    radius = checks.per_agent(agents["radius"], n, "agents.radius", positive=True)
+    law = radius_law_from_spec(agents.get("radius_law"))
+    speed = checks.number(agents.get("speed", 1.3), "agents.speed", nonnegative=True)
+    spec["agents"] = {"positions": positions.tolist(), "radius": _compact(radius, agents["radius"]),
+                      "radius_law": law.to_spec(), "speed": speed}
+
+    geometry, walls_spec, obstacles_spec = _geometry(data)
+    spec["walls"], spec["obstacles"] = walls_spec, obstacles_spec
+
+    drift = field_from_spec(data.get("drift"), n)
+    spec["drift"] = drift.to_spec()
+
+    noise = checks.mapping(data.get("noise") or {}, "noise", allowed={"sigma"})
+    sigma = checks.per_agent(noise.get("sigma", 0.0), n, "noise.sigma", nonnegative=True)
+    spec["noise"] = {"sigma": _compact(sigma, noise.get("sigma", 0.0))}
+
+    scene = Scene(name=spec["name"], positions=positions, radius=radius, radius_law=law,
+                  geometry=geometry, drift=drift, sigma=sigma, speed=speed, horizon=horizon,
+                  spec=spec)
+    # a sine law's trough counts from t = 0; a linear shrink is checked against each horizon
+    scene.check_horizon(horizon if horizon is not None else 0.0)
+    _check_initial(scene)
+    return scene
+
+
+def _geometry(data: dict) -> tuple[Geometry, list, list]:
+    hp_n, hp_c, hp_v, hp_i, sa, sb, s_i, cc, cr, c_i = ([] for _ in range(10))
+    walls_spec, obstacles_spec = [], []
+    for k, wall in enumerate(_list(data.get("walls"), "walls")):
+        field = f"walls[{k}]"
+        checks.mapping(wall, field)
+        kind = checks.kind(wall, field, ("halfplane", "segment"))
+        if kind == "halfplane":
+            checks.mapping(wall, field, allowed={"kind", "normal", "offset", "velocity"},
+                           required={"normal", "offset"})
+            normal = checks.vec2(wall["normal"], f"{field}.normal")
+            norm = float(np.hypot(*normal))
+            if norm < 1e-12:
+                raise SceneError(f"{field}.normal", "is the zero vector",
+                                 "give the direction pointing into the free side, e.g. [1, 0]")
+            offset = checks.number(wall["offset"], f"{field}.offset")
+            velocity = checks.number(wall.get("velocity", 0.0), f"{field}.velocity")
+            hp_n.append(normal / norm), hp_c.append(offset), hp_v.append(velocity), hp_i.append(k)
+            walls_spec.append({"kind": kind, "normal": (normal / norm).tolist(), "offset": offset,
+                               "velocity": velocity})
+        else:
+            checks.mapping(wall, field, allowed={"kind", "a", "b"}, required={"a", "b"})
+            a, b = checks.vec2(wall["a"], f"{field}.a"), checks.vec2(wall["b"], f"{field}.b")
+            if np.hypot(*(b - a)) < 1e-12:
+                raise SceneError(field, "has a == b (a segment of zero length)",
+                                 "for a round obstacle use obstacles: [{kind: circle, ...}]")
+            sa.append(a), sb.append(b), s_i.append(k)
+            walls_spec.append({"kind": kind, "a": a.tolist(), "b": b.tolist()})
+    for k, obs in enumerate(_list(data.get("obstacles"), "obstacles")):
+        field = f"obstacles[{k}]"
+        checks.mapping(obs, field)
+        checks.kind(obs, field, ("circle",))
+        checks.mapping(obs, field, allowed={"kind", "center", "radius"},
+                       required={"center", "radius"})
+        center = checks.vec2(obs["center"], f"{field}.center")
+        radius = checks.number(obs["radius"], f"{field}.radius", nonnegative=True)
+        cc.append(center), cr.append(radius), c_i.append(k)
+        obstacles_spec.append({"kind": "circle", "center": center.tolist(), "radius": radius})
+
+    def arr(x: list, shape: tuple) -> np.ndarray:
+        return np.array(x, dtype=np.float64).reshape(shape)
+
+    geom = Geometry(arr(hp_n, (-1, 2)), arr(hp_c, (-1,)), arr(hp_v, (-1,)), arr(sa, (-1, 2)),
+                    arr(sb, (-1, 2)), arr(cc, (-1, 2)), arr(cr, (-1,)),
+                    np.array(hp_i, dtype=np.intp), np.array(s_i, dtype=np.intp),
+                    np.array(c_i, dtype=np.intp))
+    return geom, walls_spec, obstacles_spec
+
+
+def _check_initial(scene: Scene) -> None:
+    """Refuse an initial configuration outside Q(0)."""
+    q, r = scene.positions, scene.radii(0.0)
+    if len(q) < 1:
+        return
+    g = gaps(scene.geometry, 0.0, q, r)
+    if g.worst_pair is not None and g.min_pair < -INITIAL_TOLERANCE:
+        d = np.hypot(*(q[g.pair_i] - q[g.pair_j]).T)
+        if np.any(d < 1e-12):
+            k = int(np.argmin(d))
+            raise SceneError("agents.positions",
+                             f"agents {g.pair_i[k]} and {g.pair_j[k]} have coincident centres "
+                             f"{q[g.pair_i[k]].tolist()}", "move one of them")
+        i, j, gap = g.worst_pair
+        bad = int(np.count_nonzero(g.pair_gap < -INITIAL_TOLERANCE))
+        more = f" ({bad} overlapping pairs in all)" if bad > 1 else ""
+        raise SceneError("agents.positions", f"agents {i} and {j} overlap by {-gap:.3f} m{more}",
+                         "place agents at least r_i + r_j apart")
+    if g.worst_single is not None and g.min_single < -INITIAL_TOLERANCE:
+        a, kind, item, gap = g.worst_single
+        field = "walls" if kind < 2 else "obstacles"
+        raise SceneError(field, f"agent {a} violates {scene.geometry.describe(kind, item)} "
+                         f"by {-gap:.3f} m at t = 0",
+                         "move the agent to the free side, at least its radius away")
+
+
+def copy_spec(scene: Scene) -> dict:
+    """A deep copy of the scene's normalised dict, safe to modify."""
+    return copy.deepcopy(scene.spec)
+
+
+DEFAULT_SCENE = "room_door.yaml"
+
+
+def default_scene_path() -> Path:
+    """Path of the bundled default scene (a room with a door, 200 agents)."""
+    return Path(str(resources.files("sweep_core") / "scenes" / DEFAULT_SCENE))
+
+
+def load_scene(path: str | None) -> Scene:
+    """A scene file, or the bundled default when path is None or empty."""
+    return Scene.from_yaml(path or default_scene_path())

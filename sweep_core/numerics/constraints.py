@@ -1,0 +1,82 @@
+"""Constraints of the feasible set Q(t) and their linearisation (reference §2-4).
+
+Two families of rows, both written as linear inequalities in the new positions y (N, 2):
+
+* pair rows     <e_ij, y_i - y_j> >= b_ij        (agents i, j)
+* single rows   <n_k,  y_a>      >= b_k          (agent a against a wall or obstacle)
+
+For a convex constraint g(t, q) >= 0 the row is g(t1, q) + <grad g(t1, q), y - q> >= 0 (§4),
+which lies inside the true set because g is convex: for two disks
+<e_ij, y_i - y_j> >= r_i(t1) + r_j(t1) with e_ij = (q_i - q_j) / |q_i - q_j|.
+Only rows whose value at q is at most ``cut`` (m) are built; far pairs never are.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sweep_core.model.geometry import Geometry, pairs_within, single_values
+
+@dataclass(frozen=True)
+class Rows:
+    """Linearised constraints at (t1, q); see the module docstring for their meaning."""
+
+    pair_i: np.ndarray      # (P,) int
+    pair_j: np.ndarray      # (P,) int
+    pair_e: np.ndarray      # (P, 2) unit vectors
+    pair_b: np.ndarray      # (P,) m
+    single_a: np.ndarray    # (M,) int
+    single_n: np.ndarray    # (M, 2) unit vectors
+    single_b: np.ndarray    # (M,) m
+    single_kind: np.ndarray  # (M,) int8, HALFPLANE / SEGMENT / CIRCLE
+    single_item: np.ndarray  # (M,) int, index within its kind
+
+    @property
+    def count(self) -> int:
+        return len(self.pair_b) + len(self.single_b)
+
+    def residuals(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Row values minus bounds at y (N, 2): >= 0 where satisfied (m)."""
+        d = y[self.pair_i] - y[self.pair_j]
+        rp = np.einsum("ij,ij->i", self.pair_e, d) - self.pair_b
+        rs = np.einsum("ij,ij->i", self.single_n, y[self.single_a]) - self.single_b
+        return rp, rs
+
+    def agents(self) -> np.ndarray:
+        """Sorted indices of the agents that appear in any row."""
+        return np.unique(np.concatenate([self.pair_i, self.pair_j, self.single_a]))
+
+
+def linearise(geom: Geometry, t1: float, q: np.ndarray, r1: np.ndarray, cut: float) -> Rows:
+    """Rows of the convex set C~(t1, q) whose value at q is <= cut (m).
+
+    q: (N, 2) positions at t_n; r1: (N,) radii at t1 = t_{n+1}.
+    """
+    n = len(q)
+    i, j = pairs_within(q, 2.0 * float(r1.max(initial=0.0)) + cut)
+    d = q[i] - q[j]
+    dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+    keep = dist - r1[i] - r1[j] <= cut
+    i, j, d, dist = i[keep], j[keep], d[keep], dist[keep]
+    pair_e = d / np.maximum(dist, 1e-300)[:, None]
+    pair_b = r1[i] + r1[j]
+
+    a_list, n_list, b_list, k_list, item_list = [], [], [], [], []
+    if not geom.is_empty and n:
+        for kind, (g, nrm, foot) in enumerate(single_values(geom, t1, q, r1)):
+            if g.size == 0:
+                continue
+            a, k = np.nonzero(g <= cut)
+            a_list.append(a)
+            n_list.append(nrm[a, k])
+            b_list.append(foot[a, k] + r1[a])
+            k_list.append(np.full(len(a), kind, dtype=np.int8))
+            item_list.append(k)
+    if a_list:
+        sa, sn, sb = np.concatenate(a_list), np.concatenate(n_list), np.concatenate(b_list)
+        sk, si = np.concatenate(k_list), np.concatenate(item_list)
+    else:
+        sa, sn, sb = np.empty(0, np.intp), np.empty((0, 2)), np.empty(0)
+        sk, si = np.empty(0, np.int8), np.empty(0, np.intp)
+    return Rows(i, j, pair_e, pair_b, sa, sn, sb, sk, si)

@@ -1,0 +1,104 @@
+"""The linearised QP as a sparse row matrix, split into independent clusters of agents, each
+solved in closed form (one row), exactly (active set) or by a backend (interior point)."""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from sweep_core.numerics.constraints import Rows
+from sweep_core.numerics.projection.exact import ldp
+from sweep_core.numerics.projection.interior import solve_clarabel
+from sweep_core.numerics.projection.options import ROW_TOLERANCE, SolverOptions
+from sweep_core.numerics.projection.proxqp import solve_proxsuite
+
+
+def row_matrix(rows: Rows, loc: np.ndarray, m: int) -> tuple[sp.csc_matrix, np.ndarray]:
+    """Sparse C (rows x 2m) and bounds b of ``C x >= b`` with x the stacked QP agents."""
+    p, s = len(rows.pair_b), len(rows.single_b)
+    ci, cj, ca = 2 * loc[rows.pair_i], 2 * loc[rows.pair_j], 2 * loc[rows.single_a]
+    r_p = np.arange(p)
+    r_s = p + np.arange(s)
+    row = np.concatenate([r_p, r_p, r_p, r_p, r_s, r_s])
+    col = np.concatenate([ci, ci + 1, cj, cj + 1, ca, ca + 1])
+    val = np.concatenate([rows.pair_e[:, 0], rows.pair_e[:, 1], -rows.pair_e[:, 0],
+                          -rows.pair_e[:, 1], rows.single_n[:, 0], rows.single_n[:, 1]])
+    c = sp.csc_matrix((val, (row, col)), shape=(p + s, 2 * m))
+    return c, np.concatenate([rows.pair_b, rows.single_b])
+
+
+def clusters(c: sp.csc_matrix) -> tuple[int, np.ndarray, np.ndarray]:
+    """Connected clusters of agents linked by rows: count, label of each column, of each row."""
+    n = c.shape[1] // 2
+    agent_of_col = np.arange(2 * n) // 2
+    coo = c.tocoo()
+    row_agent = np.zeros(c.shape[0], dtype=np.intp)
+    row_agent[coo.row] = agent_of_col[coo.col]
+    link = sp.csr_matrix((np.ones(len(coo.row)), (row_agent[coo.row], agent_of_col[coo.col])),
+                         shape=(n, n))
+    count, label = connected_components(link, directed=False)
+    return count, label[agent_of_col], label[row_agent]
+
+
+def solve_qp(target: np.ndarray, c: sp.csc_matrix, b: np.ndarray, opts: SolverOptions
+              ) -> tuple[np.ndarray, np.ndarray, bool, int]:
+    """min 1/2 |x - target|^2 s.t. c x >= b, cluster by cluster (clusters of agents linked by
+    rows are independent QPs): single-row clusters in closed form, the others by
+    :func:`solve_cluster`. Returns x, multipliers >= 0, whether every cluster was solved and
+    the number of variables solved by the backend rather than exactly."""
+    count, col_label, row_label = clusters(c)
+    x, lam = target.copy(), np.zeros(c.shape[0])
+    cr = c.tocsr()
+    order_c, order_r = np.argsort(col_label, kind="stable"), np.argsort(row_label, kind="stable")
+    starts_c = np.searchsorted(col_label[order_c], np.arange(count + 1))
+    starts_r = np.searchsorted(row_label[order_r], np.arange(count + 1))
+    n_rows = np.diff(starts_r)
+    # a cluster with a single row is a projection onto a half-space: closed form, vectorised
+    one = np.nonzero(n_rows == 1)[0]
+    if len(one):
+        r1 = order_r[starts_r[one]]
+        row = cr[r1]
+        lam1 = np.maximum(0.0, (b[r1] - row @ target) / np.asarray(row.multiply(row).sum(axis=1)).ravel())
+        lam[r1] = lam1
+        x += np.asarray(row.T @ lam1).ravel()
+    by_backend = 0
+    for k in np.nonzero(n_rows > 1)[0]:
+        cols = order_c[starts_c[k]:starts_c[k + 1]]
+        rws = order_r[starts_r[k]:starts_r[k + 1]]
+        sub = cr[rws][:, cols]
+        found = solve_cluster(target[cols], sub, b[rws], opts)
+        if found is None:
+            return x, lam, False, by_backend
+        xk, lk, exact = found
+        x[cols], lam[rws] = xk, lk
+        by_backend += 0 if exact else len(cols)
+    return x, lam, True, by_backend
+
+
+def solve_cluster(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverOptions
+                   ) -> tuple[np.ndarray, np.ndarray, bool] | None:
+    """Solve one cluster: clusters of up to ``exact_vars`` variables by the exact active-set
+    solver first, then the backend; larger ones by the backend first, then (up to
+    ``dense_fallback`` variables) the exact solver. An answer is taken only if every row holds
+    to ROW_TOLERANCE. Returns x, multipliers and whether the exact solver produced them; None
+    if no attempt gives an answer whose rows hold."""
+    n = c.shape[1]
+    exact = (True, lambda: ldp(target, c.toarray(), b))
+    backend = (False, lambda: (solve_proxsuite(target, c.tocsc(), b, opts)
+                               if opts.backend == "proxsuite" else solve_clarabel(target, c, b, opts)))
+    attempts = ([exact, backend] if n <= opts.exact_vars
+                else [backend] + ([exact] if n <= opts.dense_fallback else []))
+    last_resort = None
+    for is_exact, attempt in attempts:
+        x, lam, ok = attempt()
+        if not (np.all(np.isfinite(x)) and (c @ x - b).min() >= -ROW_TOLERANCE):
+            continue
+        if ok is True:
+            return x, lam, is_exact
+        if ok is None and last_resort is None:
+            last_resort = (x, lam, False)
+    # Clarabel's "AlmostSolved" with every row holding: feasible, though further from the
+    # projection; better than stopping the run when nothing else answered
+    return last_resort
+
+

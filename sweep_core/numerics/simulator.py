@@ -1,0 +1,241 @@
+"""The simulator: a scene, a scheme, a seeded Brownian path and the current state."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from sweep_core import checks
+from sweep_core.numerics import noise
+from sweep_core.model.geometry import gaps
+from sweep_core.errors import InfeasibleError, SceneError
+from sweep_core.model.fields import Field
+from sweep_core.numerics.projection import SolverOptions
+from sweep_core.model.scene import Scene
+from sweep_core.numerics.schemes import SCHEMES, Scheme, StepResult
+
+#: largest true-constraint violation (m) ever accepted after a step
+FEASIBILITY_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class State:
+    """A snapshot.
+
+    t: time (s); step: steps taken; positions (N, 2) m; radii (N,) m at t;
+    velocities (N, 2) m/s: (q_n - q_{n-1}) / h of the last step (zero before the first);
+    reaction (N, 2) m: prediction minus result of the last step (the increment of K);
+    contacts: active constraints of the last step; min_gap: smallest true constraint value
+    among touching or near pairs and walls (m, inf if none is near).
+    """
+
+    t: float
+    step: int
+    positions: np.ndarray
+    radii: np.ndarray
+    velocities: np.ndarray
+    reaction: np.ndarray
+    contacts: int
+    min_gap: float
+
+
+def _scheme_class(scheme: str | type[Scheme]) -> type[Scheme]:
+    if isinstance(scheme, type) and issubclass(scheme, Scheme):
+        return scheme
+    if scheme not in SCHEMES:
+        raise SceneError("scheme", f"unknown scheme {scheme!r}", f"use one of {sorted(SCHEMES)}")
+    return SCHEMES[scheme]
+
+
+class Simulator:
+    """Steps a scene with a scheme.
+
+    Args:
+        scene: a validated :class:`Scene`.
+        dt: time step h (s), > 0.
+        seed: seed of the Brownian path (int >= 0).
+        scheme: a name in ``SCHEMES`` or a Scheme subclass.
+        solver: QP settings (``SolverOptions``).
+        check: verify the true constraints after every step (costs one neighbour search).
+    """
+
+    def __init__(self, scene: Scene, dt: float = 0.01, seed: int = 0, *,
+                 scheme: str | type[Scheme] = "projected_euler",
+                 solver: SolverOptions | None = None, check: bool = True) -> None:
+        if not isinstance(scene, Scene):
+            raise SceneError("scene", f"must be a sweep_core.Scene, got {type(scene).__name__}",
+                             "build it with Scene.from_yaml or Scene.from_dict")
+        self.scene = scene
+        self.dt = checks.number(dt, "dt", positive=True)
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise SceneError("seed", f"must be an integer >= 0, got {seed!r}")
+        self.seed = int(seed)
+        self.scheme = _scheme_class(scheme)(scene, solver or SolverOptions())
+        self.check = bool(check)
+        self.reset()
+
+    # -- state -------------------------------------------------------------------------
+    def reset(self, seed: int | None = None) -> None:
+        """Back to t = 0, the scene's initial positions, drift and noise, and the seed."""
+        if seed is not None:
+            self.seed = int(seed)
+        self._rng = noise.generator(self.seed)
+        self._drift: Field = self.scene.drift
+        self._sigma = self.scene.sigma.copy()
+        n = self.scene.n_agents
+        self._k = 0
+        self._q = self.scene.positions.copy()
+        self._v = np.zeros((n, 2))
+        self._reaction = np.zeros((n, 2))
+        self._contacts = 0
+        g = gaps(self.scene.geometry, 0.0, self._q, self.scene.radii(0.0))
+        self._min_gap = g.min_gap
+        self.last: StepResult | None = None
+
+    @property
+    def t(self) -> float:
+        """Current time (s): steps * dt, never accumulated."""
+        return self._k * self.dt
+
+    @property
+    def n_steps(self) -> int:
+        return self._k
+
+    @property
+    def positions(self) -> np.ndarray:
+        """(N, 2) centres (m), a copy."""
+        return self._q.copy()
+
+    @property
+    def radii(self) -> np.ndarray:
+        """(N,) radii at the current time (m)."""
+        return np.array(self.scene.radii(self.t), dtype=np.float64, copy=True)
+
+    @property
+    def reaction(self) -> np.ndarray:
+        """(N, 2) prediction minus result of the last step (m)."""
+        return self._reaction.copy()
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """(N, 2) displacement of the last step divided by dt (m/s)."""
+        return self._v.copy()
+
+    @property
+    def contacts(self) -> int:
+        return self._contacts
+
+    @property
+    def min_gap(self) -> float:
+        return self._min_gap
+
+    @property
+    def backend_agents(self) -> int:
+        """Agents of the last step whose contact cluster was solved by the interior-point
+        backend (to about 1e-6 m in degenerate jams) rather than exactly; 0 before a step."""
+        return 0 if self.last is None else self.last.projection.backend_agents
+
+    @property
+    def state(self) -> State:
+        return State(self.t, self._k, self.positions, self.radii, self.velocities,
+                     self.reaction, self._contacts, self._min_gap)
+
+    # -- commands ------------------------------------------------------------------------
+    @property
+    def drift(self) -> Field:
+        return self._drift
+
+    def set_drift(self, drift: Field) -> None:
+        """Replace the wished-velocity field from the next step on."""
+        if not isinstance(drift, Field):
+            raise SceneError("drift", f"must be a sweep_core Field, got {type(drift).__name__}",
+                             "build one with sweep_core.field_from_spec")
+        self._drift = drift
+
+    @property
+    def sigma(self) -> np.ndarray:
+        return self._sigma.copy()
+
+    def set_sigma(self, sigma: float | np.ndarray) -> None:
+        """Replace the noise intensities (scalar or (N,), m/sqrt(s)) from the next step on."""
+        self._sigma = checks.per_agent(sigma, self.scene.n_agents, "noise.sigma", nonnegative=True)
+
+    # -- stepping ------------------------------------------------------------------------
+    def step(self, n: int = 1, dB: np.ndarray | None = None) -> None:
+        """Take n steps. dB: Brownian increments, (N, 2) for one step or (n, N, 2) for n steps;
+        by default they are drawn from the seeded path (nothing is drawn if sigma = 0)."""
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+            raise SceneError("n", f"must be an integer >= 0, got {n!r}")
+        shape = (self.scene.n_agents, 2)
+        if dB is not None:
+            dB = np.asarray(dB, dtype=np.float64)
+            if dB.shape == shape and n == 1:
+                dB = dB[None]
+            if dB.shape != (n,) + shape:
+                raise SceneError("dB", f"has shape {dB.shape}, expected {shape} for one step "
+                                       f"or {(n,) + shape} for n = {n} steps")
+            if not np.all(np.isfinite(dB)):
+                raise SceneError("dB", "holds non-finite increments")
+        for k in range(n):
+            self._advance(None if dB is None else dB[k])
+
+    def run(self, t_end: float, progress: bool = False,
+            callback: Callable[["Simulator"], None] | None = None,
+            increments: Callable[[], np.ndarray] | None = None) -> None:
+        """Step until t_end (s), calling callback(self) after every step.
+
+        increments: source of the Brownian increments (N, 2), called once per step in which
+        sigma is not zero everywhere; by default they are drawn from the seeded path.
+        """
+        t_end = checks.number(t_end, "t_end", nonnegative=True)
+        steps = int(round((t_end - self.t) / self.dt))
+        if steps < 0:
+            raise SceneError("t_end", f"{t_end:g} s is before the current time {self.t:g} s")
+        self.scene.check_horizon(t_end)
+        bar = None
+        if progress:
+            from tqdm import tqdm
+            bar = tqdm(total=steps, unit="step", dynamic_ncols=True)
+        try:
+            for _ in range(steps):
+                self._advance(increments() if increments is not None and np.any(self._sigma)
+                              else None)
+                if callback is not None:
+                    callback(self)
+                if bar is not None:
+                    bar.update()
+        finally:
+            if bar is not None:
+                bar.close()
+
+    def _advance(self, dB: np.ndarray | None) -> None:
+        h, t = self.dt, self.t
+        t1 = (self._k + 1) * h
+        r1 = self.scene.radii(t1)
+        if len(r1) and float(r1.min()) <= 0:
+            raise SceneError("agents.radius_law", f"radii reach {float(r1.min()):.6g} m <= 0 at "
+                             f"t = {t1:.6g} s", "stop earlier or shrink the radii more slowly")
+        if dB is None and np.any(self._sigma):
+            dB = noise.increments(self._rng, h, self.scene.n_agents)
+        res = self.scheme.step(t, self._q, h, dB, self._drift, self._sigma)
+        y = res.q_new
+        if not np.all(np.isfinite(y)):
+            bad = np.nonzero(~np.all(np.isfinite(y), axis=1))[0]
+            raise InfeasibleError(t1, bad.tolist(), "non-finite positions")
+        min_gap = math.inf
+        if self.check:
+            g = gaps(self.scene.geometry, t1, y, r1)
+            if g.min_gap < -FEASIBILITY_TOLERANCE:
+                who = (list(g.worst_pair[:2]) if g.min_pair <= g.min_single
+                       else [g.worst_single[0]])
+                raise InfeasibleError(t1, who, f"true constraint violated by {-g.min_gap:.3g} m")
+            min_gap = g.min_gap
+        self._v = (y - self._q) / h
+        self._reaction = res.prediction - y
+        self._q = y
+        self._k += 1
+        self._contacts = res.projection.active
+        self._min_gap = min_gap
+        self.last = res
