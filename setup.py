@@ -37,7 +37,7 @@ setup(
     entry_points={
         "console_scripts": [
             "sweep = sweep_core.cli:main",
-            "sweep_node = sweep_ros.node:main",
+            "sweep_node = sweep_ros.main:main",
         ],
     },
 )

@@ -3,11 +3,12 @@
     ros2 launch sweep_ros sweep.launch.py
     ros2 launch sweep_ros sweep.launch.py params_file:=/path/to/my.yaml namespace:=crowd
 """
-from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
+
+from launch import LaunchDescription
 
 
 def generate_launch_description():

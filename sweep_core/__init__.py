@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from sweep_core.errors import InfeasibleError, RecordingError, SceneError, SweepError
 from sweep_core.model.fields import FIELD_KINDS, Field, field_from_spec, grid_field
-from sweep_core.numerics.projection import SolverOptions
 from sweep_core.model.scene import Scene
+from sweep_core.numerics.projection import SolverOptions
 from sweep_core.numerics.schemes import SCHEMES, Scheme
-from sweep_core.numerics.simulator import State, Simulator
+from sweep_core.numerics.simulator import Simulator, State
 from sweep_core.numerics.skorokhod import skorokhod
 
 __version__ = "0.1.0"

@@ -82,4 +82,4 @@ def kind(value: dict, field: str, kinds: Any, default: str | None = None) -> str
     k = value.get("kind", default)
     if k not in kinds:
         raise SceneError(f"{field}.kind", f"unknown kind {k!r}", f"use one of {sorted(kinds)}")
-    return k
+    return str(k)

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -24,8 +25,8 @@ from sensor_msgs.msg import PointField
 from visualization_msgs.msg import Marker, MarkerArray
 
 from sweep_core import SceneError, grid_field
-from sweep_core.model.geometry import Geometry
 from sweep_core.model.fields import Goal, Grid, Uniform
+from sweep_core.model.geometry import Geometry
 
 #: largest grid (points) a velocity_field command may carry
 MAX_GRID_POINTS = 1_000_000

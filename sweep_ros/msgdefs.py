@@ -10,7 +10,7 @@ ament prefixes (``AMENT_PREFIX_PATH``, through ament_index_python) and of this P
 from __future__ import annotations
 
 import sys
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 SEPARATOR = "=" * 80
@@ -42,7 +42,7 @@ def share_dirs() -> list[Path]:
     try:
         from ament_index_python.search_paths import get_search_paths
         prefixes.extend(get_search_paths())
-    except (ImportError, EnvironmentError):
+    except (OSError, ImportError):
         pass
     prefixes.extend([sys.prefix, sys.base_prefix])
     out: list[Path] = []
@@ -93,12 +93,12 @@ def dependencies(text: str, pkg: str) -> list[str]:
     return sorted(deps)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _msg_text(pkg: str, name: str) -> str:
     return find_msg_file(pkg, name).read_text(encoding="utf-8")
 
 
-@lru_cache(maxsize=None)
+@cache
 def definition(msgtype: str) -> str:
     """Full ros2msg text of ``msgtype`` (``pkg/msg/Type``) with its dependencies appended."""
     pkg, name = split_type(msgtype)

@@ -5,28 +5,29 @@
 A thin adapter: a timer steps the engine and publishes its state; commands are parsed and
 validated by :mod:`sweep_ros.messages` and handed to the engine as fields; parameters are
 checked by :mod:`sweep_ros.params`; every published and received message is recorded to MCAP by
-a background writer thread, so the timer never waits on the disk. See README_node.md.
+a background writer thread, so the timer never waits on the disk. The node's topics, services
+and parameters are described in the README (section "The ROS 2 node"); :mod:`sweep_ros.main`
+is the executable.
+
+Longer than 400 lines because it is one Node subclass (the ros2/demos layout): its
+constructor, callbacks, services and shutdown read together; the message building, parameter
+checks and timing it uses live in :mod:`.messages`, :mod:`.params` and :mod:`.timing`.
 """
 from __future__ import annotations
 
 import json
 import math
 import os
-import signal
-import sys
-import threading
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseArray, Twist
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
-from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import SetBool, Trigger
@@ -35,10 +36,11 @@ from visualization_msgs.msg import MarkerArray
 from sweep_core import InfeasibleError, SceneError, Simulator, SweepError
 from sweep_core.io import cdr, topics
 from sweep_core.io.metadata import run_metadata
-from sweep_core.model.scene import load_scene
 from sweep_core.io.recording import DEFAULT_QOS_PROFILES, BackgroundRecorder
-
-from . import messages, msgdefs, params
+from sweep_core.model.scene import load_scene
+from sweep_ros import messages, msgdefs, params
+from sweep_ros.errors import StartError
+from sweep_ros.timing import Window
 
 NODE_NAME = "sweep_node"
 DIAGNOSTICS_PERIOD_S = 1.0
@@ -46,15 +48,7 @@ DIAGNOSTICS_PERIOD_S = 1.0
 _RCLPY_PARAMS = ("use_sim_time", "start_type_description_service", "qos_overrides.")
 
 
-class StartError(Exception):
-    """The node cannot start: bad parameters or scene. ``problems``: one line each."""
-
-    def __init__(self, problems: list[str]) -> None:
-        self.problems = problems
-        super().__init__("; ".join(problems))
-
-
-def _qos_yaml(depth: int, transient_local: bool = False) -> str:
+def qos_yaml(depth: int, transient_local: bool = False) -> str:
     """rosbag2's offered_qos_profiles YAML for a reliable keep-last publisher."""
     text = DEFAULT_QOS_PROFILES.replace("depth: 10", f"depth: {depth}")
     if transient_local:
@@ -62,21 +56,9 @@ def _qos_yaml(depth: int, transient_local: bool = False) -> str:
     return text
 
 
-class _Window:
-    """Timing accumulated between two diagnostics messages."""
-
-    def __init__(self, sim_t: float) -> None:
-        self.wall0 = time.monotonic()
-        self.sim0 = sim_t
-        self.ticks = 0
-        self.tick_s = 0.0
-        self.steps = 0
-        self.step_s = 0.0
-        self.overruns = 0
-
 
 class SweepNode(Node):
-    """Runs a sweep_core Simulator on a timer; see the module docstring and README_node.md."""
+    """Runs a sweep_core Simulator on a timer; see the module docstring."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
@@ -105,7 +87,7 @@ class SweepNode(Node):
         self._last_tick_start: float | None = None
         self._last_markers = -math.inf
         self._rt_anchor: tuple[float, float] | None = None
-        self._window = _Window(self.sim.t)
+        self._window = Window(self.sim.t)
         self._moving_walls = bool(len(self.scene.geometry.halfplane_velocity)
                                   and (self.scene.geometry.halfplane_velocity != 0).any())
         self._agent_markers = messages.AgentMarkers(self.frame_id, self._p["marker_height"])
@@ -196,7 +178,7 @@ class SweepNode(Node):
                 flush_interval_s=self._p["record_flush_interval_s"])
             for topic, msgtype in names.items():
                 definition = None if msgtype in cdr.SCHEMAS else msgdefs.definition(msgtype)
-                qos = _qos_yaml(1, True) if topic == self.pub_walls.topic_name else _qos_yaml(10)
+                qos = qos_yaml(1, True) if topic == self.pub_walls.topic_name else qos_yaml(10)
                 self.recorder.add_channel(topic, msgtype, definition, offered_qos_profiles=qos)
         except (SweepError, msgdefs.MsgDefError) as err:
             if self.recorder is not None:
@@ -281,7 +263,7 @@ class SweepNode(Node):
         msg = messages.diagnostics(topics.stamp_ns(sim.t), f"{self.get_name()}: simulation",
                                    self.scene.name, level, message, values)
         self._publish(self.pub_diag, bytes(serialize_message(msg)), self._log_ns(sim.t))
-        self._window = _Window(sim.t)
+        self._window = Window(sim.t)
 
     # -- stepping ------------------------------------------------------------------------------
     def _steps_this_tick(self, now: float) -> int:
@@ -480,56 +462,3 @@ class SweepNode(Node):
             self.recorder.close()
             if self.recorder.error:
                 self.get_logger().error(f"recording: {self.recorder.error}")
-
-
-class _StopOnSignal:
-    """SIGINT and SIGTERM set a flag that the spin loop checks between callbacks.
-
-    With rclpy's own handlers SIGINT becomes a KeyboardInterrupt raised wherever the main
-    thread happens to be (inside a step, a publish, a queue operation). With a flag the node
-    stops between callbacks, so the engine and the recording are in a consistent state when
-    the recording is closed. A step that blocks in native code (a QP solve) delays the stop
-    until it returns; a second signal of the same kind gets the default action (immediate
-    termination; the recording stays readable up to its last flushed chunk).
-    """
-
-    def __init__(self) -> None:
-        self.event = threading.Event()
-        self.signum: int | None = None
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, self._handle)
-
-    def _handle(self, signum: int, frame: Any) -> None:
-        self.signum = signum
-        self.event.set()
-        signal.signal(signum, signal.SIG_DFL)
-
-
-def main(args: list[str] | None = None) -> int:
-    """Entry point of ``ros2 run sweep_ros sweep_node``."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = _StopOnSignal()
-    node: SweepNode | None = None
-    code = 0
-    try:
-        node = SweepNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        while not stop.event.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-    except StartError as err:
-        for problem in err.problems:
-            print(f"{NODE_NAME}: error: {problem}", file=sys.stderr)
-        code = 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.close()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -5,9 +5,9 @@ import math
 
 import numpy as np
 import pytest
+from scenes import hex_jam, wall_agent
 
 import sweep_core as sc
-from scenes import hex_jam, wall_agent
 
 #: Asmussen-Glynn-Pitman constant: E max over a grid of step h of a Brownian path falls short
 #: of the continuous maximum by beta sqrt(h) + o(sqrt(h)), beta = -zeta(1/2) / sqrt(2 pi).

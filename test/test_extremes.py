@@ -10,10 +10,10 @@ import math
 
 import numpy as np
 import pytest
+from scenes import hex_jam
 from scipy.spatial import cKDTree
 
 import sweep_core as sc
-from scenes import hex_jam
 
 ALL = sorted(sc.SCHEMES)
 NEW = sorted(set(sc.SCHEMES) - {"projected_euler"})

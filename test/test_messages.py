@@ -228,8 +228,9 @@ def test_descriptors_cover_every_parameter():
 
 
 def test_config_file_lists_every_parameter_with_its_default():
-    import yaml
     from pathlib import Path
+
+    import yaml
     path = Path(__file__).resolve().parents[1] / "config" / "sweep_node.yaml"
     values = yaml.safe_load(path.read_text())["/**"]["ros__parameters"]
     assert values == params.defaults()

@@ -18,14 +18,14 @@ import numpy as np
 import pytest
 import rclpy
 import yaml
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseArray, Twist, Vector3
+from rcl_interfaces.srv import SetParameters
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rcl_interfaces.srv import SetParameters
 from sensor_msgs.msg import PointCloud2, PointField
-from diagnostic_msgs.msg import DiagnosticArray
 from std_srvs.srv import SetBool, Trigger
 
 from sweep_core.io import cdr, topics
@@ -398,7 +398,7 @@ def _check_recording(record: Path) -> None:
     last_log: dict[str, int] = {}
     with open(record, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
-        for schema, channel, message, msg in reader.iter_decoded_messages(log_time_order=False):
+        for _schema, channel, message, msg in reader.iter_decoded_messages(log_time_order=False):
             seen[channel.topic] = seen.get(channel.topic, 0) + 1
             assert message.log_time >= last_log.get(channel.topic, 0), channel.topic
             last_log[channel.topic] = message.log_time

@@ -3,14 +3,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scenes import hex_jam
 from scipy.optimize import nnls
 
 import sweep_core as sc
 from sweep_core.numerics import projection
-from sweep_core.numerics.projection import clusters, exact
 from sweep_core.numerics.constraints import linearise
-
-from scenes import hex_jam
+from sweep_core.numerics.projection import clusters, exact
 
 
 def random_crowd(rng: np.random.Generator, n: int, box: float, r: float) -> np.ndarray:

@@ -12,13 +12,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mcap.reader import SeekingReader, make_reader
 from mcap.data_stream import ReadDataStream
+from mcap.reader import SeekingReader, make_reader
 from mcap.records import Chunk, Message
 from mcap.stream_reader import breakup_chunk
 
-from sweep_core.io import cdr
 from sweep_core.errors import RecordingError, SweepError
+from sweep_core.io import cdr
 from sweep_core.io.recording import (
     DEFAULT_QOS_PROFILES,
     BackgroundRecorder,
@@ -215,7 +215,7 @@ def test_custom_definition_and_empty_recording(tmp_path):
     with Recorder(path) as rec:
         rec.add_channel("/note", "std_msgs/msg/String", "string data\n")
         assert rec.add_channel("/note", "std_msgs/msg/String", "string data\n") == 1
-        text = "hello".encode() + b"\x00"
+        text = b"hello" + b"\x00"
         rec.write("/note", 5, b"\x00\x01\x00\x00" + len(text).to_bytes(4, "little") + text)
     with open(path, "rb") as f:
         out = list(make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages())

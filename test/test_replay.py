@@ -15,13 +15,13 @@ import pytest
 
 import sweep_core as sc
 from sweep_core.analysis import compare, replay
-from sweep_core.io import topics
-from sweep_core.numerics import paths
 from sweep_core.analysis.run import load_run
 from sweep_core.cli import main
+from sweep_core.io import topics
 from sweep_core.io.metadata import run_metadata
-from sweep_core.model.fields import field_from_spec
 from sweep_core.io.recording import Recorder
+from sweep_core.model.fields import field_from_spec
+from sweep_core.numerics import paths
 
 DT, SEED = 0.01, 11
 SCENE = sc.Scene.from_dict({

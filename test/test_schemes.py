@@ -8,17 +8,17 @@ import math
 
 import numpy as np
 import pytest
+from scenes import wall_agent
 from scipy import stats
 from scipy.integrate import quad
 
 import sweep_core as sc
-from sweep_core.cli import bench
-from sweep_core.numerics import noise
 from sweep_core.bench.accuracy import Measurement, fit_slope
 from sweep_core.bench.accuracy_problems import circle_exact
+from sweep_core.cli import bench
+from sweep_core.numerics import noise
 from sweep_core.numerics.projection import project
 from sweep_core.numerics.schemes import AdaptiveSubstep, adaptive
-from scenes import wall_agent
 
 #: schemes beyond the seed's; projected Euler's exact solutions are in test_exact.py
 NEW = sorted(set(sc.SCHEMES) - {"projected_euler"})

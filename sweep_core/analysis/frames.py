@@ -1,15 +1,15 @@
 """The frames of a recording, one per recorded step (:class:`FrameReader`)."""
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
+from sweep_core.analysis.run import RunMeta
 from sweep_core.io import cdr
 from sweep_core.io.recording import read_recording
-from sweep_core.analysis.run import RunMeta
-
 
 
 @dataclass

@@ -27,11 +27,10 @@ from typing import Any
 
 import numpy as np
 
-from sweep_core.errors import RecordingError, SweepError
-from sweep_core.model.geometry import Geometry, gaps
 from sweep_core.analysis.frames import Frame, FrameReader, progress_bar
 from sweep_core.analysis.run import NS, RunMeta, Schedule, load_run
-
+from sweep_core.errors import RecordingError, SweepError
+from sweep_core.model.geometry import Geometry, gaps
 
 #: a constraint whose true value is at most this (m) counts as an active contact
 CONTACT_TOL = 1e-6

@@ -7,10 +7,9 @@ from typing import Any
 
 import numpy as np
 
+from sweep_core.analysis.metrics import SPEED_BIN, Analysis
 from sweep_core.errors import SweepError
 from sweep_core.model.scene import Scene
-from sweep_core.analysis.metrics import SPEED_BIN, Analysis
-
 
 
 def pyplot() -> Any:

@@ -14,7 +14,6 @@ from sweep_core.analysis.metrics import Analysis
 from sweep_core.analysis.plots import plot_analysis
 
 
-
 def output_paths(recording: str | Path, suffix: str) -> dict[str, Path]:
     p = Path(recording)
     return {ext: p.with_name(f"{p.stem}{suffix}.{ext}") for ext in ("csv", "png")}

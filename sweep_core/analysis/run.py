@@ -6,7 +6,8 @@ from __future__ import annotations
 import bisect
 import json
 import re
-from dataclasses import dataclass, field, fields as dc_fields
+from dataclasses import dataclass, field
+from dataclasses import fields as dc_fields
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,6 @@ from sweep_core.io import cdr
 from sweep_core.io.recording import ChannelInfo, scan_recording
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.projection import SolverOptions
-
 
 #: nanoseconds per second
 NS = 1_000_000_000

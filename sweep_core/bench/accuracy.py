@@ -40,14 +40,14 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from scipy import stats
 
-from sweep_core.numerics.projection import SolverOptions
 from sweep_core.model.scene import Scene
+from sweep_core.numerics.projection import SolverOptions
 from sweep_core.numerics.schemes import SCHEMES, Scheme, adaptive
 from sweep_core.numerics.simulator import Simulator
 
@@ -88,7 +88,7 @@ class StudyConfig:
     solver_tols: tuple[float, ...] = (1e-9, 1e-6, 1e-3)
 
     @classmethod
-    def make(cls, quick: bool, seed: int = 0) -> "StudyConfig":
+    def make(cls, quick: bool, seed: int = 0) -> StudyConfig:
         if quick:
             return cls(quick=True, seed=seed, wall_paths=2000, crowd_paths=3, crowd_t=0.32,
                        crowd_dt0=0.08, crowd_ref_factor=4, feature_steps=15, det_dt0=0.2,

@@ -5,16 +5,26 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from scipy import stats
 
-from sweep_core.numerics.noise import generator
+from sweep_core.bench.accuracy import (
+    Z95,
+    Measurement,
+    StudyConfig,
+    bridge_min,
+    coarse,
+    levels,
+    run_variant,
+    summary,
+    variants,
+    wall_scene,
+)
 from sweep_core.model.scene import Scene
+from sweep_core.numerics.noise import generator
 from sweep_core.numerics.simulator import Simulator
-
-from sweep_core.bench.accuracy import (Measurement, StudyConfig, Z95, bridge_min, coarse, levels, run_variant, summary, variants, wall_scene)
 
 
 # -- problems (a) -----------------------------------------------------------------------------

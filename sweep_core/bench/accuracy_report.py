@@ -9,11 +9,17 @@ from pathlib import Path
 
 import numpy as np
 
+from sweep_core.bench.accuracy import (
+    PROBLEMS,
+    Measurement,
+    Slope,
+    StudyConfig,
+    Variant,
+    group_slopes,
+)
+from sweep_core.bench.accuracy_problems import STUDIES, study_features
 from sweep_core.bench.tables import write_csv
 from sweep_core.numerics.schemes import SCHEMES
-
-from sweep_core.bench.accuracy import (Measurement, PROBLEMS, Slope, StudyConfig, Variant, group_slopes)
-from sweep_core.bench.accuracy_problems import STUDIES, study_features
 
 
 def format_table(ms: list[Measurement]) -> str:

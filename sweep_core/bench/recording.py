@@ -25,11 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from sweep_core.io import topics
+from sweep_core.bench.speed import crowd
 from sweep_core.bench.tables import write_csv
+from sweep_core.io import topics
 from sweep_core.io.recording import BackgroundRecorder
 from sweep_core.numerics.simulator import Simulator
-from sweep_core.bench.speed import crowd
 
 COLUMNS = ("N", "scene", "step_ms", "step_rec_ms", "record_ms", "record_max_ms", "record_pct",
            "overhead_pct", "backlog_max", "kB_per_step")

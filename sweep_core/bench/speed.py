@@ -35,13 +35,13 @@ from typing import Any
 
 import numpy as np
 
+from sweep_core.bench.tables import write_csv
+from sweep_core.model.scene import Scene
 from sweep_core.numerics import projection
+from sweep_core.numerics.constraints import Rows, linearise
 from sweep_core.numerics.projection.clusters import row_matrix
 from sweep_core.numerics.projection.interior import solve_clarabel
 from sweep_core.numerics.projection.proxqp import solve_proxsuite
-from sweep_core.bench.tables import write_csv
-from sweep_core.numerics.constraints import Rows, linearise
-from sweep_core.model.scene import Scene
 from sweep_core.numerics.simulator import Simulator
 
 COLUMNS = ("N", "scene", "contacts", "floor_median_ms", "step_median_ms", "step_min_ms",

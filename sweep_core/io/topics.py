@@ -4,7 +4,7 @@ Shared by ``sweep run`` and the ROS node, so a recording looks the same whicheve
 """
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -17,8 +17,8 @@ metres and seconds. The keys are a public contract, documented in the README:
 from __future__ import annotations
 
 import copy
-from importlib import resources
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -26,9 +26,9 @@ import numpy as np
 import yaml
 
 from sweep_core import checks
-from sweep_core.model.geometry import Geometry, gaps
 from sweep_core.errors import SceneError
 from sweep_core.model.fields import Field, field_from_spec
+from sweep_core.model.geometry import Geometry, gaps
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
 
 #: overlap (m) tolerated in a given initial configuration (rounding of touching disks)
@@ -84,7 +84,7 @@ class Scene:
         return yaml.safe_dump(self.spec, sort_keys=False)
 
     @classmethod
-    def from_yaml(cls, path: str | Path) -> "Scene":
+    def from_yaml(cls, path: str | Path) -> Scene:
         """Load and validate a scene file."""
         path = Path(path)
         try:
@@ -99,7 +99,7 @@ class Scene:
         return cls.from_dict(data if data is not None else {}, name=path.stem)
 
     @classmethod
-    def from_dict(cls, data: dict, name: str = "scene") -> "Scene":
+    def from_dict(cls, data: dict, name: str = "scene") -> Scene:
         """Validate a scene dict (see the module docstring) and build the scene."""
         return _build(data, name)
 
@@ -176,7 +176,10 @@ def _geometry(data: dict) -> tuple[Geometry, list, list]:
                                  "give the direction pointing into the free side, e.g. [1, 0]")
             offset = checks.number(wall["offset"], f"{field}.offset")
             velocity = checks.number(wall.get("velocity", 0.0), f"{field}.velocity")
-            hp_n.append(normal / norm), hp_c.append(offset), hp_v.append(velocity), hp_i.append(k)
+            hp_n.append(normal / norm)
+            hp_c.append(offset)
+            hp_v.append(velocity)
+            hp_i.append(k)
             walls_spec.append({"kind": kind, "normal": (normal / norm).tolist(), "offset": offset,
                                "velocity": velocity})
         else:
@@ -185,7 +188,9 @@ def _geometry(data: dict) -> tuple[Geometry, list, list]:
             if np.hypot(*(b - a)) < 1e-12:
                 raise SceneError(field, "has a == b (a segment of zero length)",
                                  "for a round obstacle use obstacles: [{kind: circle, ...}]")
-            sa.append(a), sb.append(b), s_i.append(k)
+            sa.append(a)
+            sb.append(b)
+            s_i.append(k)
             walls_spec.append({"kind": kind, "a": a.tolist(), "b": b.tolist()})
     for k, obs in enumerate(_list(data.get("obstacles"), "obstacles")):
         field = f"obstacles[{k}]"
@@ -195,7 +200,9 @@ def _geometry(data: dict) -> tuple[Geometry, list, list]:
                        required={"center", "radius"})
         center = checks.vec2(obs["center"], f"{field}.center")
         radius = checks.number(obs["radius"], f"{field}.radius", nonnegative=True)
-        cc.append(center), cr.append(radius), c_i.append(k)
+        cc.append(center)
+        cr.append(radius)
+        c_i.append(k)
         obstacles_spec.append({"kind": "circle", "center": center.tolist(), "radius": radius})
 
     def arr(x: list, shape: tuple) -> np.ndarray:

@@ -18,6 +18,7 @@ import numpy as np
 
 from sweep_core.model.geometry import Geometry, pairs_within, single_values
 
+
 @dataclass(frozen=True)
 class Rows:
     """Linearised constraints at (t1, q); see the module docstring for their meaning."""

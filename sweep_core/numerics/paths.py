@@ -14,13 +14,13 @@ to rounding (about 1e-16 relative), which is what ``sweep compare`` needs for a 
 """
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
 from sweep_core import checks
-from sweep_core.numerics import noise
 from sweep_core.errors import SceneError
+from sweep_core.numerics import noise
 from sweep_core.numerics.simulator import Simulator
 
 #: relative tolerance on dt / path_dt being an integer

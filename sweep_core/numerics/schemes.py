@@ -56,10 +56,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sweep_core.model.geometry import single_values
 from sweep_core.errors import InfeasibleError, SceneError
-from sweep_core.numerics.projection import Projection, SolverOptions, project
+from sweep_core.model.fields import Field
+from sweep_core.model.geometry import single_values
 from sweep_core.model.scene import Scene
+from sweep_core.numerics.projection import Projection, SolverOptions, project
 
 
 @dataclass(frozen=True)
@@ -97,7 +98,7 @@ class Scheme:
         return self.name
 
     def predict(self, t: float, q: np.ndarray, h: float, dB: np.ndarray | None,
-                drift, sigma: np.ndarray) -> np.ndarray:
+                drift: Field, sigma: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
     def correct(self, t: float, q: np.ndarray, h: float, dB: np.ndarray | None,
@@ -105,7 +106,7 @@ class Scheme:
         """Change of the prediction before the projection; none by default."""
         return pred
 
-    def step(self, t: float, q: np.ndarray, h: float, dB: np.ndarray | None, drift,
+    def step(self, t: float, q: np.ndarray, h: float, dB: np.ndarray | None, drift: Field,
              sigma: np.ndarray) -> StepResult:
         """Advance from (t, q) by h with Brownian increments dB (N, 2) or None (sigma = 0)."""
         pred = self.correct(t, q, h, dB, self.predict(t, q, h, dB, drift, sigma), sigma)
@@ -119,7 +120,7 @@ class ProjectedEuler(Scheme):
 
     name = "projected_euler"
 
-    def predict(self, t: float, q: np.ndarray, h: float, dB: np.ndarray | None, drift,
+    def predict(self, t: float, q: np.ndarray, h: float, dB: np.ndarray | None, drift: Field,
                 sigma: np.ndarray) -> np.ndarray:
         pred = q.copy() if drift.is_zero else q + h * drift(t, q)
         if dB is not None:
@@ -193,7 +194,7 @@ class AdaptiveSubstep(BridgeReflection):
     def label(self) -> str:
         return f"adaptive({self.tolerance:g})"
 
-    def step(self, t: float, q: np.ndarray, h: float, dB: np.ndarray | None, drift,
+    def step(self, t: float, q: np.ndarray, h: float, dB: np.ndarray | None, drift: Field,
              sigma: np.ndarray) -> StepResult:
         self.last_substeps = 0
         res, reaction = self._piece(t, q, h, dB, drift, sigma, 0)
@@ -212,7 +213,7 @@ class AdaptiveSubstep(BridgeReflection):
         disp = float(np.sqrt(np.einsum("ij,ij->i", d, d)).max())
         return disp > self.tolerance * float(self.scene.radii(t1).min())
 
-    def _piece(self, t: float, q: np.ndarray, h: float, dB: np.ndarray | None, drift,
+    def _piece(self, t: float, q: np.ndarray, h: float, dB: np.ndarray | None, drift: Field,
                sigma: np.ndarray, depth: int) -> tuple[StepResult, np.ndarray]:
         """Advance one piece; returns its result and its summed reaction."""
         try:

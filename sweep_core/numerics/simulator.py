@@ -2,18 +2,18 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
 from sweep_core import checks
-from sweep_core.numerics import noise
-from sweep_core.model.geometry import gaps
 from sweep_core.errors import InfeasibleError, SceneError
 from sweep_core.model.fields import Field
-from sweep_core.numerics.projection import SolverOptions
+from sweep_core.model.geometry import gaps
 from sweep_core.model.scene import Scene
+from sweep_core.numerics import noise
+from sweep_core.numerics.projection import SolverOptions
 from sweep_core.numerics.schemes import SCHEMES, Scheme, StepResult
 
 #: largest true-constraint violation (m) ever accepted after a step
@@ -182,7 +182,7 @@ class Simulator:
             self._advance(None if dB is None else dB[k])
 
     def run(self, t_end: float, progress: bool = False,
-            callback: Callable[["Simulator"], None] | None = None,
+            callback: Callable[[Simulator], None] | None = None,
             increments: Callable[[], np.ndarray] | None = None) -> None:
         """Step until t_end (s), calling callback(self) after every step.
 
@@ -228,8 +228,9 @@ class Simulator:
         if self.check:
             g = gaps(self.scene.geometry, t1, y, r1)
             if g.min_gap < -FEASIBILITY_TOLERANCE:
-                who = (list(g.worst_pair[:2]) if g.min_pair <= g.min_single
-                       else [g.worst_single[0]])
+                worst = g.worst_pair if g.min_pair <= g.min_single else g.worst_single
+                who = [] if worst is None else (
+                    list(worst[:2]) if g.min_pair <= g.min_single else [worst[0]])
                 raise InfeasibleError(t1, who, f"true constraint violated by {-g.min_gap:.3g} m")
             min_gap = g.min_gap
         self._v = (y - self._q) / h

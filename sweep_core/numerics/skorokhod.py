@@ -4,10 +4,10 @@ from __future__ import annotations
 import numpy as np
 
 from sweep_core import checks
-from sweep_core.model.geometry import gaps
 from sweep_core.errors import SceneError
-from sweep_core.numerics.projection import SolverOptions, project
+from sweep_core.model.geometry import gaps
 from sweep_core.model.scene import Scene
+from sweep_core.numerics.projection import SolverOptions, project
 
 
 def skorokhod(scene: Scene, path: np.ndarray, times: np.ndarray,

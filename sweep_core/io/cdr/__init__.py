@@ -26,11 +26,23 @@ Stamps are ``int`` nanoseconds; they are split into ``builtin_interfaces/Time`` 
 """
 from __future__ import annotations
 
-from sweep_core.io.cdr.decode import (Cloud, decode_clock, decode_point_cloud2, decode_pose_array,
-                                      decode_pose_array_full)
+from sweep_core.io.cdr.decode import (
+                                      Cloud,
+                                      decode_clock,
+                                      decode_point_cloud2,
+                                      decode_pose_array,
+                                      decode_pose_array_full,
+)
 from sweep_core.io.cdr.encode import encode_clock, encode_point_cloud2, encode_pose_array
-from sweep_core.io.cdr.msgdefs import (CLOCK, CLOCK_MSGDEF, POINT_CLOUD2, POINT_CLOUD2_MSGDEF,
-                                       POSE_ARRAY, POSE_ARRAY_MSGDEF, SCHEMAS)
+from sweep_core.io.cdr.msgdefs import (
+                                      CLOCK,
+                                      CLOCK_MSGDEF,
+                                      POINT_CLOUD2,
+                                      POINT_CLOUD2_MSGDEF,
+                                      POSE_ARRAY,
+                                      POSE_ARRAY_MSGDEF,
+                                      SCHEMAS,
+)
 
 __all__ = [
     "CLOCK",

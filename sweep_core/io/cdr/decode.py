@@ -11,7 +11,7 @@ import numpy as np
 from sweep_core.io.cdr.msgdefs import CLOCK, POINT_CLOUD2, POSE_ARRAY
 from sweep_core.io.cdr.wire import NS_PER_S, unpack_3u32, unpack_u32
 
-_DATATYPES = {
+_DATATYPES: dict[int, np.dtype] = {
     1: np.dtype("i1"),
     2: np.dtype("u1"),
     3: np.dtype("<i2"),
@@ -182,7 +182,7 @@ def decode_point_cloud2(data: bytes) -> Cloud:
         raise ValueError(
             f"data: {what} holds {ndata} data bytes, height {height} * row_step {row_step} needed"
         )
-    dtypes = []
+    dtypes: list[tuple[np.dtype, int]] = []
     for name, offset, datatype, count in specs:
         dt = _DATATYPES.get(datatype)
         if dt is None:

@@ -3,12 +3,20 @@
 from __future__ import annotations
 
 import struct
+from collections.abc import Mapping
 from functools import lru_cache
-from typing import Mapping
 
 import numpy as np
 
-from sweep_core.io.cdr.wire import ENCAPSULATION, PAD, header_prefix, pack_2u32, pack_3u32, scratch, split_stamp
+from sweep_core.io.cdr.wire import (
+    ENCAPSULATION,
+    PAD,
+    header_prefix,
+    pack_2u32,
+    pack_3u32,
+    scratch,
+    split_stamp,
+)
 
 
 def encode_clock(stamp_ns: int) -> bytes:

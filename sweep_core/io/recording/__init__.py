@@ -24,7 +24,12 @@ from __future__ import annotations
 from sweep_core.errors import RecordingError
 from sweep_core.io.recording.background import BackgroundRecorder
 from sweep_core.io.recording.format import DEFAULT_QOS_PROFILES
-from sweep_core.io.recording.reader import RecordedMessage, RecordingReader, read_metadata, read_recording
+from sweep_core.io.recording.reader import (
+    RecordedMessage,
+    RecordingReader,
+    read_metadata,
+    read_recording,
+)
 from sweep_core.io.recording.scan import ChannelInfo, RecordingInfo, scan_recording
 from sweep_core.io.recording.writer import Recorder
 

@@ -5,11 +5,13 @@ from __future__ import annotations
 import os
 import queue
 import threading
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from sweep_core.errors import RecordingError
 from sweep_core.io.recording.format import DEFAULT_QOS_PROFILES
 from sweep_core.io.recording.writer import Recorder
+
 
 class BackgroundRecorder:
     """A :class:`Recorder` fed from a background thread: ``write`` and ``metadata`` only

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Mapping
 from importlib.metadata import PackageNotFoundError, version
-from typing import IO, Any, Mapping
+from typing import IO, Any
 
 import numpy as np
 from mcap.writer import CompressionType

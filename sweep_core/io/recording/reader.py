@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from typing import Iterable, Iterator
 
 from mcap.reader import SeekingReader
 from mcap.records import Channel, Footer, Message, Metadata, Schema
@@ -50,7 +50,7 @@ class RecordingReader:
         return next(self._it)
 
     def close(self) -> None:
-        self._it.close()
+        self._it.close()  # type: ignore[attr-defined]  # a generator
         self._file.close()
 
     def __enter__(self) -> RecordingReader:

@@ -4,14 +4,24 @@ from __future__ import annotations
 import os
 import threading
 import time
-from typing import IO, Mapping
+from collections.abc import Mapping
+from typing import IO
 
 from mcap.exceptions import McapError
 from mcap.writer import Writer
 
 from sweep_core.errors import RecordingError
 from sweep_core.io import cdr
-from sweep_core.io.recording.format import COMPRESSION, MESSAGE_OVERHEAD, MSGTYPE_RE, check_str_dict, check_time, close_quietly, library_string, DEFAULT_QOS_PROFILES
+from sweep_core.io.recording.format import (
+    COMPRESSION,
+    DEFAULT_QOS_PROFILES,
+    MESSAGE_OVERHEAD,
+    MSGTYPE_RE,
+    check_str_dict,
+    check_time,
+    close_quietly,
+    library_string,
+)
 
 
 class Recorder:

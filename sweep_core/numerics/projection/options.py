@@ -25,7 +25,8 @@ class SolverOptions:
     backend: "clarabel" (default: interior point, robust in dense jams) or "proxsuite"
         (proxsuite 0.8.0 can stall inside its solve on degenerate jam QPs; see README).
     exact_vars: clusters of up to this many variables (2 per agent) are solved first by the
-        exact active-set solver (:func:`sweep_core.numerics.projection.exact.ldp`), the backend only if it fails. Up to about 64
+        exact active-set solver (:func:`sweep_core.numerics.projection.exact.ldp`), the backend
+        only if it fails. Up to about 64
         agents that solver is also the faster one; above, it costs O(n^3) but is exact where
         the interior-point backend stops about 1e-6 m short in degenerate jams (README).
     """
@@ -38,7 +39,7 @@ class SolverOptions:
 
     @classmethod
     def from_values(cls, eps_abs: float = 1e-10, max_iter: int = 1000,
-                    backend: str = "clarabel", exact_vars: int = 128) -> "SolverOptions":
+                    backend: str = "clarabel", exact_vars: int = 128) -> SolverOptions:
         eps = checks.number(eps_abs, "solver.eps_abs", positive=True)
         if eps > 1e-9:
             raise SceneError("solver.eps_abs", f"{eps:g} m would allow overlaps above 1e-9 m",
