@@ -27,6 +27,7 @@ setup(
         "mcap>=1.6",
         "tqdm>=4.60",
         "matplotlib>=3.7",
+        "numba>=0.60",
     ],
     zip_safe=True,
     maintainer="sweep_ros developers",

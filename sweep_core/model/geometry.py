@@ -9,7 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
+
+from sweep_core.model.neighbours import pairs_within
 
 # codes of single-row kinds, in the order of scene.geometry
 HALFPLANE, SEGMENT, CIRCLE = 0, 1, 2
@@ -50,15 +51,6 @@ class Geometry:
         if kind == SEGMENT:
             return f"walls[{int(self.segment_index[item])}] (segment)"
         return f"obstacles[{int(self.circle_index[item])}] (circle)"
-
-
-def pairs_within(q: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """Index arrays (i, j), i < j, of the pairs of centres q (N, 2) at most ``reach`` m apart."""
-    if len(q) < 2:
-        empty = np.empty(0, dtype=np.intp)
-        return empty, empty
-    p = cKDTree(q).query_pairs(reach, output_type="ndarray")
-    return p[:, 0], p[:, 1]
 
 
 def single_values(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sweep_core.model.geometry import Geometry, pairs_within, single_values
+from sweep_core.model.geometry import Geometry, single_values
+from sweep_core.model.neighbours import pairs_within
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,146 @@
+"""Neighbour search: the pairs of centres within a distance, by a compiled cell list.
+
+The plane is cut into square cells of side ``reach``; two centres at most ``reach`` apart lie in
+the same cell or in adjacent ones, so each occupied cell is compared with itself and four of its
+eight neighbours (the other four see it from their side). Cells are found by sorting the
+agents by cell key (no grid is allocated, so a crowd spread over kilometres costs what a dense one
+does): O(N log N + pairs). The order of the pairs is a function of the positions alone
+(deterministic), which keeps seeded runs bit for bit reproducible.
+
+Compiled with numba (``cache=True``: compiled once per machine, the cache in ``__pycache__`` beside
+this file or, where the package folder is read-only, in numba's user-wide cache directory;
+``NUMBA_CACHE_DIR`` sets another).
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+#: the four neighbour cells each cell is compared with (the other four compare with it)
+_HALF_STENCIL = np.array([[1, -1], [1, 0], [1, 1], [0, 1]], dtype=np.int64)
+
+
+@numba.njit(cache=True, nogil=True)
+def _compare(q: np.ndarray, r2: float, order: np.ndarray, a0: int, a1: int, b0: int, b1: int,
+             same: bool, out_i: np.ndarray, out_j: np.ndarray, found: int) -> int:
+    """Pairs within sqrt(r2) between the agents order[a0:a1] and order[b0:b1] (the same run
+    when ``same``), written while the output has room; returns the new count."""
+    cap = out_i.shape[0]
+    for u in range(a0, a1):
+        i = order[u]
+        xi, yi = q[i, 0], q[i, 1]
+        for v in range(u + 1 if same else b0, b1):
+            j = order[v]
+            dx = xi - q[j, 0]
+            dy = yi - q[j, 1]
+            if dx * dx + dy * dy <= r2:
+                if found < cap:
+                    out_i[found] = min(i, j)
+                    out_j[found] = max(i, j)
+                found += 1
+    return found
+
+
+@numba.njit(cache=True, nogil=True)
+def _pairs_grid(q: np.ndarray, reach: float, x0: float, y0: float, nx: int, ny: int,
+                out_i: np.ndarray, out_j: np.ndarray) -> int:
+    """Dense grid of nx x ny cells of side reach (counting sort, O(N + cells + pairs))."""
+    n = q.shape[0]
+    cells = nx * ny
+    cell = np.empty(n, dtype=np.int64)
+    start = np.zeros(cells + 1, dtype=np.int64)
+    for a in range(n):
+        c = int((q[a, 0] - x0) / reach) * ny + int((q[a, 1] - y0) / reach)
+        cell[a] = c
+        start[c + 1] += 1
+    for c in range(cells):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(n, dtype=np.int64)
+    for a in range(n):
+        order[fill[cell[a]]] = a
+        fill[cell[a]] += 1
+    r2 = reach * reach
+    found = 0
+    for cx in range(nx):
+        for cy in range(ny):
+            c = cx * ny + cy
+            a0, a1 = start[c], start[c + 1]
+            if a0 == a1:
+                continue
+            found = _compare(q, r2, order, a0, a1, a0, a1, True, out_i, out_j, found)
+            for s in range(4):
+                dx, dy = _HALF_STENCIL[s, 0], _HALF_STENCIL[s, 1]
+                ox, oy = cx + dx, cy + dy
+                if ox < 0 or ox >= nx or oy < 0 or oy >= ny:
+                    continue
+                o = ox * ny + oy
+                found = _compare(q, r2, order, a0, a1, start[o], start[o + 1], False,
+                                 out_i, out_j, found)
+    return found
+
+
+@numba.njit(cache=True, nogil=True)
+def _pairs_sorted(q: np.ndarray, reach: float, x0: float, y0: float, ny: int,
+                  out_i: np.ndarray, out_j: np.ndarray) -> int:
+    """Sparse crowds: agents sorted by cell key, neighbour cells found by binary search
+    (O(N log N + pairs), no grid allocated)."""
+    n = q.shape[0]
+    key = np.empty(n, dtype=np.int64)
+    for a in range(n):
+        key[a] = (int((q[a, 0] - x0) / reach) + 1) * ny + int((q[a, 1] - y0) / reach) + 1
+    order = np.argsort(key, kind="mergesort")
+    sk = key[order]
+    starts = np.empty(n + 1, dtype=np.int64)
+    cells = 0
+    for k in range(n):
+        if k == 0 or sk[k] != sk[k - 1]:
+            starts[cells] = k
+            cells += 1
+    starts[cells] = n
+    r2 = reach * reach
+    found = 0
+    for c in range(cells):
+        a0, a1 = starts[c], starts[c + 1]
+        found = _compare(q, r2, order, a0, a1, a0, a1, True, out_i, out_j, found)
+        for s in range(4):
+            want = sk[a0] + _HALF_STENCIL[s, 0] * ny + _HALF_STENCIL[s, 1]
+            lo, hi = 0, cells
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if sk[starts[mid]] < want:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            if lo < cells and sk[starts[lo]] == want:
+                found = _compare(q, r2, order, a0, a1, starts[lo], starts[lo + 1], False,
+                                 out_i, out_j, found)
+    return found
+
+
+#: a dense grid is used while it has at most this many cells per agent (plus a constant)
+_GRID_CELLS_PER_AGENT = 4
+
+
+def pairs_within(q: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index arrays (i, j), i < j, of the pairs of centres q (N, 2) at most ``reach`` m apart
+    (``reach`` > 0), in an order that depends on the positions alone."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    n = len(q)
+    if n < 2:
+        empty = np.empty(0, dtype=np.intp)
+        return empty, empty
+    reach = float(reach)
+    x0, y0 = float(q[:, 0].min()), float(q[:, 1].min())
+    nx = int((float(q[:, 0].max()) - x0) / reach) + 1
+    ny = int((float(q[:, 1].max()) - y0) / reach) + 1
+    dense = nx * ny <= _GRID_CELLS_PER_AGENT * n + 64
+    capacity = 4 * n
+    while True:
+        i = np.empty(capacity, dtype=np.intp)
+        j = np.empty(capacity, dtype=np.intp)
+        found = (_pairs_grid(q, reach, x0, y0, nx, ny, i, j) if dense
+                 else _pairs_sorted(q, reach, x0, y0, ny + 2, i, j))
+        if found <= capacity:
+            return i[:found], j[:found]
+        capacity = found
