@@ -251,6 +251,7 @@ class SweepNode(Node):
             "timer_overruns": self._overruns,
             "active_contacts": sim.contacts,
             "backend_agents": sim.backend_agents,
+            "projection_bound_m": sim.bound,
             "min_gap_m": sim.min_gap,
             "drift": sim.drift.kind,
             "commands_accepted": self._commands["accepted"],

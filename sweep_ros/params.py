@@ -89,6 +89,12 @@ SPECS: tuple[ParamSpec, ...] = (
               "many variables (2 per agent) are solved exactly by the active-set solver; larger "
               "ones by the interior-point backend (about 1e-6 m in degenerate jams).",
               False, 0, 100000),
+    ParamSpec("solver_tol", _DEFAULT_SOLVER.tol, "Certified accuracy of each projection, m: "
+              "every step's distance to the exact projection is proved below it (reported as "
+              "'bound' in diagnostics).", False, 1e-12, 1.0),
+    ParamSpec("solver_max_rounds", _DEFAULT_SOLVER.max_rounds, "Rounds of the certified solver "
+              "per step before uncertified clusters go to the exact or interior-point solvers.",
+              False, 0, 100000),
 )
 
 BY_NAME: dict[str, ParamSpec] = {s.name: s for s in SPECS}
@@ -160,7 +166,9 @@ def check_value(name: str, value: Any) -> str | None:
 def solver_options(values: Mapping[str, Any]) -> SolverOptions:
     """SolverOptions from the solver_* parameters (raises SceneError naming solver.*)."""
     return SolverOptions.from_values(values["solver_eps_abs"], values["solver_max_iter"],
-                                     exact_vars=values["solver_exact_vars"])
+                                     exact_vars=values["solver_exact_vars"],
+                                     tol=values["solver_tol"],
+                                     max_rounds=values["solver_max_rounds"])
 
 
 def check_start(values: Mapping[str, Any]) -> list[str]:

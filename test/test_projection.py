@@ -109,10 +109,12 @@ def test_larger_jams_are_exact_on_request():
     """A 100-agent jam is one cluster of 200 variables: above exact_vars it goes to the
     interior-point backend (counted in backend_agents); raising exact_vars makes it exact."""
     spec = hex_jam(10, 10)
-    default = list(jam_steps(spec, seed=4, steps=3, opts=sc.SolverOptions()))
-    exact = list(jam_steps(spec, seed=4, steps=3, opts=sc.SolverOptions(exact_vars=400)))
+    default = list(jam_steps(spec, seed=4, steps=3, opts=sc.SolverOptions(method="clusters")))
+    exact = list(jam_steps(spec, seed=4, steps=3,
+                           opts=sc.SolverOptions(method="clusters", exact_vars=400)))
     assert max(p.backend_agents for *_, p in default) == 100
-    sim = sc.Simulator(sc.Scene.from_dict(spec), dt=0.01, seed=4)
+    sim = sc.Simulator(sc.Scene.from_dict(spec), dt=0.01, seed=4,
+                       solver=sc.SolverOptions(method="clusters"))
     assert sim.backend_agents == 0  # before any step
     sim.step(3)
     assert sim.backend_agents == sim.last.projection.backend_agents
@@ -131,7 +133,8 @@ def test_almost_solved_is_a_last_resort(monkeypatch):
     and is taken (rows holding) rather than stopping the run when nothing else does."""
     spec = hex_jam(5, 5)
     scene = sc.Scene.from_dict(spec)
-    sim = sc.Simulator(scene, dt=0.01, seed=5, solver=sc.SolverOptions(exact_vars=0))
+    sim = sc.Simulator(scene, dt=0.01, seed=5,
+                       solver=sc.SolverOptions(exact_vars=0, method="clusters"))
     sim.step(2)
     q, t1 = sim.positions, sim.t + sim.dt
     sim.step()
@@ -143,10 +146,10 @@ def test_almost_solved_is_a_last_resort(monkeypatch):
         return x, lam, None
 
     monkeypatch.setattr(clusters, "solve_clarabel", almost)
-    opts = sc.SolverOptions(exact_vars=0)
+    opts = sc.SolverOptions(exact_vars=0, method="clusters")
     got = projection.project(scene.geometry, t1, q, pred, scene.radii(t1), opts)
     assert got.backend_agents == 0  # the exact fallback answered
     assert np.max(np.abs(got.y - reference(scene, t1, q, pred))) < 1e-8
-    no_exact = sc.SolverOptions(exact_vars=0, dense_fallback=0)
+    no_exact = sc.SolverOptions(exact_vars=0, dense_fallback=0, method="clusters")
     got = projection.project(scene.geometry, t1, q, pred, scene.radii(t1), no_exact)
     assert got.backend_agents == 25 and np.max(np.abs(got.y - want)) < 1e-12

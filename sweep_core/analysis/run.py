@@ -100,7 +100,9 @@ class RunMeta:
             raise RecordingError(f"{self.path}: solver settings {unknown} are unknown to this "
                                  "version of sweep_core (fix: replay with the version that "
                                  "recorded it, see its versions metadata)")
-        return SolverOptions(**self.solver)
+        # recordings made before the certified solver existed were projected by the cluster
+        # solvers alone: replay them so
+        return SolverOptions(**{"method": "clusters", **self.solver})
 
 
 def _number(raw: dict[str, str], key: str, cast: type, problems: list[str]) -> Any:

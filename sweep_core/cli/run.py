@@ -20,12 +20,13 @@ from sweep_core.numerics.simulator import Simulator
 
 def _run(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene)
-    solver = SolverOptions.from_values(args.eps_abs, args.max_iter, exact_vars=args.exact_vars)
+    solver = SolverOptions.from_values(args.eps_abs, args.max_iter, exact_vars=args.exact_vars,
+                                       tol=args.tol, max_rounds=args.max_rounds)
     sim = Simulator(scene, dt=args.dt, seed=args.seed, scheme=args.scheme, solver=solver)
     scene.check_horizon(args.t_end)
     out = Path(args.out)
     stats = {"min_gap": math.inf, "contacts_max": 0, "contacts_sum": 0, "steps": 0,
-             "backend_agents_max": 0}
+             "backend_agents_max": 0, "bound_max_m": 0.0}
 
     meta = run_metadata(scene, sim, args.t_end, args.record_every)
     meta["path_dt"] = repr(args.path_dt) if args.path_dt else ""
@@ -48,6 +49,7 @@ def _run(args: argparse.Namespace) -> int:
                 stats["contacts_max"] = max(stats["contacts_max"], state.contacts)
                 stats["contacts_sum"] += state.contacts
                 stats["backend_agents_max"] = max(stats["backend_agents_max"], s.backend_agents)
+                stats["bound_max_m"] = max(stats["bound_max_m"], s.bound)
 
         record(sim)
         start = time.perf_counter()
@@ -68,7 +70,8 @@ def _run(args: argparse.Namespace) -> int:
         "max_overlap_m": max(0.0, -stats["min_gap"]) if steps else 0.0,
         "contacts_mean": stats["contacts_sum"] / steps if steps else 0.0,
         "contacts_max": stats["contacts_max"],
-        "backend_agents_max": stats["backend_agents_max"], "recording": str(out),
+        "backend_agents_max": stats["backend_agents_max"],
+        "bound_max_m": stats["bound_max_m"], "tol_m": solver.tol, "recording": str(out),
         "recording_bytes": out.stat().st_size,
     }
     summary_path = out.with_suffix(".summary.json")
@@ -101,6 +104,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--exact-vars", type=int, default=SolverOptions.exact_vars, metavar="V",
                         help="contact clusters of up to V variables (2 per agent) are solved exactly "
                              "by the active-set solver, larger ones by the interior-point backend "
+                             "(default %(default)d)")
+    parser.add_argument("--tol", type=float, default=SolverOptions.tol, metavar="M",
+                        help="certified accuracy of each projection, m: the step's distance to the "
+                             "exact projection is proved below it (default %(default)g)")
+    parser.add_argument("--max-rounds", type=int, default=SolverOptions.max_rounds, metavar="R",
+                        help="rounds of the certified solver per step before the clusters it has "
+                             "not certified go to the exact or interior-point solvers "
                              "(default %(default)d)")
     parser.add_argument("--path-dt", type=float, default=None, metavar="FINE",
                         help="draw the Brownian path at FINE s and sum dt/FINE increments per step, "

@@ -45,6 +45,26 @@ class Rows:
         rs = np.einsum("ij,ij->i", self.single_n, y[self.single_a]) - self.single_b
         return rp, rs
 
+    def select(self, pairs: np.ndarray, singles: np.ndarray) -> Rows:
+        """The rows picked by ``pairs`` (P,) and ``singles`` (M,) (boolean masks or indices)."""
+        return Rows(self.pair_i[pairs], self.pair_j[pairs], self.pair_e[pairs],
+                    self.pair_b[pairs], self.single_a[singles], self.single_n[singles],
+                    self.single_b[singles], self.single_kind[singles], self.single_item[singles])
+
+    def displacement_rows(self, q: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every row written for the displacement x = y - q (reference §4 with y - q_n as the
+        unknown), pair rows first: agents ri (K,), rj (K,) (-1 for a wall or obstacle row),
+        unit vectors re (K, 2) and bounds h (K,) m of <re_k, x_ri - x_rj> >= h_k (or
+        <re_k, x_ri> >= h_k). The bounds are small (a step's motion), so a slack is computed
+        to about 1e-18 m instead of the 1e-15 m of absolute positions."""
+        hp = self.pair_b - np.einsum("kc,kc->k", self.pair_e, q[self.pair_i] - q[self.pair_j])
+        hs = self.single_b - np.einsum("kc,kc->k", self.single_n, q[self.single_a])
+        ri = np.concatenate([self.pair_i, self.single_a]).astype(np.int64)
+        rj = np.concatenate([self.pair_j, np.full(len(self.single_a), -1)]).astype(np.int64)
+        re = np.ascontiguousarray(np.concatenate([self.pair_e, self.single_n]), dtype=float)
+        return ri, rj, re, np.concatenate([hp, hs])
+
     def agents(self) -> np.ndarray:
         """Sorted indices of the agents that appear in any row."""
         return np.unique(np.concatenate([self.pair_i, self.pair_j, self.single_a]))

@@ -91,6 +91,13 @@ class Scheme:
     def __init__(self, scene: Scene, solver: SolverOptions) -> None:
         self.scene = scene
         self.solver = solver
+        #: the last projection, whose multipliers warm-start the next one
+        self.warm: Projection | None = None
+
+    def reset(self) -> None:
+        """Forget what carries over between steps (the warm start): called by
+        ``Simulator.reset``, so a run after a reset is the run from the start."""
+        self.warm = None
 
     @property
     def label(self) -> str:
@@ -111,7 +118,9 @@ class Scheme:
         """Advance from (t, q) by h with Brownian increments dB (N, 2) or None (sigma = 0)."""
         pred = self.correct(t, q, h, dB, self.predict(t, q, h, dB, drift, sigma), sigma)
         t1 = t + h
-        proj = project(self.scene.geometry, t1, q, pred, self.scene.radii(t1), self.solver)
+        proj = project(self.scene.geometry, t1, q, pred, self.scene.radii(t1), self.solver,
+                       warm=self.warm)
+        self.warm = proj
         return StepResult(proj.y, pred, proj)
 
 

@@ -82,6 +82,7 @@ class Simulator:
         if seed is not None:
             self.seed = int(seed)
         self._rng = noise.generator(self.seed)
+        self.scheme.reset()
         self._drift: Field = self.scene.drift
         self._sigma = self.scene.sigma.copy()
         n = self.scene.n_agents
@@ -130,6 +131,12 @@ class Simulator:
     @property
     def min_gap(self) -> float:
         return self._min_gap
+
+    @property
+    def bound(self) -> float:
+        """The last step's certified bound (m) on its distance to the exact projection onto
+        the linearised set (0 before any step; ``Projection.bound``)."""
+        return 0.0 if self.last is None else self.last.projection.bound
 
     @property
     def backend_agents(self) -> int:

@@ -12,23 +12,42 @@ from sweep_core.errors import SceneError
 ROW_TOLERANCE = 1e-9
 
 
+#: methods of the projection: the certified compiled solver, or the cluster solvers alone
+METHODS = ("certified", "clusters")
+
+
+def _int(value: object, field: str, low: int, fix: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise SceneError(field, f"must be an integer >= {low}, got {value!r}", fix)
+    return int(value)
+
+
 @dataclass(frozen=True)
 class SolverOptions:
-    """Settings of the QP solve.
+    """Settings of the projection (the QP of one step).
 
-    eps_abs: proxsuite's absolute tolerance (m): bound on the row residuals and stationarity.
-        Every row is tightened by eps_abs before the solve (a skin), so a solution within the
-        tolerance still satisfies the untightened row: no overlap, not even of eps_abs.
+    tol: the certified accuracy (m): every step's answer y is within tol of the exact projection
+        onto the linearised set, proved by a duality-gap certificate (``Projection.bound``).
+        Clusters the compiled solver cannot certify within ``max_rounds`` go to the exact or
+        the interior-point solver, whose answer is certified the same way (the bound is
+        reported even where it exceeds tol). Feasibility does not depend on tol: every row
+        holds to ``ROW_TOLERANCE`` whatever it is.
+    max_rounds: cap on the rounds of the certified solver in one step (a round: 10 projected
+        Gauss-Seidel sweeps and one conjugate-gradient face step on the dual; the rounds also
+        stop after 10 without progress). 0 sends every cluster to the cluster solvers.
+    warm_start: start each step from the previous step's multipliers, matched by contact.
+    method: "certified" (default: compiled sweeps, then the cluster solvers where needed) or
+        "clusters" (the cluster solvers alone: closed form, active set, interior point).
+    eps_abs: skin (m) the interior-point and proxsuite backends tighten every row by, so an
+        answer within their tolerance still satisfies the untightened row.
     max_iter: proxsuite's iteration cap (backend "proxsuite").
     dense_fallback: clusters of up to this many variables (2 per agent) are retried with the
         active-set NNLS solver when the backend fails.
     backend: "clarabel" (default: interior point, robust in dense jams) or "proxsuite"
         (proxsuite 0.8.0 can stall inside its solve on degenerate jam QPs; see README).
-    exact_vars: clusters of up to this many variables (2 per agent) are solved first by the
-        exact active-set solver (:func:`sweep_core.numerics.projection.exact.ldp`), the backend
-        only if it fails. Up to about 64
-        agents that solver is also the faster one; above, it costs O(n^3) but is exact where
-        the interior-point backend stops about 1e-6 m short in degenerate jams (README).
+    exact_vars: clusters of up to this many variables (2 per agent) that reach the cluster
+        solvers are solved first by the exact active-set solver
+        (:func:`sweep_core.numerics.projection.exact.ldp`), the backend only if it fails.
     """
 
     eps_abs: float = 1e-10
@@ -36,23 +55,36 @@ class SolverOptions:
     dense_fallback: int = 4000
     backend: str = "clarabel"
     exact_vars: int = 128
+    tol: float = 1e-6
+    max_rounds: int = 200
+    warm_start: bool = True
+    method: str = "certified"
 
     @classmethod
     def from_values(cls, eps_abs: float = 1e-10, max_iter: int = 1000,
-                    backend: str = "clarabel", exact_vars: int = 128) -> SolverOptions:
+                    backend: str = "clarabel", exact_vars: int = 128, tol: float = 1e-6,
+                    max_rounds: int = 200, warm_start: bool = True,
+                    method: str = "certified") -> SolverOptions:
+        """Validated options; SceneError names the field, the value and the fix."""
         eps = checks.number(eps_abs, "solver.eps_abs", positive=True)
         if eps > 1e-9:
             raise SceneError("solver.eps_abs", f"{eps:g} m would allow overlaps above 1e-9 m",
                              "use eps_abs <= 1e-9")
-        if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-            raise SceneError("solver.max_iter", f"must be a positive integer, got {max_iter!r}")
+        tol_ = checks.number(tol, "solver.tol", positive=True)
+        if not 1e-12 <= tol_ <= 1.0:
+            raise SceneError("solver.tol", f"{tol_:g} m is outside [1e-12, 1] m",
+                             "use e.g. 1e-6 (the default) or 1e-4 for speed")
         if backend not in ("clarabel", "proxsuite"):
             raise SceneError("solver.backend", f"unknown backend {backend!r}",
                              "use 'clarabel' or 'proxsuite'")
-        if (isinstance(exact_vars, bool) or not isinstance(exact_vars, (int, np.integer))
-                or exact_vars < 0):
-            raise SceneError("solver.exact_vars", f"must be an integer >= 0, got {exact_vars!r}",
-                             "use 0 to send every cluster to the backend")
-        return cls(eps, int(max_iter), backend=backend, exact_vars=int(exact_vars))
-
-
+        if method not in METHODS:
+            raise SceneError("solver.method", f"unknown method {method!r}",
+                             f"use one of {list(METHODS)}")
+        if not isinstance(warm_start, (bool, np.bool_)):
+            raise SceneError("solver.warm_start", f"must be true or false, got {warm_start!r}")
+        return cls(eps, _int(max_iter, "solver.max_iter", 1, "use e.g. 1000"), backend=backend,
+                   exact_vars=_int(exact_vars, "solver.exact_vars", 0,
+                                   "use 0 to send every cluster to the backend"),
+                   tol=tol_, max_rounds=_int(max_rounds, "solver.max_rounds", 0,
+                                             "use e.g. 200, or 0 to skip the rounds"),
+                   warm_start=bool(warm_start), method=method)

@@ -7,7 +7,15 @@ built inside a cutoff (``constraints.linearise``) and the cutoff is proven suffi
 the solve: an unbuilt row had value > cut at q, and moves by at most |y_i - q_i| + |y_j - q_j|
 <= 2 max_i |y_i - q_i|, so if that is <= cut every unbuilt row holds at y; otherwise the
 cutoff grows and the QP is solved again. Projecting onto a superset and landing inside the
-set gives the projection onto the set, so the result is exact, not approximate.
+set gives the projection onto the set. With an approximate answer y, within ``bound`` of the
+superset's projection y*, the test is 2 (max_i |y_i - q_i| + bound) <= cut, so that y* itself
+lands inside the set.
+
+How the QP is solved (``SolverOptions.method``): "certified" runs the compiled dual sweeps of
+:mod:`.certified` on every row at once, and sends the clusters they cannot certify within
+``tol`` to the cluster solvers of :mod:`.clusters` (exact active set, interior point);
+"clusters" uses those alone. Either way every answer gets the duality-gap certificate of
+:mod:`.dual`, and ``Projection.bound`` is the proved bound on |y - y*|.
 """
 from __future__ import annotations
 
@@ -18,8 +26,10 @@ import numpy as np
 from sweep_core.errors import InfeasibleError
 from sweep_core.model.geometry import Geometry
 from sweep_core.numerics.constraints import Rows, linearise
+from sweep_core.numerics.projection import certified, dual
 from sweep_core.numerics.projection.clusters import row_matrix, solve_qp
 from sweep_core.numerics.projection.options import ROW_TOLERANCE, SolverOptions
+from sweep_core.numerics.projection.warm import carry_multipliers
 
 
 @dataclass(frozen=True)
@@ -27,12 +37,14 @@ class Projection:
     """Result of one projection.
 
     y: (N, 2) projected positions (m); rows: the rows built; lam_pair (P,), lam_single (M,):
-    multipliers (>= 0) of the rows, the reaction of each contact is lam * gradient;
-    active: number of rows that hold with equality (residual <= ROW_TOLERANCE); qp_size: number of
-    agents in the QP (0 when the prediction was already feasible); solves: QP solves done;
-    backend_agents: agents whose cluster was solved by the interior-point backend rather than
-    exactly (closed form or active set), i.e. to the backend's tolerance (about 1e-6 m in
-    degenerate jams) instead of to rounding.
+    multipliers (>= 0, m) of the rows, the reaction of each contact is lam * gradient;
+    active: number of rows that hold with equality (residual <= ROW_TOLERANCE); qp_size: number
+    of agents in the QP (0 when the prediction was already feasible); solves: QP solves done
+    (one per cutoff tried); backend_agents: agents whose cluster was solved by the
+    interior-point backend; bound: proved bound (m) on the distance from y to the exact
+    projection onto the linearised set (0 when the prediction was feasible; ``inf`` if a
+    cluster could not be certified); sweeps: Gauss-Seidel sweeps; fallback_agents: agents of
+    the clusters the sweeps left to the cluster solvers.
     """
 
     y: np.ndarray
@@ -43,6 +55,9 @@ class Projection:
     qp_size: int
     solves: int
     backend_agents: int = 0
+    bound: float = 0.0
+    sweeps: int = 0
+    fallback_agents: int = 0
 
 
 def first_cutoff(q: np.ndarray, pred: np.ndarray, r1: np.ndarray) -> float:
@@ -55,10 +70,12 @@ def first_cutoff(q: np.ndarray, pred: np.ndarray, r1: np.ndarray) -> float:
 
 
 def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
-            opts: SolverOptions) -> Projection:
+            opts: SolverOptions, warm: Projection | None = None) -> Projection:
     """Project the prediction pred (N, 2) onto C~(t1, q); q (N, 2) at t_n, r1 (N,) at t1.
 
-    Raises InfeasibleError (naming t1 and the agents) if the QP has no solution.
+    warm: the previous step's projection, whose multipliers start this one (matched by
+    contact) when ``opts.warm_start``. Raises InfeasibleError (naming t1 and the agents) if the
+    QP has no solution.
     """
     n = len(q)
     if n == 0:
@@ -71,31 +88,82 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
         rp, rs = rows.residuals(pred)
         lam_p, lam_s = np.zeros(len(rp)), np.zeros(len(rs))
         y = pred.copy()
-        qp_size = by_backend = 0
+        qp_size = by_backend = sweeps = fallback = 0
+        bound = 0.0
         if (len(rp) and rp.min() < 0) or (len(rs) and rs.min() < 0):
-            agents = rows.agents()
-            qp_size = len(agents)
-            loc = np.full(n, -1, dtype=np.intp)
-            loc[agents] = np.arange(qp_size)
-            c, b = row_matrix(rows, loc, qp_size)
-            x, lam, ok, by_backend = solve_qp(pred[agents].ravel(), c, b, opts)
+            qp_size = len(rows.agents())
+            start = (carry_multipliers(warm.rows, np.concatenate([warm.lam_pair,
+                                                                  warm.lam_single]), rows, n)
+                     if opts.warm_start and warm is not None and len(warm.y) == n else None)
+            solved = _solve(rows, q, pred, opts, start)
             solves += 1
-            y[agents] = x.reshape(-1, 2)
+            y, lam, bound, by_backend, sweeps, fallback, ok = solved
+            lam_p, lam_s = lam[: len(rp)], lam[len(rp):]
             rp, rs = rows.residuals(y)
             worst = min(rp.min(initial=np.inf), rs.min(initial=np.inf))
             if not ok or not np.isfinite(worst) or worst < -ROW_TOLERANCE:
                 why = "no feasible point" if not ok else "solver residual"
                 raise InfeasibleError(t1, _culprits(rows, rp, rs),
                                       f"{why}, worst row residual {worst:.3g} m")
-            lam_p, lam_s = lam[: len(rp)], lam[len(rp):]
         moved = float(np.sqrt(np.einsum("ij,ij->i", y - q, y - q)).max())
-        if 2.0 * moved <= cut:
+        if 2.0 * (moved + bound) <= cut:
             break
-        cut = 3.0 * moved
+        cut = 3.0 * (moved + bound)
     # a row is active when it holds with equality (to the solver tolerance); an interior-point
     # solver leaves tiny positive multipliers on slack rows, so multipliers are not counted
     active = int(np.count_nonzero(rp <= ROW_TOLERANCE) + np.count_nonzero(rs <= ROW_TOLERANCE))
-    return Projection(y, rows, lam_p, lam_s, active, qp_size, solves, by_backend // 2)
+    return Projection(y, rows, lam_p, lam_s, active, qp_size, solves, by_backend, bound,
+                      sweeps, fallback)
+
+
+def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
+           start: np.ndarray | None
+           ) -> tuple[np.ndarray, np.ndarray, float, int, int, int, bool]:
+    """The QP of ``rows``: y (N, 2), multipliers (K,), certified bound (m), agents solved by
+    the interior-point backend, Gauss-Seidel sweeps, agents left to the cluster solvers, and
+    whether every cluster was solved."""
+    n = len(q)
+    ri, rj, re, h = rows.displacement_rows(q)
+    d = pred - q
+    lam0 = start if start is not None else np.zeros(len(ri))
+    rounds = opts.max_rounds if opts.method == "certified" else 0
+    res = certified.solve(d, ri, rj, re, h, lam0, tol=opts.tol, max_rounds=rounds)
+    x, lam = res.x, res.lam
+    by_backend = fallback = 0
+    ok = True
+    gap = res.gap
+    if not res.done.all():
+        # the clusters not certified: the cluster solvers, in absolute coordinates
+        agent_todo = (res.label >= 0) & ~res.done[np.maximum(res.label, 0)]
+        pick_p, pick_s = agent_todo[rows.pair_i], agent_todo[rows.single_a]
+        sub = rows.select(pick_p, pick_s)
+        agents = sub.agents()
+        loc = np.full(n, -1, dtype=np.intp)
+        loc[agents] = np.arange(len(agents))
+        c, b = row_matrix(sub, loc, len(agents))
+        # tightened by the skin, so that an answer exact up to rounding holds every true row
+        xs, lam_sub, ok, by_backend = solve_qp(pred[agents].ravel(), c, b + res.skin, opts)
+        picked = np.concatenate([pick_p, pick_s])
+        lam = lam.copy()
+        lam[picked] = lam_sub
+        x = dual.apply_multipliers(d, ri, rj, re, lam)
+        # the cluster solvers' own x, where it differs from d + A^T lam by more than rounding
+        # (an interior point's multipliers do not reproduce its x exactly), is kept with the
+        # residual term 1/2 |r|^2 of the certificate
+        r = np.zeros_like(d)
+        r[agents] = xs.reshape(-1, 2) - q[agents] - x[agents]
+        x[agents] += r[agents]
+        fallback = len(agents)
+        gap, _, _, _ = certified.certify(x, ri, rj, re, h, lam, res.label, res.clusters,
+                                         opts.tol, certified.rounding_floor(d, h))
+        # add 1/2 |r|^2 per cluster (x no longer equals d + A^T lam there)
+        gap = gap + 0.5 * np.bincount(res.label[agents], weights=(r[agents] ** 2).sum(axis=1),
+                                      minlength=res.clusters)
+    bound = float(np.sqrt(2.0 * gap.sum()))
+    # y = p + A^T lam (+ r): agents in no row, or with no multiplier, keep their prediction
+    # bit for bit
+    y = pred + (x - d)
+    return y, lam, bound, by_backend // 2, res.sweeps, fallback, ok
 
 
 def _culprits(rows: Rows, rp: np.ndarray, rs: np.ndarray, count: int = 6) -> list[int]:
