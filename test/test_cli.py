@@ -85,12 +85,18 @@ def test_bench_speed_writes_finite_numbers(tmp_path, capsys):
     from sweep_core.bench import speed
     out = tmp_path / "speed.csv"
     assert main(["bench", "speed", "--sizes", "50", "--steps", "3", "--warmup", "1",
-                 "--timeout", "20", "--csv", str(out)]) == 0
+                 "--timeout", "20", "--tols", "1e-3", "--csv", str(out)]) == 0
     printed = capsys.readouterr().out
     names, rows = _csv_rows(out)
     assert tuple(names) == speed.COLUMNS
-    assert [(r["N"], r["scene"]) for r in rows] == [("50", "jammed"), ("50", "free")]
+    assert [(r["N"], r["scene"], float(r["tol"])) for r in rows] == [
+        ("50", "hex", 1e-6), ("50", "hex", 1e-3), ("50", "disordered", 1e-6),
+        ("50", "disordered", 1e-3), ("50", "free", 1e-6)]
     for r in rows:
+        # the certified bound is at most the tolerance wherever every cluster was certified
+        assert 0.0 <= float(r["bound_max_m"])
+        if float(r["tol"]) != 1e-6:
+            continue  # the Pareto rows run without the baselines
         for key in ("floor_median_ms", "step_median_ms", "step_min_ms", "step_max_ms",
                     "step_over_floor", "clarabel_median_ms", "step_over_clarabel"):
             assert np.isfinite(float(r[key])) and float(r[key]) > 0, key
@@ -98,12 +104,13 @@ def test_bench_speed_writes_finite_numbers(tmp_path, capsys):
         if "proxsuite n/a" not in r["notes"]:
             assert np.isfinite(float(r["proxsuite_median_ms"]))
             assert float(r["proxsuite_max_dist_m"]) >= 0.0
-    assert rows[1]["proxsuite_solved"] == "no QP" and int(rows[1]["contacts"]) == 0
+    assert rows[-1]["proxsuite_solved"] == "no QP" and int(rows[-1]["contacts"]) == 0
+    measured = [r for r in rows if float(r["tol"]) == 1e-6]
     if speed.cromosim_missing():
         assert "cromosim: skipped" in printed
         assert all(np.isnan(float(r["cromosim_median_ms"])) for r in rows)
     else:
-        assert all(np.isfinite(float(r["cromosim_median_ms"])) for r in rows)
+        assert all(np.isfinite(float(r["cromosim_median_ms"])) for r in measured)
 
 
 def test_bench_recording_writes_finite_numbers(tmp_path):

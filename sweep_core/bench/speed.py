@@ -44,20 +44,43 @@ from sweep_core.numerics.projection.interior import solve_clarabel
 from sweep_core.numerics.projection.proxqp import solve_proxsuite
 from sweep_core.numerics.simulator import Simulator
 
-COLUMNS = ("N", "scene", "contacts", "floor_median_ms", "step_median_ms", "step_min_ms",
+COLUMNS = ("N", "scene", "tol", "contacts", "bound_max_m", "clarabel_dist_m", "floor_median_ms", "step_median_ms", "step_min_ms",
            "step_max_ms", "step_over_floor", "clarabel_median_ms", "step_over_clarabel",
            "proxsuite_median_ms", "step_over_proxsuite", "proxsuite_solved",
            "proxsuite_max_dist_m", "cromosim_median_ms", "step_over_cromosim",
            "cromosim_solved", "cromosim_max_dist_m", "notes")
 #: table header and width of each column printed
-_SHOWN = (("N", "N", 6), ("scene", "scene", 7), ("contacts", "contacts", 8),
+_SHOWN = (("N", "N", 6), ("scene", "scene", 10), ("tol", "tol", 6),
+          ("contacts", "contacts", 8), ("bound_max_m", "bound", 8),
           ("floor_median_ms", "floor", 8), ("step_median_ms", "step", 9),
           ("step_min_ms", "min", 9), ("step_max_ms", "max", 9),
           ("step_over_floor", "/floor", 7), ("clarabel_median_ms", "clarabel", 9),
-          ("step_over_clarabel", "/clar", 6), ("proxsuite_median_ms", "proxsuite", 9),
+          ("step_over_clarabel", "/clar", 6), ("clarabel_dist_m", "clar_dist", 9), ("proxsuite_median_ms", "proxsuite", 9),
           ("step_over_proxsuite", "/prox", 6), ("proxsuite_solved", "solved", 7),
           ("proxsuite_max_dist_m", "prox_dist", 9), ("cromosim_median_ms", "cromosim", 9),
           ("step_over_cromosim", "/crom", 6))
+
+
+def disordered(n: int, seed: int = 0) -> Scene:
+    """n disks of radii uniform in [0.20, 0.27] m on a lattice of spacing 0.6 m jittered by up
+    to 3 cm, pushed to the centre at 1 m/s with sigma 0.08: a disordered, polydisperse jam
+    once pressed (issue 11's dense-crowd problem)."""
+    rng = np.random.default_rng(seed)
+    cols = int(math.ceil(math.sqrt(n)))
+    pos = np.array([(c * 0.6 + (r % 2) * 0.3, r * 0.6 * math.sqrt(3) / 2)
+                    for r in range(cols) for c in range(cols)][:n])
+    pos += rng.uniform(-0.03, 0.03, pos.shape)
+    return Scene.from_dict({"agents": {"positions": pos.tolist(),
+                                       "radius": rng.uniform(0.20, 0.27, n).tolist()},
+                            "drift": {"kind": "goal", "goal": pos.mean(axis=0).tolist(),
+                                      "speed": 1.0},
+                            "noise": {"sigma": 0.08}})
+
+
+#: scene name -> (scene of n agents, dt in s)
+SCENES = {"hex": (lambda n: crowd(n, True), 0.01),
+          "disordered": (disordered, 0.02),
+          "free": (lambda n: crowd(n, False), 0.01)}
 
 
 def crowd(n: int, jammed: bool, sigma: float = 0.1) -> Scene:
@@ -211,19 +234,24 @@ def _external(worker: _Worker, name: str, qps: list[dict], build: list[float], d
             "max_dist_m": dist if results else math.nan, "note": note}
 
 
-def measure(n: int, jammed: bool, steps: int, warmup: int, baseline: bool,
+def measure(n: int, scene: str, steps: int, warmup: int, baseline: bool,
             worker: _Worker | None = None, limit_s: float = 30.0,
-            cromosim: bool = False) -> dict:
-    """One row of the table (see the module docstring and COLUMNS)."""
-    sim = Simulator(crowd(n, jammed), dt=0.01, seed=0)
+            cromosim: bool = False, tol: float | None = None) -> dict:
+    """One row of the table (see the module docstring and COLUMNS); tol: the projection's
+    certified tolerance (m; None: the default)."""
+    make, dt = SCENES[scene]
+    solver = projection.SolverOptions() if tol is None else projection.SolverOptions(tol=tol)
+    sim = Simulator(make(n), dt=dt, seed=0, solver=solver)
     sim.step(warmup)
-    floor, step, build, clarabel, qps = [], [], [], [], []
+    floor, step, build, clarabel, qps, bounds = [], [], [], [], [], []
+    clarabel_dist = 0.0
     opts = sim.scheme.solver
     for _ in range(steps):
         q, t1 = sim.positions, sim.t + sim.dt
         start = time.perf_counter()
         sim.step()
         step.append(time.perf_counter() - start)
+        bounds.append(sim.bound)
         # the floor of that step: assembly at the cutoff the step itself started from
         r1 = sim.scene.radii(t1)
         start = time.perf_counter()
@@ -235,14 +263,19 @@ def measure(n: int, jammed: bool, steps: int, warmup: int, baseline: bool,
             seconds += floor[-1]  # the baselines assemble the same rows
             start = time.perf_counter()
             if len(qp["b"]):
-                solve_clarabel(qp["target"], qp["c"].tocsr(), qp["b"], opts)
+                x, _, _ = solve_clarabel(qp["target"], qp["c"].tocsr(), qp["b"], opts)
+                y = qp["pred"].copy()
+                y[qp["agents"]] = np.reshape(x, (-1, 2))
+                clarabel_dist = max(clarabel_dist, float(np.sqrt(((y - qp["y"]) ** 2).sum())))
             clarabel.append(seconds + time.perf_counter() - start)
             build.append(seconds)
             qps.append(qp)
     ms = {k: 1e3 * np.array(v) for k, v in (("floor", floor), ("step", step),
                                              ("clarabel", clarabel))}
-    out: dict[str, Any] = {"N": n, "scene": "jammed" if jammed else "free",
-                           "contacts": sim.contacts, "notes": ""}
+    out: dict[str, Any] = {"N": n, "scene": scene, "tol": solver.tol,
+                           "contacts": sim.contacts, "notes": "",
+                           "bound_max_m": float(max(bounds)),
+                           "clarabel_dist_m": clarabel_dist if baseline else math.nan}
     for k, v in ms.items():
         out[f"{k}_median_ms"] = float(np.median(v)) if len(v) else math.nan
     out["step_min_ms"], out["step_max_ms"] = float(ms["step"].min()), float(ms["step"].max())
@@ -294,13 +327,17 @@ def run(args: argparse.Namespace) -> int:
     results = []
     try:
         for n in args.sizes:
-            for jammed in (True, False):
-                r = measure(n, jammed, args.steps, args.warmup, baseline, worker,
-                            args.timeout, cromosim=missing is None)
-                results.append(r)
-                print(" ".join(_cell(r[c], w) for c, _, w in _SHOWN), flush=True)
-                if r["notes"]:
-                    print(f"{'':>14}{r['notes']}", flush=True)
+            for scene in args.scenes:
+                # the Pareto of step time against tolerance on the jams; one row at the
+                # default tolerance (with the baselines) for free flow
+                tols = [None] + ([t for t in args.tols] if scene != "free" else [])
+                for tol in tols:
+                    r = measure(n, scene, args.steps, args.warmup, baseline and tol is None,
+                                worker, args.timeout, cromosim=missing is None, tol=tol)
+                    results.append(r)
+                    print(" ".join(_cell(r[c], w) for c, _, w in _SHOWN), flush=True)
+                    if r["notes"]:
+                        print(f"{'':>14}{r['notes']}", flush=True)
     finally:
         if worker is not None:
             worker.close()
@@ -313,8 +350,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add ``speed`` to the ``bench`` subcommands."""
     p = sub.add_parser("speed", help="step time vs floor and whole-set QP baselines")
     p.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 4000, 10000])
+    p.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES),
+                   help="hex: hexagonal jam pushed to its centre; disordered: polydisperse "
+                        "jam (radii 0.20-0.27 m, sigma 0.08, dt 0.02); free: free flow")
+    p.add_argument("--tols", type=float, nargs="*", default=[1e-4, 1e-8], metavar="M",
+                   help="further tolerances (m) the jams are run at, for the Pareto of step "
+                        "time against certified bound (default 1e-4 1e-8)")
     p.add_argument("--steps", type=int, default=30, help="measured steps (default 30)")
-    p.add_argument("--warmup", type=int, default=20, help="steps before measuring")
+    p.add_argument("--warmup", type=int, default=40, help="steps before measuring")
     p.add_argument("--no-baseline", action="store_true",
                    help="skip the whole-set QPs (Clarabel, proxsuite, cromosim)")
     p.add_argument("--timeout", type=float, default=30.0, metavar="S",
