@@ -14,7 +14,6 @@ from sweep_core.numerics import projection
 from sweep_core.numerics.projection import certified
 
 
-
 def random_jam(seed: int, n: int = 40) -> dict:
     """n disks of radius 0.2 m at random in a square sized for them (about 45 % covered), all
     heading for its centre with speed 2 m/s and noise 0.2."""

@@ -44,7 +44,8 @@ from sweep_core.numerics.projection.interior import solve_clarabel
 from sweep_core.numerics.projection.proxqp import solve_proxsuite
 from sweep_core.numerics.simulator import Simulator
 
-COLUMNS = ("N", "scene", "tol", "contacts", "bound_max_m", "clarabel_dist_m", "floor_median_ms", "step_median_ms", "step_min_ms",
+COLUMNS = ("N", "scene", "tol", "contacts", "bound_max_m", "clarabel_dist_m", "floor_median_ms",
+           "step_median_ms", "step_min_ms",
            "step_max_ms", "step_over_floor", "clarabel_median_ms", "step_over_clarabel",
            "proxsuite_median_ms", "step_over_proxsuite", "proxsuite_solved",
            "proxsuite_max_dist_m", "cromosim_median_ms", "step_over_cromosim",
@@ -55,7 +56,8 @@ _SHOWN = (("N", "N", 6), ("scene", "scene", 10), ("tol", "tol", 6),
           ("floor_median_ms", "floor", 8), ("step_median_ms", "step", 9),
           ("step_min_ms", "min", 9), ("step_max_ms", "max", 9),
           ("step_over_floor", "/floor", 7), ("clarabel_median_ms", "clarabel", 9),
-          ("step_over_clarabel", "/clar", 6), ("clarabel_dist_m", "clar_dist", 9), ("proxsuite_median_ms", "proxsuite", 9),
+          ("step_over_clarabel", "/clar", 6), ("clarabel_dist_m", "clar_dist", 9),
+          ("proxsuite_median_ms", "proxsuite", 9),
           ("step_over_proxsuite", "/prox", 6), ("proxsuite_solved", "solved", 7),
           ("proxsuite_max_dist_m", "prox_dist", 9), ("cromosim_median_ms", "cromosim", 9),
           ("step_over_cromosim", "/crom", 6))

@@ -19,8 +19,9 @@ The dual iterations converge to a point whose rows hold only up to rounding, nev
 and the skin costs at most 2 delta sum_k lam_k in the gap. delta is chosen so that this cost is
 an eighth of the budget (delta = tol^2 / (16 sum lam)), at most 1e-8 tol (so that a few
 contacts, whose budget is large, are still solved to near rounding: 1e-14 m at the default
-tol), and never below the rounding of a slack (``rounding_floor``); where that floor dominates (tens of thousands of agents in one
-deep jam at tol = 1e-6) the bound reported is the honest, larger one.
+tol), and never below the rounding of a slack (``rounding_floor``); where that floor
+dominates (tens of thousands of agents in one deep jam at tol = 1e-6) the bound reported is
+the honest, larger one.
 
 Per step: start from the previous step's multipliers (:mod:`.warm`); repeat rounds of
 ``SWEEPS`` projected Gauss-Seidel sweeps and one face step (conjugate gradients on the rows
