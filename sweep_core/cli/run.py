@@ -21,7 +21,8 @@ from sweep_core.numerics.simulator import Simulator
 def _run(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene)
     solver = SolverOptions.from_values(args.eps_abs, args.max_iter, exact_vars=args.exact_vars,
-                                       tol=args.tol, max_rounds=args.max_rounds)
+                                       tol=args.tol, max_rounds=args.max_rounds,
+                                       method=args.method)
     sim = Simulator(scene, dt=args.dt, seed=args.seed, scheme=args.scheme, solver=solver)
     scene.check_horizon(args.t_end)
     out = Path(args.out)
@@ -112,6 +113,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="rounds of the certified solver per step before the clusters it has "
                              "not certified go to the exact or interior-point solvers "
                              "(default %(default)d)")
+    parser.add_argument("--method", default=SolverOptions.method, choices=("certified", "clusters"),
+                        help="projection: the certified solver (default), or the cluster solvers "
+                             "alone (closed form, active set, interior point)")
     parser.add_argument("--path-dt", type=float, default=None, metavar="FINE",
                         help="draw the Brownian path at FINE s and sum dt/FINE increments per step, "
                              "so runs at different dt share one path (sweep compare)")
