@@ -26,6 +26,13 @@ def number(value: Any, field: str, *, positive: bool = False, nonnegative: bool 
     return value
 
 
+def integer(value: Any, field: str, *, low: int = 0, fix: str = "") -> int:
+    """An int (numpy integers too, never a bool) >= low."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise SceneError(field, f"must be an integer >= {low}, got {value!r}", fix)
+    return int(value)
+
+
 def array(value: Any, field: str, shape: tuple[int | None, ...], what: str = "") -> np.ndarray:
     """A finite float64 array of the given shape (None = any length)."""
     try:

@@ -69,9 +69,7 @@ class Simulator:
                              "build it with Scene.from_yaml or Scene.from_dict")
         self.scene = scene
         self.dt = checks.number(dt, "dt", positive=True)
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise SceneError("seed", f"must be an integer >= 0, got {seed!r}")
-        self.seed = int(seed)
+        self.seed = checks.integer(seed, "seed")
         self.scheme = _scheme_class(scheme)(scene, solver or SolverOptions())
         self.check = bool(check)
         self.reset()
@@ -173,8 +171,7 @@ class Simulator:
     def step(self, n: int = 1, dB: np.ndarray | None = None) -> None:
         """Take n steps. dB: Brownian increments, (N, 2) for one step or (n, N, 2) for n steps;
         by default they are drawn from the seeded path (nothing is drawn if sigma = 0)."""
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
-            raise SceneError("n", f"must be an integer >= 0, got {n!r}")
+        checks.integer(n, "n")
         shape = (self.scene.n_agents, 2)
         if dB is not None:
             dB = np.asarray(dB, dtype=np.float64)

@@ -16,12 +16,6 @@ ROW_TOLERANCE = 1e-9
 METHODS = ("certified", "clusters")
 
 
-def _int(value: object, field: str, low: int, fix: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise SceneError(field, f"must be an integer >= {low}, got {value!r}", fix)
-    return int(value)
-
-
 @dataclass(frozen=True)
 class SolverOptions:
     """Settings of the projection (the QP of one step).
@@ -82,9 +76,10 @@ class SolverOptions:
                              f"use one of {list(METHODS)}")
         if not isinstance(warm_start, (bool, np.bool_)):
             raise SceneError("solver.warm_start", f"must be true or false, got {warm_start!r}")
-        return cls(eps, _int(max_iter, "solver.max_iter", 1, "use e.g. 1000"), backend=backend,
-                   exact_vars=_int(exact_vars, "solver.exact_vars", 0,
-                                   "use 0 to send every cluster to the backend"),
-                   tol=tol_, max_rounds=_int(max_rounds, "solver.max_rounds", 0,
-                                             "use e.g. 200, or 0 to skip the rounds"),
-                   warm_start=bool(warm_start), method=method)
+        max_iter = checks.integer(max_iter, "solver.max_iter", low=1, fix="use e.g. 1000")
+        exact_vars = checks.integer(exact_vars, "solver.exact_vars",
+                                    fix="use 0 to send every cluster to the backend")
+        max_rounds = checks.integer(max_rounds, "solver.max_rounds",
+                                    fix="use e.g. 200, or 0 to skip the rounds")
+        return cls(eps, max_iter, backend=backend, exact_vars=exact_vars, tol=tol_,
+                   max_rounds=max_rounds, warm_start=bool(warm_start), method=method)
