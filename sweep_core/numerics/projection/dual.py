@@ -20,6 +20,11 @@ kinds of iteration decrease phi:
 * a face step (Moré and Toraldo's GPCG, SIAM J. Optim. 1 (1991) 93-113, applied to the dual):
   conjugate gradients on phi restricted to the rows with lam_k > 0, then a projected line search
   along that direction: Newton-fast once the active rows are found.
+
+Every kernel writes out the row's value <a_k, x> and the update x += v a_k (pair row or single
+row) in its own loop. Calling two shared jitted helpers instead (also with inline="always")
+gave bit-identical answers but made a step of the 1000-agent deep jam 1.5 to 2 times slower
+(11-15 ms against 5-8 ms), so the repetition is deliberate.
 """
 from __future__ import annotations
 
