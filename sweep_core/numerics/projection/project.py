@@ -9,7 +9,7 @@ the solve: an unbuilt row had value > cut at q, and moves by at most |y_i - q_i|
 cutoff grows and the QP is solved again. Projecting onto a superset and landing inside the
 set gives the projection onto the set. With an approximate answer y, within ``bound`` of the
 superset's projection y*, the test is 2 (max_i |y_i - q_i| + bound) <= cut, so that y* itself
-lands inside the set.
+lands inside the set (an answer left uncertified, bound inf, is only proven feasible).
 
 How the QP is solved (``SolverOptions.method``): "certified" runs the compiled dual sweeps of
 :mod:`.certified` on every row at once, and sends the clusters they cannot certify within
@@ -106,9 +106,12 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
                 raise InfeasibleError(t1, _culprits(rows, rp, rs),
                                       f"{why}, worst row residual {worst:.3g} m")
         moved = float(np.sqrt(np.einsum("ij,ij->i", y - q, y - q)).max())
-        if 2.0 * (moved + bound) <= cut:
+        # an uncertified answer (bound inf) claims nothing about y*: only y must hold the
+        # unbuilt rows (an infinite cutoff would build every pair of the crowd)
+        margin = bound if np.isfinite(bound) else 0.0
+        if 2.0 * (moved + margin) <= cut:
             break
-        cut = 3.0 * (moved + bound)
+        cut = 3.0 * (moved + margin)
     # a row is active when it holds with equality (to the solver tolerance); an interior-point
     # solver leaves tiny positive multipliers on slack rows, so multipliers are not counted
     active = int(np.count_nonzero(rp <= ROW_TOLERANCE) + np.count_nonzero(rs <= ROW_TOLERANCE))
