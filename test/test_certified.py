@@ -3,6 +3,7 @@ never below the true distance, warm starts, the fallback, feasibility and reprod
 from __future__ import annotations
 
 import dataclasses
+import importlib
 
 import numpy as np
 import pytest
@@ -169,3 +170,24 @@ def test_feasible_prediction_costs_nothing_and_is_exact():
 def test_options_are_validated(field, value):
     with pytest.raises(sc.SceneError, match=f"solver.{field}"):
         sc.SolverOptions.from_values(**{field: value})
+
+
+def test_an_uncertified_answer_keeps_a_finite_cutoff(monkeypatch):
+    """A fallback answer that breaks its rows by up to 5e-10 m (within ROW_TOLERANCE, so accepted)
+    is not certified: bound inf. The cutoff proof then rests on y alone; it must not grow to
+    infinity, which would build every pair of the crowd and solve again."""
+    project_module = importlib.import_module("sweep_core.numerics.projection.project")
+    real = project_module.solve_qp
+
+    def short(target, c, b, opts):
+        return real(target, c, b - 5e-10, opts)
+
+    monkeypatch.setattr(project_module, "solve_qp", short)
+    scene = sc.Scene.from_dict(deep_jam(n=120))
+    sim = sc.Simulator(scene, dt=0.02, seed=1, solver=loose(max_rounds=0))
+    sim.step(3)
+    proj = sim.last.projection
+    assert proj.fallback_agents > 0 and proj.bound == np.inf
+    assert proj.solves == 1
+    every_pair = scene.n_agents * (scene.n_agents - 1) // 2
+    assert len(proj.rows.pair_i) < every_pair / 10
