@@ -53,7 +53,7 @@ class Certified:
     """x (N, 2) displacements (m); lam (K,) multipliers (m); label (N,) cluster of each agent
     (-1: in no row); gap (clusters,) duality gap of each (m^2, inf: a row violated); budget
     (clusters,) the gap each may keep; done (clusters,) gap <= budget; rounds: rounds run;
-    sweeps: Gauss-Seidel sweeps run; skin: the skin delta of the last round (m)."""
+    skin: the skin delta of the last round (m)."""
 
     x: np.ndarray
     lam: np.ndarray
@@ -62,12 +62,16 @@ class Certified:
     budget: np.ndarray
     done: np.ndarray
     rounds: int
-    sweeps: int
     skin: float
 
     @property
     def clusters(self) -> int:
         return len(self.gap)
+
+    @property
+    def sweeps(self) -> int:
+        """Gauss-Seidel sweeps run (``SWEEPS`` a round)."""
+        return self.rounds * SWEEPS
 
 
 def rounding_floor(d: np.ndarray, h: np.ndarray) -> float:
@@ -108,7 +112,7 @@ def solve(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.n
     label, clusters = dual.cluster_labels(n, ri, rj)
     floor = rounding_floor(d, h)
     x = dual.apply_multipliers(d, ri, rj, re, lam)
-    rounds = sweeps = stall = 0
+    rounds = stall = 0
     best = np.inf
     skin = floor
     while True:
@@ -132,5 +136,4 @@ def solve(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.n
         dual.face_step(x, d, ri, rj, re, tight, lam, CG_ITERS, PASSES)
         x = dual.apply_multipliers(d, ri, rj, re, lam)
         rounds += 1
-        sweeps += SWEEPS
-    return Certified(x, lam, label, gap, budget, done, rounds, sweeps, skin)
+    return Certified(x, lam, label, gap, budget, done, rounds, skin)
