@@ -14,6 +14,7 @@ from sweep_core.io.recording import BackgroundRecorder
 from sweep_core.model.scene import load_scene
 from sweep_core.numerics import paths
 from sweep_core.numerics.projection import SolverOptions
+from sweep_core.numerics.projection.options import METHODS
 from sweep_core.numerics.schemes import SCHEMES
 from sweep_core.numerics.simulator import Simulator
 
@@ -113,7 +114,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="rounds of the certified solver per step before the clusters it has "
                              "not certified go to the exact or interior-point solvers "
                              "(default %(default)d)")
-    parser.add_argument("--method", default=SolverOptions.method, choices=("certified", "clusters"),
+    parser.add_argument("--method", default=SolverOptions.method, choices=METHODS,
                         help="projection: the certified solver (default), or the cluster solvers "
                              "alone (closed form, active set, interior point)")
     parser.add_argument("--path-dt", type=float, default=None, metavar="FINE",
