@@ -361,7 +361,15 @@ def wall_markers(geometry: Geometry, positions: np.ndarray, frame_id: str, stamp
         return m
 
     for k in range(len(geometry.segment_a)):
-        m = base("walls", int(geometry.segment_index[k]), WALL_COLOR)
+        # a plain segment is marker walls/<index>; the pieces of a polyline or the edges of a
+        # polygon obstacle get a namespace of their own (walls[i], obstacles[i]), id = piece
+        poly, index = int(geometry.segment_polygon[k]), int(geometry.segment_index[k])
+        if poly >= 0:
+            m = base(f"obstacles[{poly}]", int(geometry.segment_part[k]), OBSTACLE_COLOR)
+        elif geometry.segment_kind[k] != "segment":
+            m = base(f"walls[{index}]", int(geometry.segment_part[k]), WALL_COLOR)
+        else:
+            m = base("walls", index, WALL_COLOR)
         _box(m, geometry.segment_a[k], geometry.segment_b[k], WALL_THICKNESS, height)
         out.append(m)
     for k in range(len(geometry.halfplane_offset)):

@@ -6,7 +6,7 @@ Distances in m, positions (N, 2).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -27,6 +27,13 @@ class Geometry:
     circle_center (O, 2) m, circle_radius (O,) m: |q_i - c| >= R + r_i(t).
     halfplane_index, segment_index, circle_index: position of each item in the scene's
         ``walls`` / ``obstacles`` lists, for messages.
+    segment_polygon (S,): for a segment that is an edge of a solid polygon obstacle, the
+        polygon's position in ``obstacles`` (-1: a wall segment or polyline piece). A polygon
+        obstacle is its closed boundary: dist(q_i, P) >= r_i(t) holds exactly when every edge
+        has dist(q_i, edge) >= r_i(t) and q_i lies outside P; each edge is a convex piece, so
+        a polygon need not be convex and is not split further.
+    segment_part (S,): the edge's or piece's position within its polyline or polygon (0 for a
+        plain segment), for messages.
     """
 
     halfplane_normal: np.ndarray
@@ -39,6 +46,18 @@ class Geometry:
     halfplane_index: np.ndarray
     segment_index: np.ndarray
     circle_index: np.ndarray
+    segment_polygon: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.intp))
+    segment_part: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.intp))
+    segment_kind: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        s = len(self.segment_a)
+        if len(self.segment_polygon) != s:
+            object.__setattr__(self, "segment_polygon", np.full(s, -1, dtype=np.intp))
+        if len(self.segment_part) != s:
+            object.__setattr__(self, "segment_part", np.zeros(s, dtype=np.intp))
+        if len(self.segment_kind) != s:
+            object.__setattr__(self, "segment_kind", ("segment",) * s)
 
     @property
     def is_empty(self) -> bool:
@@ -49,7 +68,12 @@ class Geometry:
         if kind == HALFPLANE:
             return f"walls[{int(self.halfplane_index[item])}] (halfplane)"
         if kind == SEGMENT:
-            return f"walls[{int(self.segment_index[item])}] (segment)"
+            what, part = self.segment_kind[item], int(self.segment_part[item])
+            if int(self.segment_polygon[item]) >= 0:
+                return f"obstacles[{int(self.segment_polygon[item])}] (polygon edge {part})"
+            if what == "segment":
+                return f"walls[{int(self.segment_index[item])}] (segment)"
+            return f"walls[{int(self.segment_index[item])}] ({what} piece {part})"
         return f"obstacles[{int(self.circle_index[item])}] (circle)"
 
 
@@ -71,7 +95,12 @@ def single_values(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray
     d = q[:, None, :] - foot
     dist = np.sqrt(np.einsum("nkc,nkc->nk", d, d))
     e = d / np.maximum(dist, 1e-300)[..., None]
-    out.append((dist - r[:, None], e, np.einsum("nkc,nkc->nk", e, foot)))
+    g = dist - r[:, None]
+    if np.any(geom.segment_polygon >= 0):
+        # inside a solid polygon: the true value is -dist - r (never feasible)
+        inside = inside_polygons(q, geom)
+        g = np.where(inside, -dist - r[:, None], g)
+    out.append((g, e, np.einsum("nkc,nkc->nk", e, foot)))
     # circles: g = |q - c| - R - r
     d = q[:, None, :] - geom.circle_center[None]
     dist = np.sqrt(np.einsum("nkc,nkc->nk", d, d))
@@ -79,6 +108,25 @@ def single_values(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray
     out.append((dist - geom.circle_radius[None] - r[:, None], e,
                 np.einsum("nkc,kc->nk", e, geom.circle_center) + geom.circle_radius[None]))
     return out
+
+
+def inside_polygons(q: np.ndarray, geom: Geometry) -> np.ndarray:
+    """(N, S) bool: agent n's centre lies inside the solid polygon that segment k bounds
+    (False for segments that bound none). Even-odd rule on a ray towards +x: a centre on an
+    edge counts as outside (its distance, 0, already makes the row infeasible)."""
+    a, b, poly = geom.segment_a, geom.segment_b, geom.segment_polygon
+    ya, yb = a[:, 1][None], b[:, 1][None]
+    y = q[:, 1:2]
+    straddle = (ya > y) != (yb > y)
+    dy = np.where(yb != ya, yb - ya, 1.0)
+    x_cross = a[:, 0][None] + (y - ya) * (b[:, 0] - a[:, 0])[None] / dy
+    hit = straddle & (x_cross > q[:, 0:1]) & (poly >= 0)[None]
+    count = int(poly.max(initial=-1)) + 1
+    crossings = np.zeros((len(q), max(count, 1)), dtype=np.int64)
+    for p in range(count):
+        crossings[:, p] = np.count_nonzero(hit[:, poly == p], axis=1)
+    odd = (crossings % 2) == 1
+    return np.where(poly[None] >= 0, odd[:, np.maximum(poly, 0)], False)
 
 
 @dataclass(frozen=True)

@@ -9,8 +9,9 @@ metres and seconds. The keys are a public contract, documented in the README:
     agents.radius      scalar or list      base radii (> 0)
     agents.radius_law  {kind: constant | linear (rate) | sine (amplitude, period)}
     agents.speed       preferred speed (m/s) used when a goal command arrives (default 1.3)
-    walls              [{kind: halfplane, normal, offset, velocity?} | {kind: segment, a, b}]
-    obstacles          [{kind: circle, center, radius}]
+    walls              [{kind: halfplane, normal, offset, velocity?} | {kind: segment, a, b}
+                        | {kind: polyline, points: [[x, y], ...], closed?}]
+    obstacles          [{kind: circle, center, radius} | {kind: polygon, points: [[x, y], ...]}]
     drift              see fields.FIELD_KINDS
     noise              {sigma: scalar or per-agent list}
 """
@@ -161,11 +162,36 @@ def _build(data: Any, default_name: str) -> Scene:
 
 def _geometry(data: dict) -> tuple[Geometry, list, list]:
     hp_n, hp_c, hp_v, hp_i, sa, sb, s_i, cc, cr, c_i = ([] for _ in range(10))
+    s_poly: list[int] = []
+    s_part: list[int] = []
+    s_kind: list[str] = []
     walls_spec, obstacles_spec = [], []
+
+    def add_chain(points: np.ndarray, closed: bool, index: int, kind: str, polygon: int) -> None:
+        ends = np.roll(points, -1, axis=0) if closed else points[1:]
+        for part, (a, b) in enumerate(zip(points[: len(ends)], ends)):
+            sa.append(a)
+            sb.append(b)
+            s_i.append(index)
+            s_poly.append(polygon)
+            s_part.append(part)
+            s_kind.append(kind)
+
     for k, wall in enumerate(_list(data.get("walls"), "walls")):
         field = f"walls[{k}]"
         checks.mapping(wall, field)
-        kind = checks.kind(wall, field, ("halfplane", "segment"))
+        kind = checks.kind(wall, field, ("halfplane", "segment", "polyline"))
+        if kind == "polyline":
+            checks.mapping(wall, field, allowed={"kind", "points", "closed"}, required={"points"})
+            closed = wall.get("closed", False)
+            if not isinstance(closed, bool):
+                raise SceneError(f"{field}.closed", f"must be true or false, got {closed!r}",
+                                 "write closed: true for a room outline, false for an open chain")
+            points = chain_points(wall["points"], f"{field}.points", closed,
+                                  3 if closed else 2)
+            add_chain(points, closed, k, "polyline", -1)
+            walls_spec.append({"kind": kind, "points": points.tolist(), "closed": closed})
+            continue
         if kind == "halfplane":
             checks.mapping(wall, field, allowed={"kind", "normal", "offset", "velocity"},
                            required={"normal", "offset"})
@@ -188,14 +214,17 @@ def _geometry(data: dict) -> tuple[Geometry, list, list]:
             if np.hypot(*(b - a)) < 1e-12:
                 raise SceneError(field, "has a == b (a segment of zero length)",
                                  "for a round obstacle use obstacles: [{kind: circle, ...}]")
-            sa.append(a)
-            sb.append(b)
-            s_i.append(k)
+            add_chain(np.array([a, b]), False, k, "segment", -1)
             walls_spec.append({"kind": kind, "a": a.tolist(), "b": b.tolist()})
     for k, obs in enumerate(_list(data.get("obstacles"), "obstacles")):
         field = f"obstacles[{k}]"
         checks.mapping(obs, field)
-        checks.kind(obs, field, ("circle",))
+        if checks.kind(obs, field, ("circle", "polygon")) == "polygon":
+            checks.mapping(obs, field, allowed={"kind", "points"}, required={"points"})
+            points = chain_points(obs["points"], f"{field}.points", True, 3)
+            add_chain(points, True, k, "polygon", k)
+            obstacles_spec.append({"kind": "polygon", "points": points.tolist()})
+            continue
         checks.mapping(obs, field, allowed={"kind", "center", "radius"},
                        required={"center", "radius"})
         center = checks.vec2(obs["center"], f"{field}.center")
@@ -211,8 +240,60 @@ def _geometry(data: dict) -> tuple[Geometry, list, list]:
     geom = Geometry(arr(hp_n, (-1, 2)), arr(hp_c, (-1,)), arr(hp_v, (-1,)), arr(sa, (-1, 2)),
                     arr(sb, (-1, 2)), arr(cc, (-1, 2)), arr(cr, (-1,)),
                     np.array(hp_i, dtype=np.intp), np.array(s_i, dtype=np.intp),
-                    np.array(c_i, dtype=np.intp))
+                    np.array(c_i, dtype=np.intp), np.array(s_poly, dtype=np.intp),
+                    np.array(s_part, dtype=np.intp), tuple(s_kind))
     return geom, walls_spec, obstacles_spec
+
+
+def chain_points(value: Any, field: str, closed: bool, least: int) -> np.ndarray:
+    """The vertices (M, 2) of a polyline or polygon, checked: at least ``least`` points, no
+    edge of zero length, and for a closed chain no two edges crossing (a closed chain given
+    with its first point repeated at the end is accepted without the repeat)."""
+    points = checks.array(value, field, (None, 2), "as [[x, y], ...]")
+    if closed and len(points) > 1 and np.array_equal(points[0], points[-1]):
+        points = points[:-1]
+    if len(points) < least:
+        shape = "a closed outline" if closed else "a chain"
+        raise SceneError(field, f"has {len(points)} points; {shape} needs at least {least}",
+                         "list the vertices in order, e.g. [[0, 0], [4, 0], [4, 3]]")
+    ends = np.roll(points, -1, axis=0) if closed else points[1:]
+    length = np.hypot(*(ends - points[: len(ends)]).T)
+    if length.min() < 1e-12:
+        k = int(np.argmin(length))
+        raise SceneError(field, f"points {k} and {(k + 1) % len(points)} coincide at "
+                         f"[{points[k, 0]:g}, {points[k, 1]:g}] (an edge of zero length)",
+                         "remove the repeated point")
+    if closed:
+        crossing = _first_crossing(points)
+        if crossing is not None:
+            i, j = crossing
+            raise SceneError(field, f"edges {i} and {j} cross (the outline is not simple)",
+                             "give the vertices in order around the outline, or split it into "
+                             "several polygons")
+    return points
+
+
+def _first_crossing(points: np.ndarray) -> tuple[int, int] | None:
+    """The first pair of non-adjacent edges of a closed chain that intersect, or None."""
+    a, b = points, np.roll(points, -1, axis=0)
+    m = len(points)
+
+    def orient(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+        return np.sign((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1])
+                       - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
+
+    for i in range(m - 2):
+        j = np.arange(i + 2, m if i > 0 else m - 1)
+        if len(j) == 0:
+            continue
+        o1 = orient(a[i], b[i], a[j])
+        o2 = orient(a[i], b[i], b[j])
+        o3 = orient(a[j], b[j], a[i])
+        o4 = orient(a[j], b[j], b[i])
+        hit = (o1 * o2 <= 0) & (o3 * o4 <= 0)
+        if np.any(hit):
+            return i, int(j[np.argmax(hit)])
+    return None
 
 
 def _check_initial(scene: Scene) -> None:
@@ -235,8 +316,9 @@ def _check_initial(scene: Scene) -> None:
                          "place agents at least r_i + r_j apart")
     if g.worst_single is not None and g.min_single < -INITIAL_TOLERANCE:
         a, kind, item, gap = g.worst_single
-        field = "walls" if kind < 2 else "obstacles"
-        raise SceneError(field, f"agent {a} violates {scene.geometry.describe(kind, item)} "
+        name = scene.geometry.describe(kind, item)
+        field = name.split("[")[0]
+        raise SceneError(field, f"agent {a} violates {name} "
                          f"by {-gap:.3f} m at t = 0",
                          "move the agent to the free side, at least its radius away")
 

@@ -1,0 +1,127 @@
+"""Polyline walls and polygon obstacles (issue 13) against closed-form motions, and their
+validation."""
+import math
+
+import numpy as np
+import pytest
+
+import sweep_core as sc
+from sweep_core.errors import SceneError
+
+R = 0.25
+BOX = [[0, 0], [4, 0], [4, 2], [0, 2]]
+
+
+def slide(dt: float, t_end: float, points: list = BOX) -> np.ndarray:
+    """One disk on the top edge of a polygon pushed with U = (1, -1), no noise."""
+    scene = sc.Scene.from_dict({"agents": {"positions": [[1.0, 2.0 + R]], "radius": R},
+                                "obstacles": [{"kind": "polygon", "points": points}],
+                                "drift": {"kind": "uniform", "velocity": [1.0, -1.0]}})
+    sim = sc.Simulator(scene, dt=dt, seed=0)
+    sim.step(int(round(t_end / dt)))
+    return sim.positions[0]
+
+
+def corner_exact(t: float) -> np.ndarray:
+    """Closed form past the corner (4, 2): the disk slides along the top edge at speed 1
+    until t = 3, then its centre follows the circle of radius R about the corner,
+    theta' = -(sin theta + cos theta) / R from theta = 90 to 45 degrees (where U stops
+    pointing into the obstacle), which takes R / sqrt(2) ln tan(3 pi / 8); then it moves
+    freely with U."""
+    t_arc = R / math.sqrt(2.0) * math.log(math.tan(3.0 * math.pi / 8.0))
+    leave = np.array([4.0, 2.0]) + R * np.array([math.cos(math.pi / 4), math.sin(math.pi / 4)])
+    return leave + (t - 3.0 - t_arc) * np.array([1.0, -1.0])
+
+
+def test_sliding_along_an_edge_is_exact() -> None:
+    # a flat edge: the projected Euler step is the exact solution x = 1 + t, y = 2 + R
+    q = slide(1e-2, 2.0)
+    assert abs(q[0] - 3.0) < 1e-9 and abs(q[1] - (2.0 + R)) < 1e-9
+
+
+@pytest.mark.parametrize("points", [BOX, BOX[::-1]], ids=["ccw", "cw"])
+def test_round_a_corner_first_order(points: list) -> None:
+    # the catching-up scheme is first order on a smooth (here: rounded by R) boundary:
+    # the error at t = 4 shrinks tenfold with dt, and is below |U| dt
+    errors = [float(np.hypot(*(slide(dt, 4.0, points) - corner_exact(4.0)))) for dt in (1e-3, 1e-4)]
+    assert errors[0] < math.sqrt(2.0) * 1e-3
+    assert 7.0 < errors[0] / errors[1] < 14.0
+
+
+def test_non_convex_polygon_keeps_agents_out() -> None:
+    # an L-shaped obstacle and a noisy crowd pushed into its notch: never inside, never closer
+    # than r to an edge (the post-step check would raise), gaps >= -1e-9 m
+    ell = [[0, 0], [3, 0], [3, 1], [1, 1], [1, 3], [0, 3]]
+    rng = np.random.default_rng(0)
+    pos = np.array([[1.6 + 0.55 * i, 1.6 + 0.55 * j] for i in range(4) for j in range(4)])
+    pos += rng.uniform(-0.02, 0.02, pos.shape)
+    scene = sc.Scene.from_dict({"agents": {"positions": pos.tolist(), "radius": 0.2},
+                                "obstacles": [{"kind": "polygon", "points": ell}],
+                                "drift": {"kind": "goal", "goal": [0.5, 0.5], "speed": 1.0},
+                                "noise": {"sigma": 0.1}})
+    sim = sc.Simulator(scene, dt=0.01, seed=3)
+    for _ in range(300):
+        sim.step()
+        gaps = sc.model.geometry.gaps(scene.geometry, sim.t, sim.positions, scene.radii(sim.t))
+        assert gaps.min_gap >= -1e-9
+    # they reached the notch: an agent sits in its corner, touching both inner edges (centre
+    # near (1.2, 1.2), 0.2 sqrt 2 from the reflex vertex)
+    corner = np.array([1.0, 1.0])
+    assert np.min(np.hypot(*(sim.positions - corner).T)) < 0.2 * math.sqrt(2.0) + 0.01
+
+
+def test_room_outline_corner_is_exact() -> None:
+    room = {"kind": "polyline", "points": [[0, 0], [5, 0], [5, 4], [0, 4]], "closed": True}
+    scene = sc.Scene.from_dict({"agents": {"positions": [[2.5, 2.0]], "radius": R},
+                                "walls": [room],
+                                "drift": {"kind": "uniform", "velocity": [1.0, 1.0]}})
+    sim = sc.Simulator(scene, dt=0.01, seed=0)
+    sim.step(500)
+    assert np.allclose(sim.positions[0], [5.0 - R, 4.0 - R], atol=1e-9)
+
+
+def test_open_polyline_agent_goes_round_its_end() -> None:
+    # an open chain: nothing closes it, so an agent walks round its free end
+    chain = {"kind": "polyline", "points": [[0, 1], [2, 1], [2, 3]]}
+    scene = sc.Scene.from_dict({"agents": {"positions": [[1.0, 0.5]], "radius": R},
+                                "walls": [chain],
+                                "drift": {"kind": "uniform", "velocity": [0.0, 1.0]}})
+    sim = sc.Simulator(scene, dt=0.01, seed=0)
+    sim.step(100)
+    assert abs(sim.positions[0, 1] - (1.0 - R)) < 1e-9   # held below the first piece
+
+
+@pytest.mark.parametrize("obstacle, field, words", [
+    ({"kind": "polygon", "points": [[0, 0], [1, 1], [1, 0], [0, 1]]}, "obstacles[0].points",
+     "cross"),
+    ({"kind": "polygon", "points": [[0, 0], [1, 0]]}, "obstacles[0].points", "at least 3"),
+    ({"kind": "polygon", "points": [[0, 0], [1, 0], [1, 0], [0, 1]]}, "obstacles[0].points",
+     "coincide"),
+    ({"kind": "polygon"}, "obstacles[0]", "points"),
+])
+def test_bad_polygons_are_refused(obstacle: dict, field: str, words: str) -> None:
+    with pytest.raises(SceneError) as err:
+        sc.Scene.from_dict({"agents": {"positions": [[5, 5]], "radius": 0.2},
+                            "obstacles": [obstacle]})
+    assert err.value.field.startswith(field) and words in str(err.value) and err.value.fix
+
+
+def test_agent_inside_a_polygon_is_refused() -> None:
+    with pytest.raises(SceneError) as err:
+        sc.Scene.from_dict({"agents": {"positions": [[2, 1]], "radius": 0.2},
+                            "obstacles": [{"kind": "polygon", "points": BOX}]})
+    assert "obstacles[0] (polygon edge" in str(err.value)
+
+
+def test_polyline_round_trips_and_closed_must_be_boolean() -> None:
+    spec = {"agents": {"positions": [[2, 1]], "radius": 0.2},
+            "walls": [{"kind": "polyline", "points": [[0, 0], [3, 0], [3, 3], [0, 0]],
+                       "closed": True}]}
+    scene = sc.Scene.from_dict(spec)
+    # the repeated closing point is dropped, the outline has three edges
+    assert len(scene.geometry.segment_a) == 3
+    again = sc.Scene.from_dict(scene.spec)
+    assert np.array_equal(again.geometry.segment_a, scene.geometry.segment_a)
+    spec["walls"][0]["closed"] = "yes"
+    with pytest.raises(SceneError, match="closed"):
+        sc.Scene.from_dict(spec)
