@@ -71,6 +71,8 @@ class Geometry:
             what, part = self.segment_kind[item], int(self.segment_part[item])
             if int(self.segment_polygon[item]) >= 0:
                 return f"obstacles[{int(self.segment_polygon[item])}] (polygon edge {part})"
+            if what == "map":
+                return f"map (wall {part})"
             if what == "segment":
                 return f"walls[{int(self.segment_index[item])}] (segment)"
             return f"walls[{int(self.segment_index[item])}] ({what} piece {part})"

@@ -12,6 +12,7 @@ metres and seconds. The keys are a public contract, documented in the README:
     walls              [{kind: halfplane, normal, offset, velocity?} | {kind: segment, a, b}
                         | {kind: polyline, points: [[x, y], ...], closed?}]
     obstacles          [{kind: circle, center, radius} | {kind: polygon, points: [[x, y], ...]}]
+    map                {yaml: PATH} a map_server map whose blocked cells become walls (maps.py)
     drift              see fields.FIELD_KINDS
     noise              {sigma: scalar or per-agent list}
 """
@@ -30,12 +31,14 @@ from sweep_core import checks
 from sweep_core.errors import SceneError
 from sweep_core.model.fields import Field, field_from_spec
 from sweep_core.model.geometry import Geometry, gaps
+from sweep_core.model.maps import OccupancyMap, map_from_spec
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
 
 #: overlap (m) tolerated in a given initial configuration (rounding of touching disks)
 INITIAL_TOLERANCE = 1e-9
 
-_TOP_KEYS = {"name", "description", "horizon", "agents", "walls", "obstacles", "drift", "noise"}
+_TOP_KEYS = {"name", "description", "horizon", "agents", "walls", "obstacles", "map", "drift",
+             "noise"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,12 +100,15 @@ class Scene:
             data = yaml.safe_load(text)
         except yaml.YAMLError as err:
             raise SceneError("scene", f"{path} is not valid YAML: {err}".replace("\n", " ")) from err
-        return cls.from_dict(data if data is not None else {}, name=path.stem)
+        return cls.from_dict(data if data is not None else {}, name=path.stem,
+                             base=path.parent)
 
     @classmethod
-    def from_dict(cls, data: dict, name: str = "scene") -> Scene:
-        """Validate a scene dict (see the module docstring) and build the scene."""
-        return _build(data, name)
+    def from_dict(cls, data: dict, name: str = "scene", base: Path | None = None) -> Scene:
+        """Validate a scene dict (see the module docstring) and build the scene; base: the
+        directory relative file names in it (a map) are read from (default: the working
+        directory)."""
+        return _build(data, name, base)
 
 
 def _list(value: Any, field: str) -> list:
@@ -118,7 +124,7 @@ def _compact(values: np.ndarray, given: Any) -> float | list:
     return values.tolist() if np.ndim(given) else float(given)
 
 
-def _build(data: Any, default_name: str) -> Scene:
+def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
     checks.mapping(data, "scene", allowed=_TOP_KEYS, required={"agents"})
     spec: dict = {"name": str(data.get("name", default_name))}
     if "description" in data:
@@ -141,8 +147,18 @@ def _build(data: Any, default_name: str) -> Scene:
     spec["agents"] = {"positions": positions.tolist(), "radius": _compact(radius, agents["radius"]),
                       "radius_law": law.to_spec(), "speed": speed}
 
-    geometry, walls_spec, obstacles_spec = _geometry(data)
+    grid = map_from_spec(data["map"], "map", base) if data.get("map") is not None else None
+    geometry, walls_spec, obstacles_spec = _geometry(data, grid)
     spec["walls"], spec["obstacles"] = walls_spec, obstacles_spec
+    if grid is not None:
+        spec["map"] = grid.to_spec()
+        blocked = np.flatnonzero(grid.is_blocked(positions))
+        if len(blocked):
+            a = int(blocked[0])
+            more = f" ({len(blocked)} agents in all)" if len(blocked) > 1 else ""
+            raise SceneError("agents.positions", f"agent {a} at [{positions[a, 0]:g}, "
+                             f"{positions[a, 1]:g}] is in a blocked (occupied or unknown) cell "
+                             f"of the map{more}", "place agents in the map's free cells")
 
     drift = field_from_spec(data.get("drift"), n)
     spec["drift"] = drift.to_spec()
@@ -160,7 +176,7 @@ def _build(data: Any, default_name: str) -> Scene:
     return scene
 
 
-def _geometry(data: dict) -> tuple[Geometry, list, list]:
+def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, list, list]:
     hp_n, hp_c, hp_v, hp_i, sa, sb, s_i, cc, cr, c_i = ([] for _ in range(10))
     s_poly: list[int] = []
     s_part: list[int] = []
@@ -233,6 +249,15 @@ def _geometry(data: dict) -> tuple[Geometry, list, list]:
         cr.append(radius)
         c_i.append(k)
         obstacles_spec.append({"kind": "circle", "center": center.tolist(), "radius": radius})
+
+    if grid is not None:
+        for part, (a, b) in enumerate(zip(*grid.segments())):
+            sa.append(a)
+            sb.append(b)
+            s_i.append(-1)
+            s_poly.append(-1)
+            s_part.append(part)
+            s_kind.append("map")
 
     def arr(x: list, shape: tuple) -> np.ndarray:
         return np.array(x, dtype=np.float64).reshape(shape)
@@ -317,7 +342,7 @@ def _check_initial(scene: Scene) -> None:
     if g.worst_single is not None and g.min_single < -INITIAL_TOLERANCE:
         a, kind, item, gap = g.worst_single
         name = scene.geometry.describe(kind, item)
-        field = name.split("[")[0]
+        field = name.split("[")[0].split(" ")[0]
         raise SceneError(field, f"agent {a} violates {name} "
                          f"by {-gap:.3f} m at t = 0",
                          "move the agent to the free side, at least its radius away")

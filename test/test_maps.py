@@ -1,0 +1,129 @@
+"""Occupancy maps (map_server YAML + PGM/PNG) as walls (issue 13)."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import sweep_core as sc
+from sweep_core.errors import SceneError
+from sweep_core.model.maps import map_from_spec, read_map_yaml
+
+# 8 x 6 cells of 0.5 m: a wall all round, a 1 x 1 cell pillar at column 5, row 3 from the top;
+# '#' occupied (0), '.' free (254), '?' unknown (205)
+ROOM = ["########",
+        "#......#",
+        "#......#",
+        "#....#.#",
+        "#.....?#",
+        "########"]
+PIXEL = {"#": 0, ".": 254, "?": 205}
+
+
+def write_map(tmp: Path, rows: list[str] = ROOM, fmt: str = "P5", origin: str = "[-1.0, 2.0, 0.0]",
+              negate: int = 0) -> Path:
+    h, w = len(rows), len(rows[0])
+    values = np.array([[PIXEL[c] for c in row] for row in rows], dtype=np.uint8)
+    if negate:
+        values = 255 - values
+    if fmt == "P5":
+        (tmp / "room.pgm").write_bytes(f"P5\n# made by hand\n{w} {h}\n255\n".encode()
+                                       + values.tobytes())
+    else:
+        body = "\n".join(" ".join(str(v) for v in row) for row in values)
+        (tmp / "room.pgm").write_text(f"P2\n{w} {h}\n255\n{body}\n")
+    (tmp / "room.yaml").write_text(
+        f"image: room.pgm\nresolution: 0.5\norigin: {origin}\nnegate: {negate}\n"
+        "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    return tmp / "room.yaml"
+
+
+@pytest.mark.parametrize("fmt, negate", [("P5", 0), ("P2", 0), ("P5", 1)])
+def test_cells_and_walls(tmp_path: Path, fmt: str, negate: int) -> None:
+    grid = read_map_yaml(write_map(tmp_path, fmt=fmt, negate=negate))
+    assert grid.shape == (6, 8)
+    # row 0 of the grid is the image's last row; the unknown cell counts as blocked
+    expect = np.array([[c != "." for c in row] for row in ROOM[::-1]])
+    assert np.array_equal(grid.blocked, expect)
+    a, b = grid.segments()
+    # every wall piece is axis-aligned, on the cell lines, and between a blocked and a free cell
+    assert np.all((a[:, 0] == b[:, 0]) | (a[:, 1] == b[:, 1]))
+    local = grid.to_local(np.concatenate([a, b])) / 0.5
+    assert np.allclose(local, np.round(local))
+    mid = (a + b) / 2
+    normal = np.stack([b[:, 1] - a[:, 1], a[:, 0] - b[:, 0]], axis=1) / np.hypot(
+        *(b - a).T)[:, None]
+    side = grid.is_blocked(mid + 0.1 * normal) != grid.is_blocked(mid - 0.1 * normal)
+    assert side.all()
+    # total length: the free region's perimeter (6 x 4 room: 20 cells, pillar inside: 4,
+    # the unknown cell cuts a corner: +0 since it replaces 2 edges by 2)
+    length = float(np.hypot(*(b - a).T).sum())
+    assert length == pytest.approx((20 + 4) * 0.5)
+
+
+def test_agent_pushed_into_a_map_corner_stops_exactly(tmp_path: Path) -> None:
+    path = write_map(tmp_path)
+    scene = sc.Scene.from_dict({"map": {"yaml": str(path)},
+                                "agents": {"positions": [[0.0, 3.5]], "radius": 0.2},
+                                "drift": {"kind": "uniform", "velocity": [-1.0, 1.0]}})
+    sim = sc.Simulator(scene, dt=0.01, seed=0)
+    sim.step(300)
+    # free space starts at x = -1 + 0.5 and ends at y = 2 + 5 * 0.5 (top wall row)
+    assert np.allclose(sim.positions[0], [-0.5 + 0.2, 4.5 - 0.2], atol=1e-9)
+
+
+def test_noisy_crowd_stays_in_free_cells(tmp_path: Path) -> None:
+    path = write_map(tmp_path)
+    pos = [[-0.3 + 0.45 * i, 2.7 + 0.45 * j] for i in range(4) for j in range(4)]
+    scene = sc.Scene.from_dict({"map": {"yaml": str(path)},
+                                "agents": {"positions": pos, "radius": 0.15},
+                                "drift": {"kind": "goal", "goal": [2.2, 4.2], "speed": 1.0},
+                                "noise": {"sigma": 0.3}})
+    sim = sc.Simulator(scene, dt=0.01, seed=1)
+    grid = map_from_spec(scene.spec["map"], "map", None)
+    for _ in range(200):
+        sim.step()
+        assert not grid.is_blocked(sim.positions).any()
+    # the crowd went round the pillar towards the goal
+    assert np.hypot(*(sim.positions.mean(axis=0) - [2.2, 4.2])) < 1.2
+
+
+def test_spec_is_self_contained_and_round_trips(tmp_path: Path) -> None:
+    path = write_map(tmp_path, origin="[1.0, -2.0, 0.5]")
+    scene = sc.Scene.from_dict({"map": {"yaml": str(path)},
+                                "agents": {"positions": [], "radius": 0.2}})
+    (tmp_path / "room.pgm").unlink()  # the spec alone rebuilds the walls
+    again = sc.Scene.from_dict(scene.spec)
+    assert np.array_equal(again.geometry.segment_a, scene.geometry.segment_a)
+    assert np.array_equal(again.geometry.segment_b, scene.geometry.segment_b)
+
+
+def test_map_relative_to_the_scene_file(tmp_path: Path) -> None:
+    write_map(tmp_path)
+    (tmp_path / "scene.yaml").write_text(
+        "map: {yaml: room.yaml}\nagents: {positions: [[0.0, 3.0]], radius: 0.2}\n")
+    scene = sc.Scene.from_yaml(tmp_path / "scene.yaml")
+    assert len(scene.geometry.segment_a) > 0
+
+
+@pytest.mark.parametrize("position, words", [([1.75, 3.25], "blocked"), ([9.0, 9.0], "blocked")])
+def test_agents_in_blocked_cells_are_refused(tmp_path: Path, position: list, words: str) -> None:
+    path = write_map(tmp_path)
+    with pytest.raises(SceneError) as err:
+        sc.Scene.from_dict({"map": {"yaml": str(path)},
+                            "agents": {"positions": [position], "radius": 0.1}})
+    assert err.value.field == "agents.positions" and words in str(err.value) and err.value.fix
+
+
+def test_bad_map_files_are_refused(tmp_path: Path) -> None:
+    path = write_map(tmp_path)
+    (tmp_path / "room.pgm").write_bytes(b"P5\n8 6\n255\n" + bytes(10))
+    with pytest.raises(SceneError, match="fewer than 8 x 6"):
+        read_map_yaml(path)
+    (tmp_path / "room.pgm").write_bytes(b"GIF89a")
+    with pytest.raises(SceneError, match="neither PGM"):
+        read_map_yaml(path)
+    path.write_text("image: room.pgm\nresolution: -1\norigin: [0, 0, 0]\n")
+    with pytest.raises(SceneError, match="resolution"):
+        read_map_yaml(path)
+    with pytest.raises(SceneError, match="cannot read"):
+        read_map_yaml(tmp_path / "missing.yaml")
