@@ -48,3 +48,52 @@ def test_order_is_a_function_of_the_positions():
 def test_any_configuration(points, reach):
     q = np.array(points, dtype=float).reshape(-1, 2)
     assert found(q, reach) == (brute(q, reach) if len(q) else set())
+
+
+def test_segments_within_matches_brute_force() -> None:
+    from sweep_core.model.neighbours import segments_within
+
+    rng = np.random.default_rng(5)
+    q = rng.uniform(-5, 5, (400, 2))
+    a = rng.uniform(-7, 7, (150, 2))
+    # long axis-aligned walls, short diagonal pieces, one far away, one of length ~0
+    b = a + np.where(rng.random((150, 1)) < 0.5, [[6.0, 0.0]], rng.normal(0, 0.7, (150, 2)))
+    a[0], b[0] = [100.0, 100.0], [120.0, 100.0]
+    b[1] = a[1] + 1e-9
+    for reach in (0.05, 0.3, 2.0):
+        got_a, got_s = segments_within(q, a, b, reach)
+        ab = b - a
+        rel = q[:, None, :] - a[None]
+        s = np.clip(np.einsum("nkc,kc->nk", rel, ab) / np.einsum("kc,kc->k", ab, ab), 0, 1)
+        dist = np.hypot(*(rel - s[..., None] * ab[None]).transpose(2, 0, 1))
+        want = set(zip(*np.nonzero(dist <= reach)))
+        got = set(zip(got_a.tolist(), got_s.tolist()))
+        assert got == want and len(got_a) == len(got)
+
+
+def test_indexed_rows_equal_dense_rows() -> None:
+    # a map-like scene with many segments: the indexed search builds the rows the dense
+    # evaluation builds (same agents, items, values)
+    import sweep_core as sc
+    from sweep_core.model import geometry
+
+    xs = np.arange(0.0, 30.0, 0.5)
+    walls = [{"kind": "segment", "a": [x, 0.0], "b": [x + 0.5, 0.0]} for x in xs]
+    walls += [{"kind": "segment", "a": [x, 3.0], "b": [x + 0.5, 3.0]} for x in xs]
+    gx, gy = np.meshgrid(np.arange(0.5, 29.5, 0.45), np.arange(0.15, 2.9, 0.45))
+    pos = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    pos = pos[(np.abs(pos[:, 0] - 10.5) > 1.0) | (np.abs(pos[:, 1] - 1.5) > 1.0)]
+    scene = sc.Scene.from_dict({"agents": {"positions": pos.tolist(), "radius": 0.1},
+                                "walls": walls,
+                                "obstacles": [{"kind": "polygon",
+                                               "points": [[10, 1], [11, 1], [11, 2]]}]})
+    g = scene.geometry
+    r = scene.radii(0.0)
+    assert len(pos) * len(g.segment_a) > geometry.DENSE_SEGMENTS
+    for reach in (0.05, 0.4):
+        fast = geometry.single_rows(g, 0.0, pos, r, reach)[geometry.SEGMENT]
+        dense = [v for v in geometry.single_values(g, 0.0, pos, r)[geometry.SEGMENT]]
+        a, k = np.nonzero(dense[0] <= reach)
+        order = np.lexsort((fast[1], fast[0]))
+        assert np.array_equal(fast[0][order], a) and np.array_equal(fast[1][order], k)
+        assert np.allclose(fast[2][order], dense[0][a, k], rtol=0, atol=1e-12)

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sweep_core.model.neighbours import pairs_within
+from sweep_core.model.neighbours import pairs_within, segments_within
 
 # codes of single-row kinds, in the order of scene.geometry
 HALFPLANE, SEGMENT, CIRCLE = 0, 1, 2
@@ -131,6 +131,66 @@ def inside_polygons(q: np.ndarray, geom: Geometry) -> np.ndarray:
     return np.where(poly[None] >= 0, odd[:, np.maximum(poly, 0)], False)
 
 
+#: agent x segment products up to which segments are evaluated densely, without the index
+DENSE_SEGMENTS = 8192
+
+
+def single_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: float
+                ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """For each kind, every (agent, item) whose constraint value at (t, q) is <= reach (m), as
+    1-D arrays (agent, item, g, n (M, 2), foot): what :func:`single_values` gives, without
+    evaluating far pairs. Many segments (a map) are searched with a spatial index
+    (:func:`segments_within`) instead of against every agent."""
+    n_seg = len(geom.segment_a)
+    if n_seg == 0 or len(q) * n_seg <= DENSE_SEGMENTS:
+        out = []
+        for g, nrm, foot in single_values(geom, t, q, r):
+            a, k = np.nonzero(g <= reach)
+            out.append((a, k, g[a, k], nrm[a, k], foot[a, k]))
+        return out
+    plain = Geometry(geom.halfplane_normal, geom.halfplane_offset, geom.halfplane_velocity,
+                     np.empty((0, 2)), np.empty((0, 2)), geom.circle_center,
+                     geom.circle_radius, geom.halfplane_index, np.empty(0, dtype=np.intp),
+                     geom.circle_index)
+    out = single_rows(plain, t, q, r, reach)
+    a, k = segments_within(q, geom.segment_a, geom.segment_b, reach + float(r.max()))
+    ab = geom.segment_b[k] - geom.segment_a[k]
+    rel = q[a] - geom.segment_a[k]
+    s = np.clip(np.einsum("mc,mc->m", rel, ab) / np.einsum("mc,mc->m", ab, ab), 0.0, 1.0)
+    foot = geom.segment_a[k] + s[:, None] * ab
+    d = q[a] - foot
+    dist = np.sqrt(np.einsum("mc,mc->m", d, d))
+    e = d / np.maximum(dist, 1e-300)[:, None]
+    g = dist - r[a]
+    if np.any(geom.segment_polygon >= 0):
+        # an agent inside a polygon is near none of its edges perhaps, but never feasible:
+        # the dense test over polygon edges only (few) finds it
+        edges = geom.segment_polygon >= 0
+        inside = inside_polygons(q, geom)[:, edges]
+        who, which = np.nonzero(inside)
+        item = np.flatnonzero(edges)[which]
+        a, k = np.concatenate([a, who]), np.concatenate([k, item])
+        extra = _segment_values(geom, q, r, who, item)
+        g = np.concatenate([g, -extra[0]])
+        e = np.concatenate([e, extra[1]])
+        foot = np.concatenate([foot, extra[2]])
+    keep = g <= reach
+    out[SEGMENT] = (a[keep], k[keep], g[keep], e[keep], np.einsum("mc,mc->m", e, foot)[keep])
+    return out
+
+
+def _segment_values(geom: Geometry, q: np.ndarray, r: np.ndarray, a: np.ndarray,
+                    k: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """dist + r (m), the unit vector from the nearest point, and that point, of the pairs."""
+    ab = geom.segment_b[k] - geom.segment_a[k]
+    rel = q[a] - geom.segment_a[k]
+    s = np.clip(np.einsum("mc,mc->m", rel, ab) / np.einsum("mc,mc->m", ab, ab), 0.0, 1.0)
+    foot = geom.segment_a[k] + s[:, None] * ab
+    d = q[a] - foot
+    dist = np.sqrt(np.einsum("mc,mc->m", d, d))
+    return dist + r[a], d / np.maximum(dist, 1e-300)[:, None], foot
+
+
 @dataclass(frozen=True)
 class Gaps:
     """True (non-linearised) constraint values at (t, q), m.
@@ -169,12 +229,20 @@ def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
         worst_pair = (int(i[w]), int(j[w]), min_pair)
     min_single, worst_single = np.inf, None
     if not geom.is_empty and len(q):
-        for kind, (g, _, _) in enumerate(single_values(geom, t, q, r)):
-            if g.size == 0:
+        # the smallest value over all (agent, item): searched within a reach that doubles
+        # until something is found (what is not found is larger than what is)
+        reach = max(contact_tol, 2.0 * float(r.max(initial=0.0)), 1e-3)
+        while True:
+            rows = single_rows(geom, t, q, r, reach)
+            if any(len(a) for a, _, _, _, _ in rows) or reach > 1e12:
+                break
+            reach *= 8.0
+        for kind, (a, k, g, _, _) in enumerate(rows):
+            if len(g) == 0:
                 continue
             contacts += int(np.count_nonzero(g <= contact_tol))
-            a, k = np.unravel_index(int(np.argmin(g)), g.shape)
-            if g[a, k] < min_single:
-                min_single = float(g[a, k])
-                worst_single = (int(a), kind, int(k), min_single)
+            w = int(np.argmin(g))
+            if g[w] < min_single:
+                min_single = float(g[w])
+                worst_single = (int(a[w]), kind, int(k[w]), min_single)
     return Gaps(min_pair, min_single, contacts, worst_pair, worst_single, i, j, pg)

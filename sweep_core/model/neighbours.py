@@ -144,3 +144,86 @@ def pairs_within(q: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
         if found <= capacity:
             return i[:found], j[:found]
         capacity = found
+
+
+@numba.njit(cache=True, nogil=True)
+def _segments_sorted(q: np.ndarray, a: np.ndarray, b: np.ndarray, reach: float, x0: float,
+                     y0: float, ny: int, out_a: np.ndarray, out_s: np.ndarray) -> int:
+    """Agents sorted by cell key (cells of side reach); each segment visits the cells its
+    bounding box, grown by reach, covers, and keeps the agents within reach of it."""
+    n = q.shape[0]
+    key = np.empty(n, dtype=np.int64)
+    for u in range(n):
+        key[u] = (int((q[u, 0] - x0) / reach) + 1) * ny + int((q[u, 1] - y0) / reach) + 1
+    order = np.argsort(key, kind="mergesort")
+    sk = key[order]
+    starts = np.empty(n + 1, dtype=np.int64)
+    cells = 0
+    for k in range(n):
+        if k == 0 or sk[k] != sk[k - 1]:
+            starts[cells] = k
+            cells += 1
+    starts[cells] = n
+    r2 = reach * reach
+    cap = out_a.shape[0]
+    found = 0
+    for s in range(a.shape[0]):
+        ax, ay, bx, by = a[s, 0], a[s, 1], b[s, 0], b[s, 1]
+        ex, ey = bx - ax, by - ay
+        ee = ex * ex + ey * ey
+        lo_x = int((min(ax, bx) - reach - x0) / reach + 1.0) if min(ax, bx) - reach > x0 else 0
+        lo_y = int((min(ay, by) - reach - y0) / reach + 1.0) if min(ay, by) - reach > y0 else 0
+        hi_x = int((max(ax, bx) + reach - x0) / reach) + 1
+        hi_y = int((max(ay, by) + reach - y0) / reach) + 1
+        hi_y = min(hi_y, ny - 1)
+        for cx in range(lo_x, hi_x + 1):
+            base = cx * ny
+            # the cells of this column in range lie in one run of sorted keys
+            want = base + lo_y
+            lo, hi = 0, cells
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if sk[starts[mid]] < want:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            c = lo
+            while c < cells and sk[starts[c]] <= base + hi_y:
+                for v in range(starts[c], starts[c + 1]):
+                    u = order[v]
+                    px, py = q[u, 0] - ax, q[u, 1] - ay
+                    t = (px * ex + py * ey) / ee
+                    t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+                    dx, dy = px - t * ex, py - t * ey
+                    if dx * dx + dy * dy <= r2:
+                        if found < cap:
+                            out_a[found] = u
+                            out_s[found] = s
+                        found += 1
+                c += 1
+    return found
+
+
+def segments_within(q: np.ndarray, a: np.ndarray, b: np.ndarray, reach: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Index arrays (agent, segment) of the centres q (N, 2) at most ``reach`` m (> 0) from
+    the segments [a_s, b_s] (S, 2), in an order that depends on the inputs alone. Agents are
+    hashed into cells of side ``reach``; a segment costs the cells of its bounding box grown
+    by ``reach`` (few for the axis-aligned walls of a map, more for long diagonal ones)."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    if len(q) == 0 or len(a) == 0:
+        empty = np.empty(0, dtype=np.intp)
+        return empty, empty
+    reach = float(reach)
+    x0, y0 = float(q[:, 0].min()), float(q[:, 1].min())
+    ny = int((float(q[:, 1].max()) - y0) / reach) + 3
+    capacity = 4 * len(q) + len(a)
+    while True:
+        out_a = np.empty(capacity, dtype=np.intp)
+        out_s = np.empty(capacity, dtype=np.intp)
+        found = _segments_sorted(q, a, b, reach, x0, y0, ny, out_a, out_s)
+        if found <= capacity:
+            return out_a[:found], out_s[:found]
+        capacity = found

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sweep_core.model.geometry import Geometry, single_values
+from sweep_core.model.geometry import Geometry, single_rows
 from sweep_core.model.neighbours import pairs_within
 
 
@@ -86,13 +86,12 @@ def linearise(geom: Geometry, t1: float, q: np.ndarray, r1: np.ndarray, cut: flo
 
     a_list, n_list, b_list, k_list, item_list = [], [], [], [], []
     if not geom.is_empty and n:
-        for kind, (g, nrm, foot) in enumerate(single_values(geom, t1, q, r1)):
-            if g.size == 0:
+        for kind, (a, k, _, nrm, foot) in enumerate(single_rows(geom, t1, q, r1, cut)):
+            if len(a) == 0:
                 continue
-            a, k = np.nonzero(g <= cut)
             a_list.append(a)
-            n_list.append(nrm[a, k])
-            b_list.append(foot[a, k] + r1[a])
+            n_list.append(nrm)
+            b_list.append(foot + r1[a])
             k_list.append(np.full(len(a), kind, dtype=np.int8))
             item_list.append(k)
     if a_list:
