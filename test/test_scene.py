@@ -54,14 +54,14 @@ def test_good_scene_loads_and_round_trips(tmp_path):
     ("agents.radius", [0.2, 0.2], "agents.radius", "shape"),
     ("agents.radius", KeyError, "agents.radius", "missing"),
     ("agents.radius_law", {"kind": "cubic"}, "agents.radius_law.kind", "unknown kind 'cubic'"),
-    ("agents.radius_law", {"kind": "sine", "amplitude": 0.3, "period": 1.0}, "agents.radius_law", "<= 0"),
+    ("agents.radius_law", {"kind": "sine", "amplitude": 0.3, "period": 1.0}, "agents.radius_law.amplitude", "<= 0 at t = 0.616"),
     ("agents.radius_law", {"kind": "sine", "amplitude": 0.01, "period": 0.0}, "agents.radius_law.period", "> 0"),
-    ("walls.0", {"kind": "halfplane", "normal": [0, 1], "offset": -0.1}, "walls", "agent 0 violates walls[0]"),
+    ("walls.0", {"kind": "halfplane", "normal": [0, 1], "offset": -0.1}, "walls[0]", "agent 0 at [0, 0] (radius 0.2 m) violates walls[0]"),
     ("walls.0", {"kind": "halfplane", "normal": [0, 0], "offset": -1.0}, "walls[0].normal", "zero vector"),
-    ("walls.1", {"kind": "segment", "a": [-2, 1.1], "b": [2, 1.1]}, "walls", "agent 2 violates walls[1] (segment)"),
+    ("walls.1", {"kind": "segment", "a": [-2, 1.1], "b": [2, 1.1]}, "walls[1]", "agent 2 at [0, 1] (radius 0.2 m) violates walls[1] (segment)"),
     ("walls.1", {"kind": "segment", "a": [1, 1], "b": [1, 1]}, "walls[1]", "zero length"),
     ("walls.1", {"kind": "door"}, "walls[1].kind", "unknown kind 'door'"),
-    ("obstacles.0", {"kind": "circle", "center": [1, 0.5], "radius": 0.4}, "obstacles", "violates obstacles[0]"),
+    ("obstacles.0", {"kind": "circle", "center": [1, 0.5], "radius": 0.4}, "obstacles[0]", "violates obstacles[0]"),
     ("obstacles.0", {"kind": "circle", "center": [3, 3], "radius": float("inf")}, "obstacles[0].radius", "finite"),
     ("drift", {"kind": "vortex"}, "drift.kind", "unknown kind 'vortex'"),
     ("drift", {"kind": "uniform", "velocity": [1, 2, 3]}, "drift.velocity", "shape"),
@@ -94,8 +94,9 @@ def test_shrinking_radii_refused_within_the_horizon():
     sim = sc.Simulator(sc.Scene.from_dict(d), dt=0.01)
     with pytest.raises(sc.SceneError) as err:
         sim.run(3.0)
-    assert err.value.field == "agents.radius_law"
-    assert "t = 2" in str(err.value)
+    assert err.value.field == "agents.radius_law.rate"
+    assert "shrinks agent 0's radius 0.2 m to 0 at t = 2 s, within the horizon 3 s" in str(err.value)
+    assert "set agents.radius_law.rate to more than -0.0666667 m/s" in str(err.value)
     assert sim.n_steps == 0  # refused before stepping
     d["horizon"] = 5.0
     with pytest.raises(sc.SceneError):
