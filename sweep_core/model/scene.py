@@ -23,14 +23,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.fields import Field, field_from_spec
 from sweep_core.model.geometry import Geometry, gaps
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
-from sweep_core.model.yaml_files import YAMLError, load_yaml, yaml_problem
+from sweep_core.model.yaml_files import YAMLError, dump_yaml, load_yaml, yaml_problem
 
 #: overlap (m) tolerated in a given initial configuration (rounding of touching disks)
 INITIAL_TOLERANCE = 1e-9
@@ -101,7 +100,8 @@ class Scene:
             f"{-r / t_end:g} m/s, or make the radii larger")
 
     def to_yaml(self) -> str:
-        return yaml.safe_dump(self.spec, sort_keys=False)
+        """The normalised scene as YAML text (libyaml's dumper when present)."""
+        return dump_yaml(self.spec)
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> Scene:
@@ -115,12 +115,18 @@ class Scene:
         except UnicodeDecodeError as err:
             raise SceneError("scene", f"{str(path)!r} is not UTF-8 text (byte {err.start})",
                              "give the path of a scene YAML file") from err
+        return cls.from_yaml_text(text, name=path.stem, source=str(path))
+
+    @classmethod
+    def from_yaml_text(cls, text: str, name: str = "scene", source: str = "the scene") -> Scene:
+        """Parse (libyaml's loader when present) and validate a scene given as YAML text;
+        ``source`` names it in errors (a file path, "the recorded scene")."""
         try:
             data = load_yaml(text)
         except YAMLError as err:
-            raise SceneError("scene", f"{path} is not valid YAML: {yaml_problem(err)}",
+            raise SceneError("scene", f"{source} is not valid YAML: {yaml_problem(err)}",
                              "correct the YAML syntax at that line") from err
-        return cls.from_dict(data if data is not None else {}, name=path.stem)
+        return cls.from_dict(data if data is not None else {}, name=name)
 
     @classmethod
     def from_dict(cls, data: dict, name: str = "scene") -> Scene:
