@@ -237,7 +237,8 @@ def test_config_file_lists_every_parameter_with_its_default():
 
 
 @pytest.mark.parametrize("name,value,match", [
-    ("dt", 0.0, "dt: 0.0 is outside"), ("dt", 1, None), ("rate_hz", -5.0, "rate_hz"),
+    ("dt", 0.0, "dt: 0 is outside [1e-05, 1] (fix: set dt to a value in [1e-05, 1]"),
+    ("dt", 1, None), ("rate_hz", -5.0, "rate_hz"),
     ("steps_per_tick", 2.5, "type int"), ("publish_markers", 1, "type bool"),
     ("frame_id", "/map", "frame_id"), ("frame_id", "", "frame_id"),
     ("noise_sigma", -0.5, "-1"), ("noise_sigma", -1.0, None), ("noise_sigma", 0.2, None),
@@ -250,6 +251,7 @@ def test_check_value(name, value, match):
         assert problem is None
     else:
         assert problem is not None and problem.startswith(name) and match in problem
+        assert "(fix: " in problem, problem
 
 
 def test_check_start_reuses_solver_validation():
