@@ -2,11 +2,13 @@
 from __future__ import annotations
 
 import copy
+import re
 
 import numpy as np
 import pytest
 
 import sweep_core as sc
+from sweep_core.model import radii
 
 GOOD = {
     "agents": {"positions": [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], "radius": 0.2},
@@ -101,6 +103,23 @@ def test_shrinking_radii_refused_within_the_horizon():
     d["horizon"] = 5.0
     with pytest.raises(sc.SceneError):
         sc.Scene.from_dict(d)
+
+
+@pytest.mark.parametrize("amplitude, period", [(0.3, 1.0), (-0.3, 2.0), (0.2, 1.0), (1.5, 4.0)])
+def test_sine_law_reaching_zero_says_when_and_by_how_much(amplitude, period):
+    """It used to say 'radii reach -0.1 m <= 0 within the horizon 0 s'."""
+    d = variant("agents.radius_law", {"kind": "sine", "amplitude": amplitude, "period": period})
+    with pytest.raises(sc.SceneError) as err:
+        sc.Scene.from_dict(d)
+    msg = str(err.value)
+    assert err.value.field == "agents.radius_law.amplitude" and "horizon" not in msg
+    assert f": {amplitude:g} m is not below the smallest base radius 0.2 m (agent 0)" in msg
+    t = float(re.search(r"would become <= 0 at t = ([0-9.e+-]+) s", msg).group(1))
+    law = radii.Sine(amplitude=amplitude, period=period)
+    assert 0.2 + law.offset(t) == pytest.approx(0.0, abs=1e-5)  # the first zero, not a later one
+    assert all(0.2 + law.offset(s) > 0 for s in np.linspace(0.0, t, 500)[:-1])
+    assert msg.endswith("(fix: set agents.radius_law.amplitude to less than 0.2 m in absolute "
+                        "value, or make the radii larger)")
 
 
 def test_bad_increments_refused():
