@@ -182,3 +182,18 @@ def test_validators_show_numpy_values_plainly():
         checks.number(np.float64(-0.1), "x", positive=True)
     with pytest.raises(sc.SceneError, match=r"^n: must be an integer >= 1, got 0\.5 \(fix: "):
         checks.integer(np.float64(0.5), "n", low=1)
+
+
+def test_every_scene_refusal_in_the_model_passes_a_fix():
+    """Static guard: each SceneError raised by the scene's validators is given a fix."""
+    import ast
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1] / "sweep_core"
+    files = sorted((root / "model").glob("*.py")) + [root / "checks.py"]
+    missing = []
+    for path in files:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "SceneError" \
+                    and len(node.args) + len(node.keywords) < 3:
+                missing.append(f"{path.name}:{node.lineno}")
+    assert not missing, missing
