@@ -185,7 +185,7 @@ def check_start(values: Mapping[str, Any]) -> list[str]:
         try:
             solver_options(values)
         except SceneError as err:
-            problems.append("solver_" + str(err).removeprefix("solver."))
+            problems.append(str(err).replace("solver.", "solver_"))  # parameter names
     return problems
 
 
