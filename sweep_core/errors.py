@@ -5,6 +5,50 @@ boundary can print ``str(err)`` on one line and exit non-zero.
 """
 from __future__ import annotations
 
+from typing import Any
+
+#: at most this many items of a list are shown in a message
+SHOW_ITEMS = 6
+
+
+def show(value: Any, items: int = SHOW_ITEMS) -> str:
+    """A value as a message shows it: plain numbers (``{:g}``), lists as ``[x, y]``.
+
+    numpy scalars and arrays are shown like Python floats and lists, never as
+    ``np.float64(...)`` or ``array(...)``; strings are quoted; lists longer than ``items`` are
+    cut with ``...``; any other object is shown by its type name.
+    """
+    if value is None or isinstance(value, bool):
+        return {None: "null", True: "true", False: "false"}[value]
+    if isinstance(value, str):
+        return repr(value if len(value) <= 60 else value[:57] + "...")
+    if hasattr(value, "tolist") and callable(value.tolist):  # numpy scalar or array
+        try:
+            n = len(value) if getattr(value, "ndim", 0) else 0
+            if n > items:
+                return show(value[:items].tolist(), items)[:-1] + f", ... ({n} items)]"
+            value = value.tolist()
+        except (TypeError, ValueError):
+            return type(value).__name__
+    if isinstance(value, bool):
+        return show(value)
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return f"{value:g}"
+    if isinstance(value, (list, tuple)):
+        shown = [show(v, items) for v in value[:items]]
+        if len(value) > items:
+            shown.append(f"... ({len(value)} items)")
+        return "[" + ", ".join(shown) + "]"
+    if isinstance(value, dict):
+        keys = list(value)[:items]
+        shown = [f"{k}: {show(value[k], items)}" for k in keys]
+        if len(value) > items:
+            shown.append(f"... ({len(value)} keys)")
+        return "{" + ", ".join(shown) + "}"
+    return type(value).__name__
+
 
 class SweepError(Exception):
     """Base class of every error sweep_core raises on purpose."""

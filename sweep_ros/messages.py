@@ -25,6 +25,7 @@ from sensor_msgs.msg import PointField
 from visualization_msgs.msg import Marker, MarkerArray
 
 from sweep_core import SceneError, grid_field
+from sweep_core.errors import show
 from sweep_core.model.fields import Goal, Grid, Uniform
 from sweep_core.model.geometry import Geometry
 
@@ -82,8 +83,9 @@ def uniform_from_twist(msg: Any, max_speed: float, topic: str = "cmd_vel") -> Un
     values = [msg.linear.x, msg.linear.y, msg.linear.z,
               msg.angular.x, msg.angular.y, msg.angular.z]
     if not all(math.isfinite(v) for v in values):
-        raise CommandError(topic, f"non-finite component in linear {values[:3]} / "
-                                  f"angular {values[3:]}")
+        raise CommandError(topic, f"non-finite component in linear {show(values[:3])} / "
+                                  f"angular {show(values[3:])} (fix: send finite numbers; "
+                                  "linear.x and linear.y are the velocity, m/s)")
     v = np.array([float(msg.linear.x), float(msg.linear.y)])
     _check_speed(topic, float(np.hypot(*v)), max_speed)
     return Uniform(velocity=v)
@@ -100,49 +102,63 @@ def goal_from_point(msg: Any, speed: float, slow_radius: float, frame_id: str,
                                   f"(fix: send the goal in {frame_id!r})")
     p = [msg.point.x, msg.point.y, msg.point.z]
     if not all(math.isfinite(c) for c in p):
-        raise CommandError(topic, f"non-finite goal {p}")
+        raise CommandError(topic, f"non-finite goal {show(p)} (fix: send finite coordinates, m)")
     if max(abs(p[0]), abs(p[1])) > MAX_COORDINATE:
-        raise CommandError(topic, f"goal {p[:2]} is more than {MAX_COORDINATE:g} m away")
+        raise CommandError(topic, f"goal {show(p[:2])} is more than {MAX_COORDINATE:g} m away "
+                                  f"(fix: send a goal within {MAX_COORDINATE:g} m of the origin "
+                                  f"of {frame_id!r})")
     return Goal(goal=np.array([float(p[0]), float(p[1])]), speed=float(speed),
                 slow_radius=float(slow_radius))
 
 
 _DTYPES = {PointField.FLOAT32: "f4", PointField.FLOAT64: "f8"}
+_FIELDS_FIX = "send FLOAT32 or FLOAT64 fields x, y, vx, vy, count 1 each"
 
 
-def _cloud_columns(msg: Any, topic: str) -> dict[str, np.ndarray]:
-    """The x, y, vx, vy columns of an organised cloud as float64 (height, width) arrays."""
+def _cloud_layout(msg: Any, topic: str) -> tuple[int, int, np.ndarray, dict[str, tuple[int, str]]]:
+    """Check an organised cloud's layout: (height, width, data bytes, name -> (offset, code))."""
     h, w = int(msg.height), int(msg.width)
     if h < 1 or w < 1:
-        raise CommandError(topic, f"empty grid (height {h}, width {w})")
+        raise CommandError(topic, f"empty grid (height {h}, width {w}) (fix: send an organised "
+                                  "cloud of height >= 1 rows along y and width >= 1 columns "
+                                  "along x)")
     if h * w > MAX_GRID_POINTS:
-        raise CommandError(topic, f"{h} x {w} grid exceeds {MAX_GRID_POINTS} points")
+        raise CommandError(topic, f"{h} x {w} grid exceeds {MAX_GRID_POINTS} points (fix: "
+                                  f"resample the field onto at most {MAX_GRID_POINTS} nodes)")
     by_name = {f.name: f for f in msg.fields}
     missing = [n for n in GRID_FIELDS if n not in by_name]
     if missing:
-        raise CommandError(topic, f"missing fields {missing} (has {sorted(by_name)}; fix: "
-                                  "send FLOAT32 or FLOAT64 fields x, y, vx, vy)")
+        raise CommandError(topic, f"missing fields {missing} (has {sorted(by_name)}) (fix: "
+                                  f"{_FIELDS_FIX})")
     step, row = int(msg.point_step), int(msg.row_step)
     data = np.frombuffer(memoryview(msg.data).cast("B"), dtype=np.uint8)
     if row < w * step or len(data) < row * (h - 1) + w * step:
         raise CommandError(topic, f"data holds {len(data)} bytes, too few for {h} x {w} points "
-                                  f"of point_step {step}, row_step {row}")
-    order = ">" if msg.is_bigendian else "<"
-    cols = {}
+                                  f"of point_step {step}, row_step {row} (fix: send row_step >= "
+                                  "width * point_step and height * row_step bytes of data)")
+    layout = {}
     for name in GRID_FIELDS:
         f = by_name[name]
         code = _DTYPES.get(int(f.datatype))
         if code is None or int(f.count) != 1:
             raise CommandError(topic, f"field {name!r} must be one FLOAT32 or FLOAT64 "
-                                      f"(datatype {f.datatype}, count {f.count})")
-        size = int(code[1])
-        if int(f.offset) + size > step:
+                                      f"(datatype {f.datatype}, count {f.count}) (fix: "
+                                      f"{_FIELDS_FIX})")
+        if int(f.offset) + int(code[1]) > step:
             raise CommandError(topic, f"field {name!r} at offset {f.offset} overruns "
-                                      f"point_step {step}")
-        arr = np.ndarray((h, w), dtype=order + code, buffer=data, offset=int(f.offset),
-                         strides=(row, step))
-        cols[name] = arr.astype(np.float64)
-    return cols
+                                      f"point_step {step} (fix: set point_step to the size of "
+                                      "one point, at least the end of its last field)")
+        layout[name] = (int(f.offset), code)
+    return h, w, data, layout
+
+
+def _cloud_columns(h: int, w: int, data: np.ndarray, layout: dict[str, tuple[int, str]],
+                   step: int, row: int, order: str) -> dict[str, np.ndarray]:
+    """The x, y, vx, vy columns as float64 (height, width) arrays, read in byte order
+    ``order`` ("<" little-endian, ">" big-endian)."""
+    return {name: np.ndarray((h, w), dtype=order + code, buffer=data, offset=offset,
+                             strides=(row, step)).astype(np.float64)
+            for name, (offset, code) in layout.items()}
 
 
 def _axis_nodes(values: np.ndarray, axis: int, name: str, topic: str) -> np.ndarray:
@@ -154,29 +170,27 @@ def _axis_nodes(values: np.ndarray, axis: int, name: str, topic: str) -> np.ndar
     n = nodes.size
     spacing = float(np.max(np.abs(np.diff(nodes)))) if n > 1 else 1.0
     if np.max(np.abs(other)) > GRID_TOLERANCE * spacing:
-        raise CommandError(topic, f"{name} must depend on the {along} index only "
-                                  "(fix: rows along y, columns along x)")
+        r, c = (int(i) for i in np.unravel_index(int(np.argmax(np.abs(other))), other.shape))
+        raise CommandError(topic, f"{name} must depend on the {along} index only, but row {r}, "
+                                  f"column {c} holds {name} = {values[r, c]:g} (fix: rows "
+                                  "along y, columns along x)")
     if n == 1:
         return nodes.copy()
     step = (nodes[-1] - nodes[0]) / (n - 1)
     ideal = nodes[0] + step * np.arange(n)
     if step == 0 or np.max(np.abs(nodes - ideal)) > GRID_TOLERANCE * abs(step):
-        raise CommandError(topic, f"{name} is an irregular grid (fix: resample onto evenly "
-                                  "spaced nodes)")
+        raise CommandError(topic, f"{name} is an irregular grid {show(nodes)} (fix: resample "
+                                  "onto evenly spaced nodes)")
     return ideal
 
 
-def grid_from_cloud(msg: Any, max_speed: float, topic: str = "velocity_field") -> Grid:
-    """sensor_msgs/PointCloud2 organised grid (height x width; fields x, y, vx, vy) -> Grid.
-
-    Row r, column c holds the node (x_c, y_r). Axes may run either way (they are sorted);
-    spacing must be even. The field is bilinear inside the grid and, outside, takes the value
-    at the nearest point of the grid (sweep_core's Grid)."""
-    cols = _cloud_columns(msg, topic)
+def _grid(cols: dict[str, np.ndarray], max_speed: float, topic: str) -> Grid:
+    """The Grid of a cloud's columns (see :func:`grid_from_cloud`)."""
     for name, arr in cols.items():
         if not np.all(np.isfinite(arr)):
             r, c = (int(i) for i in np.argwhere(~np.isfinite(arr))[0])
-            raise CommandError(topic, f"non-finite {name} at row {r}, column {c}")
+            raise CommandError(topic, f"non-finite {name} {arr[r, c]:g} at row {r}, column {c} "
+                                      "(fix: send finite numbers only)")
     x = _axis_nodes(cols["x"], 1, "x", topic)
     y = _axis_nodes(cols["y"], 0, "y", topic)
     vx, vy = cols["vx"], cols["vy"]
@@ -189,6 +203,33 @@ def grid_from_cloud(msg: Any, max_speed: float, topic: str = "velocity_field") -
         return grid_field(x, y, np.ascontiguousarray(vx), np.ascontiguousarray(vy), topic)
     except SceneError as err:
         raise CommandError(topic, str(err).removeprefix(f"{topic}.")) from err
+
+
+def grid_from_cloud(msg: Any, max_speed: float, topic: str = "velocity_field") -> Grid:
+    """sensor_msgs/PointCloud2 organised grid (height x width; fields x, y, vx, vy) -> Grid.
+
+    Row r, column c holds the node (x_c, y_r). Axes may run either way (they are sorted);
+    spacing must be even. Big- and little-endian data are both read (``is_bigendian``). The
+    field is bilinear inside the grid and, outside, takes the value at the nearest point of the
+    grid (sweep_core's Grid). A cloud refused as it is flagged, but valid in the other byte
+    order, is refused with a message saying that is_bigendian does not match its data."""
+    h, w, data, layout = _cloud_layout(msg, topic)
+    step, row = int(msg.point_step), int(msg.row_step)
+    big = bool(msg.is_bigendian)
+    try:
+        return _grid(_cloud_columns(h, w, data, layout, step, row, ">" if big else "<"),
+                     max_speed, topic)
+    except CommandError as err:
+        try:
+            _grid(_cloud_columns(h, w, data, layout, step, row, "<" if big else ">"),
+                  max_speed, topic)
+        except CommandError:
+            raise err from None
+        flag, other = ("true", "little") if big else ("false", "big")
+        raise CommandError(topic, f"is_bigendian={flag} but the data is {other}-endian: read "
+                                  f"as flagged, {err.problem.split(' (fix: ')[0]} (fix: set "
+                                  f"is_bigendian={'false' if big else 'true'} to match the "
+                                  "data's byte order)") from None
 
 
 # ---------------------------------------------------------------------------------------------

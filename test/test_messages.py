@@ -60,8 +60,9 @@ def test_goal_field_and_refusals():
             messages.goal_from_point(bad, 1.3, 0.5, "map")
 
 
-def grid_cloud(x, y, vx, vy, dtype="<f4", names=("x", "y", "vx", "vy"), pad=0):
-    """An organised cloud: row r, column c = node (x[c], y[r])."""
+def grid_cloud(x, y, vx, vy, dtype="<f4", names=("x", "y", "vx", "vy"), pad=0, bigendian=None):
+    """An organised cloud: row r, column c = node (x[c], y[r]); is_bigendian follows dtype's
+    byte order unless given."""
     h, w = len(y), len(x)
     X, Y = np.meshgrid(np.asarray(x, float), np.asarray(y, float))
     size = np.dtype(dtype).itemsize
@@ -69,7 +70,9 @@ def grid_cloud(x, y, vx, vy, dtype="<f4", names=("x", "y", "vx", "vy"), pad=0):
                                                                     else []))
     for n, v in zip(names, (X, Y, np.asarray(vx, float), np.asarray(vy, float))):
         rec[n] = v
-    m = PointCloud2(height=h, width=w, is_bigendian=False, point_step=rec.dtype.itemsize,
+    if bigendian is None:
+        bigendian = np.dtype(dtype).byteorder == ">"
+    m = PointCloud2(height=h, width=w, is_bigendian=bigendian, point_step=rec.dtype.itemsize,
                     row_step=rec.dtype.itemsize * w, is_dense=True)
     code = PointField.FLOAT32 if size == 4 else PointField.FLOAT64
     m.fields = [PointField(name=n, offset=i * size, datatype=code, count=1)
@@ -143,6 +146,54 @@ def test_grid_refused(case, match):
     with pytest.raises(CommandError, match=match) as info:
         messages.grid_from_cloud(m, max_speed=10.0)
     assert info.value.topic == "velocity_field"
+    msg = str(info.value)
+    assert "(fix: " in msg and "np." not in msg and "array(" not in msg, msg
+
+
+def test_twist_and_goal_refusals_name_value_and_fix():
+    for call in (lambda: messages.uniform_from_twist(twist(math.nan, 0.5), 4.9),
+                 lambda: messages.uniform_from_twist(twist(3.0, 4.0), 4.9),
+                 lambda: messages.goal_from_point(point(math.inf, 0.0), 1.3, 0.5, "map"),
+                 lambda: messages.goal_from_point(point(2e6, 0.0), 1.3, 0.5, "map"),
+                 lambda: messages.goal_from_point(point(1.0, 1.0, "odom"), 1.3, 0.5, "map")):
+        with pytest.raises(CommandError) as info:
+            call()
+        msg = str(info.value)
+        assert "(fix: " in msg and "np." not in msg, msg
+    with pytest.raises(CommandError, match=r"linear \[nan, 0.5, 0\]"):
+        messages.uniform_from_twist(twist(math.nan, 0.5), 4.9)
+
+
+@pytest.mark.parametrize("code", ["f4", "f8"])
+def test_big_endian_cloud_gives_the_little_endian_field(code):
+    x, y = np.array([-1.0, 0.5, 2.0, 3.5]), np.array([10.0, 10.25, 10.5])
+    vx = np.arange(12.0).reshape(3, 4) / 10
+    vy = -vx[::-1]
+    little = messages.grid_from_cloud(grid_cloud(x, y, vx, vy, "<" + code), max_speed=10.0)
+    cloud = grid_cloud(x, y, vx, vy, ">" + code)
+    assert cloud.is_bigendian and bytes(cloud.data) != bytes(grid_cloud(x, y, vx, vy,
+                                                                       "<" + code).data)
+    big = messages.grid_from_cloud(cloud, max_speed=10.0)
+    for name in ("x", "y", "vx", "vy"):
+        np.testing.assert_array_equal(getattr(big, name), getattr(little, name))
+    q = np.array([[0.0, 10.1], [3.0, 10.4], [9.0, 0.0]])
+    np.testing.assert_array_equal(big(0.0, q), little(0.0, q))
+
+
+@pytest.mark.parametrize("dtype, flag, words", [
+    (">f4", False, "is_bigendian=false but the data is big-endian"),
+    (">f8", False, "is_bigendian=false but the data is big-endian"),
+    ("<f4", True, "is_bigendian=true but the data is little-endian"),
+])
+def test_cloud_flagged_in_the_wrong_byte_order_is_named(dtype, flag, words):
+    """Data in one byte order flagged as the other used to be called 'an irregular grid'."""
+    g = _grid_ok()
+    with pytest.raises(CommandError) as info:
+        messages.grid_from_cloud(grid_cloud(**g, dtype=dtype, bigendian=flag), max_speed=10.0)
+    msg = str(info.value)
+    assert words in msg, msg
+    assert msg.endswith(f"(fix: set is_bigendian={'false' if flag else 'true'} to match the "
+                        "data's byte order)"), msg
 
 
 # ---------------------------------------------------------------------------------------------
@@ -237,7 +288,8 @@ def test_config_file_lists_every_parameter_with_its_default():
 
 
 @pytest.mark.parametrize("name,value,match", [
-    ("dt", 0.0, "dt: 0.0 is outside"), ("dt", 1, None), ("rate_hz", -5.0, "rate_hz"),
+    ("dt", 0.0, "dt: 0 is outside [1e-05, 1] (fix: set dt to a value in [1e-05, 1]"),
+    ("dt", 1, None), ("rate_hz", -5.0, "rate_hz"),
     ("steps_per_tick", 2.5, "type int"), ("publish_markers", 1, "type bool"),
     ("frame_id", "/map", "frame_id"), ("frame_id", "", "frame_id"),
     ("noise_sigma", -0.5, "-1"), ("noise_sigma", -1.0, None), ("noise_sigma", 0.2, None),
@@ -250,6 +302,7 @@ def test_check_value(name, value, match):
         assert problem is None
     else:
         assert problem is not None and problem.startswith(name) and match in problem
+        assert "(fix: " in problem, problem
 
 
 def test_check_start_reuses_solver_validation():

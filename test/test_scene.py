@@ -2,11 +2,13 @@
 from __future__ import annotations
 
 import copy
+import re
 
 import numpy as np
 import pytest
 
 import sweep_core as sc
+from sweep_core.model import radii
 
 GOOD = {
     "agents": {"positions": [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], "radius": 0.2},
@@ -54,14 +56,14 @@ def test_good_scene_loads_and_round_trips(tmp_path):
     ("agents.radius", [0.2, 0.2], "agents.radius", "shape"),
     ("agents.radius", KeyError, "agents.radius", "missing"),
     ("agents.radius_law", {"kind": "cubic"}, "agents.radius_law.kind", "unknown kind 'cubic'"),
-    ("agents.radius_law", {"kind": "sine", "amplitude": 0.3, "period": 1.0}, "agents.radius_law", "<= 0"),
+    ("agents.radius_law", {"kind": "sine", "amplitude": 0.3, "period": 1.0}, "agents.radius_law.amplitude", "<= 0 at t = 0.616"),
     ("agents.radius_law", {"kind": "sine", "amplitude": 0.01, "period": 0.0}, "agents.radius_law.period", "> 0"),
-    ("walls.0", {"kind": "halfplane", "normal": [0, 1], "offset": -0.1}, "walls", "agent 0 violates walls[0]"),
+    ("walls.0", {"kind": "halfplane", "normal": [0, 1], "offset": -0.1}, "walls[0]", "agent 0 at [0, 0] (radius 0.2 m) violates walls[0]"),
     ("walls.0", {"kind": "halfplane", "normal": [0, 0], "offset": -1.0}, "walls[0].normal", "zero vector"),
-    ("walls.1", {"kind": "segment", "a": [-2, 1.1], "b": [2, 1.1]}, "walls", "agent 2 violates walls[1] (segment)"),
+    ("walls.1", {"kind": "segment", "a": [-2, 1.1], "b": [2, 1.1]}, "walls[1]", "agent 2 at [0, 1] (radius 0.2 m) violates walls[1] (segment)"),
     ("walls.1", {"kind": "segment", "a": [1, 1], "b": [1, 1]}, "walls[1]", "zero length"),
     ("walls.1", {"kind": "door"}, "walls[1].kind", "unknown kind 'door'"),
-    ("obstacles.0", {"kind": "circle", "center": [1, 0.5], "radius": 0.4}, "obstacles", "violates obstacles[0]"),
+    ("obstacles.0", {"kind": "circle", "center": [1, 0.5], "radius": 0.4}, "obstacles[0]", "violates obstacles[0]"),
     ("obstacles.0", {"kind": "circle", "center": [3, 3], "radius": float("inf")}, "obstacles[0].radius", "finite"),
     ("drift", {"kind": "vortex"}, "drift.kind", "unknown kind 'vortex'"),
     ("drift", {"kind": "uniform", "velocity": [1, 2, 3]}, "drift.velocity", "shape"),
@@ -94,12 +96,30 @@ def test_shrinking_radii_refused_within_the_horizon():
     sim = sc.Simulator(sc.Scene.from_dict(d), dt=0.01)
     with pytest.raises(sc.SceneError) as err:
         sim.run(3.0)
-    assert err.value.field == "agents.radius_law"
-    assert "t = 2" in str(err.value)
+    assert err.value.field == "agents.radius_law.rate"
+    assert "shrinks agent 0's radius 0.2 m to 0 at t = 2 s, within the horizon 3 s" in str(err.value)
+    assert "set agents.radius_law.rate to more than -0.0666667 m/s" in str(err.value)
     assert sim.n_steps == 0  # refused before stepping
     d["horizon"] = 5.0
     with pytest.raises(sc.SceneError):
         sc.Scene.from_dict(d)
+
+
+@pytest.mark.parametrize("amplitude, period", [(0.3, 1.0), (-0.3, 2.0), (0.2, 1.0), (1.5, 4.0)])
+def test_sine_law_reaching_zero_says_when_and_by_how_much(amplitude, period):
+    """It used to say 'radii reach -0.1 m <= 0 within the horizon 0 s'."""
+    d = variant("agents.radius_law", {"kind": "sine", "amplitude": amplitude, "period": period})
+    with pytest.raises(sc.SceneError) as err:
+        sc.Scene.from_dict(d)
+    msg = str(err.value)
+    assert err.value.field == "agents.radius_law.amplitude" and "horizon" not in msg
+    assert f": {amplitude:g} m is not below the smallest base radius 0.2 m (agent 0)" in msg
+    t = float(re.search(r"would become <= 0 at t = ([0-9.e+-]+) s", msg).group(1))
+    law = radii.Sine(amplitude=amplitude, period=period)
+    assert 0.2 + law.offset(t) == pytest.approx(0.0, abs=1e-5)  # the first zero, not a later one
+    assert all(0.2 + law.offset(s) > 0 for s in np.linspace(0.0, t, 500)[:-1])
+    assert msg.endswith("(fix: set agents.radius_law.amplitude to less than 0.2 m in absolute "
+                        "value, or make the radii larger)")
 
 
 def test_bad_increments_refused():

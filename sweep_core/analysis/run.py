@@ -11,8 +11,6 @@ from dataclasses import fields as dc_fields
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from sweep_core.errors import RecordingError, SweepError
 from sweep_core.io import cdr
 from sweep_core.io.recording import ChannelInfo, scan_recording
@@ -155,8 +153,8 @@ def load_run(path: str | Path) -> RunMeta:
     scene = None
     if raw.get("scene"):
         try:
-            scene = Scene.from_dict(yaml.safe_load(raw["scene"]) or {})
-        except (SweepError, yaml.YAMLError) as err:
+            scene = Scene.from_yaml_text(raw["scene"], source="the recorded scene")
+        except SweepError as err:
             problems.append(f"the recorded scene does not load: {err}")
     dt = _number(raw, "dt", float, problems)
     seed = _number(raw, "seed", int, problems)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sweep_core import checks
-from sweep_core.errors import SceneError
+from sweep_core.errors import SceneError, show
 
 
 class Field:
@@ -151,21 +151,30 @@ def _cell(nodes: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def grid_field(x: np.ndarray, y: np.ndarray, vx: np.ndarray, vy: np.ndarray,
                field: str = "drift") -> Grid:
     """Validate and build a :class:`Grid` field (see its docstring for shapes)."""
-    x = checks.array(x, f"{field}.x", (None,))
-    y = checks.array(y, f"{field}.y", (None,))
+    x = checks.array(x, f"{field}.x", (None,), "", f"write {field}.x as a list of numbers (m)")
+    y = checks.array(y, f"{field}.y", (None,), "", f"write {field}.y as a list of numbers (m)")
     for name, nodes in (("x", x), ("y", y)):
         if nodes.size < 1:
-            raise SceneError(f"{field}.{name}", "is empty", "give at least one node per axis")
+            raise SceneError(f"{field}.{name}", "is empty []",
+                             f"give at least one node in {field}.{name}")
         if nodes.size > 1:
             step = np.diff(nodes)
             if np.any(step <= 0):
-                raise SceneError(f"{field}.{name}", "must be strictly increasing",
-                                 "sort the grid nodes")
+                k = int(np.argmax(step <= 0))
+                raise SceneError(f"{field}.{name}",
+                                 f"must be strictly increasing, got {show(nodes)} (node {k + 1} "
+                                 f"= {nodes[k + 1]:g} after {nodes[k]:g})",
+                                 f"sort {field}.{name} and drop repeated nodes")
             if np.max(np.abs(step - step[0])) > 1e-6 * abs(step[0]):
-                raise SceneError(f"{field}.{name}", "is an irregular grid",
+                raise SceneError(f"{field}.{name}",
+                                 f"is an irregular grid {show(nodes)}: spacings from "
+                                 f"{float(step.min()):g} to {float(step.max()):g}",
                                  "resample onto evenly spaced nodes")
-    vx = checks.array(vx, f"{field}.vx", (y.size, x.size), "(rows along y, columns along x)")
-    vy = checks.array(vy, f"{field}.vy", (y.size, x.size), "(rows along y, columns along x)")
+    rows = f"give {y.size} rows (one per y node) of {x.size} numbers (one per x node), m/s"
+    vx = checks.array(vx, f"{field}.vx", (y.size, x.size), "(rows along y, columns along x)",
+                      rows)
+    vy = checks.array(vy, f"{field}.vy", (y.size, x.size), "(rows along y, columns along x)",
+                      rows)
     if x.size == 1:  # degenerate axis: duplicate so interpolation is well defined
         x, vx, vy = np.array([x[0], x[0] + 1.0]), np.repeat(vx, 2, 1), np.repeat(vy, 2, 1)
     if y.size == 1:
@@ -201,11 +210,14 @@ def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift") -> F
                     slow_radius=checks.number(spec.get("slow_radius", 0.5), f"{field}.slow_radius",
                                               positive=True))
     if kind == "linear":
-        return Linear(matrix=checks.array(spec["matrix"], f"{field}.matrix", (2, 2)),
+        return Linear(matrix=checks.array(spec["matrix"], f"{field}.matrix", (2, 2),
+                                          "as [[a, b], [c, d]]",
+                                          f"write {field}.matrix as [[a, b], [c, d]] (1/s)"),
                       offset=checks.vec2(spec.get("offset", [0.0, 0.0]), f"{field}.offset"))
     if kind == "per_agent":
-        return PerAgent(velocities=checks.array(spec["velocities"], f"{field}.velocities",
-                                                (n_agents, 2), "(one [vx, vy] per agent)"))
+        return PerAgent(velocities=checks.array(
+            spec["velocities"], f"{field}.velocities", (n_agents, 2), "(one [vx, vy] per agent)",
+            f"give {field}.velocities one [vx, vy] (m/s) for each of the {n_agents} agents"))
     if kind == "grid":
         return grid_field(spec["x"], spec["y"], spec["vx"], spec["vy"], field)
     return NoDrift()

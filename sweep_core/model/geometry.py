@@ -63,6 +63,10 @@ class Geometry:
     def is_empty(self) -> bool:
         return not (len(self.halfplane_offset) or len(self.segment_a) or len(self.circle_radius))
 
+    def path(self, kind: int, item: int) -> str:
+        """Scene path of a wall/obstacle, e.g. ``walls[2]``."""
+        return self.describe(kind, item).split(" ")[0]
+
     def describe(self, kind: int, item: int) -> str:
         """Scene-facing name of a wall/obstacle, e.g. ``walls[2] (segment)``."""
         if kind == HALFPLANE:

@@ -28,6 +28,7 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import SceneError
+from sweep_core.model.yaml_files import YAMLError, load_yaml, yaml_problem
 
 #: most cells a map may have (a 40 000 x 40 000 grid would be 1.6e9)
 MAX_CELLS = 25_000_000
@@ -148,16 +149,15 @@ def map_from_spec(value: Any, field: str, base: Path | None) -> OccupancyMap:
 
 def read_map_yaml(path: Path, field: str = "map.yaml") -> OccupancyMap:
     """A map_server map: its YAML file and the image it names (see the module docstring)."""
-    import yaml  # the scene module's parser; here only for map files
-
     try:
-        meta = yaml.safe_load(path.read_text())
-    except OSError as err:
-        raise SceneError(field, f"cannot read {str(path)!r}: {err.strerror}",
+        meta = load_yaml(path.read_text())
+    except (OSError, UnicodeDecodeError) as err:
+        why = err.strerror if isinstance(err, OSError) else "not UTF-8 text"
+        raise SceneError(field, f"cannot read {str(path)!r}: {why}",
                          "give the path of a map_server YAML file") from err
-    except yaml.YAMLError as err:
-        raise SceneError(field, f"{path} is not valid YAML: {err}".replace("\n", " "),
-                         "fix the map file's syntax") from err
+    except YAMLError as err:
+        raise SceneError(field, f"{path} is not valid YAML: {yaml_problem(err)}",
+                         "correct the map file's YAML syntax at that line") from err
     where = f"{field} ({path.name})"
     meta = checks.mapping(meta, where, allowed={"image", "resolution", "origin", "negate",
                                                 "occupied_thresh", "free_thresh", "mode"},

@@ -33,6 +33,11 @@ class RadiusLaw:
         """Minimum of ``offset`` over [0, t_end] (m); t_end may be inf."""
         return 0.0
 
+    def zero_time(self, radius: float) -> float:
+        """First time t >= 0 (s) at which radius + offset(t) <= 0, for a base radius > 0 (m);
+        inf if never."""
+        return math.inf
+
     def to_spec(self) -> dict:
         return {"kind": self.kind}
 
@@ -65,6 +70,9 @@ class Linear(RadiusLaw):
             return 0.0
         return -math.inf if math.isinf(t_end) else self.rate * t_end
 
+    def zero_time(self, radius: float) -> float:
+        return radius / -self.rate if self.rate < 0 else math.inf
+
     def to_spec(self) -> dict:
         return {"kind": self.kind, "rate": self.rate}
 
@@ -90,6 +98,14 @@ class Sine(RadiusLaw):
 
     def min_offset(self, t_end: float) -> float:
         return -abs(self.amplitude)  # conservative: the trough is reached within one period
+
+    def zero_time(self, radius: float) -> float:
+        a = abs(self.amplitude)
+        if a < radius:
+            return math.inf
+        # first phase theta > 0 with amplitude sin(theta) = -radius
+        theta = math.asin(radius / a) + (math.pi if self.amplitude > 0 else 0.0)
+        return self.period * theta / (2.0 * math.pi)
 
     def to_spec(self) -> dict:
         return {"kind": self.kind, "amplitude": self.amplitude, "period": self.period}

@@ -25,14 +25,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from sweep_core import checks
-from sweep_core.errors import SceneError
+from sweep_core.errors import SceneError, show
 from sweep_core.model.fields import Field, field_from_spec
 from sweep_core.model.geometry import Geometry, gaps
 from sweep_core.model.maps import OccupancyMap, map_from_spec
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
+from sweep_core.model.yaml_files import YAMLError, dump_yaml, load_yaml, yaml_problem
 
 #: overlap (m) tolerated in a given initial configuration (rounding of touching disks)
 INITIAL_TOLERANCE = 1e-9
@@ -73,19 +73,39 @@ class Scene:
         return self.radius if law.is_constant else self.radius + law.offset(t)
 
     def check_horizon(self, t_end: float) -> None:
-        """Refuse a horizon within which some radius reaches 0."""
+        """Refuse a run to t_end (s) during which some radius would reach 0 m.
+
+        A sine law is refused whatever t_end when its amplitude is at least the smallest base
+        radius (its trough comes within one period); a linear shrink when the smallest radius
+        reaches 0 before t_end.
+        """
         if self.n_agents == 0:
             return
-        floor = float(self.radius.min()) + self.radius_law.min_offset(t_end)
-        if floor <= 0:
-            rate = getattr(self.radius_law, "rate", None)
-            when = (f" at t = {float(self.radius.min()) / -rate:.6g} s" if rate else "")
-            raise SceneError("agents.radius_law",
-                             f"radii reach {floor:.6g} m <= 0 within the horizon {t_end:g} s{when}",
-                             "a shorter horizon, a smaller shrink rate or amplitude, or larger radii")
+        law = self.radius_law
+        i = int(np.argmin(self.radius))
+        r = float(self.radius[i])
+        if r + law.min_offset(t_end) > 0:
+            return
+        when = law.zero_time(r)
+        if law.kind == "sine":
+            amplitude = float(getattr(law, "amplitude", 0.0))
+            raise SceneError(
+                "agents.radius_law.amplitude",
+                f"{amplitude:g} m is not below the smallest base radius {r:g} m (agent {i}): "
+                f"that radius would become <= 0 at t = {when:g} s",
+                f"set agents.radius_law.amplitude to less than {r:g} m in absolute value, "
+                "or make the radii larger")
+        rate = float(getattr(law, "rate", 0.0))
+        raise SceneError(
+            "agents.radius_law.rate",
+            f"{rate:g} m/s shrinks agent {i}'s radius {r:g} m to 0 at t = {when:g} s, "
+            f"within the horizon {t_end:g} s",
+            f"end the run before t = {when:g} s, set agents.radius_law.rate to more than "
+            f"{-r / t_end:g} m/s, or make the radii larger")
 
     def to_yaml(self) -> str:
-        return yaml.safe_dump(self.spec, sort_keys=False)
+        """The normalised scene as YAML text (libyaml's dumper when present)."""
+        return dump_yaml(self.spec)
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> Scene:
@@ -96,12 +116,23 @@ class Scene:
         except OSError as err:
             raise SceneError("scene", f"cannot read {str(path)!r}: {err.strerror}",
                              "give the path of a scene YAML file") from err
+        except UnicodeDecodeError as err:
+            raise SceneError("scene", f"{str(path)!r} is not UTF-8 text (byte {err.start})",
+                             "give the path of a scene YAML file") from err
+        return cls.from_yaml_text(text, name=path.stem, source=str(path), base=path.parent)
+
+    @classmethod
+    def from_yaml_text(cls, text: str, name: str = "scene", source: str = "the scene",
+                       base: Path | None = None) -> Scene:
+        """Parse (libyaml's loader when present) and validate a scene given as YAML text;
+        ``source`` names it in errors (a file path, "the recorded scene"); base: the directory
+        a relative map path is read from."""
         try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as err:
-            raise SceneError("scene", f"{path} is not valid YAML: {err}".replace("\n", " ")) from err
-        return cls.from_dict(data if data is not None else {}, name=path.stem,
-                             base=path.parent)
+            data = load_yaml(text)
+        except YAMLError as err:
+            raise SceneError("scene", f"{source} is not valid YAML: {yaml_problem(err)}",
+                             "correct the YAML syntax at that line") from err
+        return cls.from_dict(data if data is not None else {}, name=name, base=base)
 
     @classmethod
     def from_dict(cls, data: dict, name: str = "scene", base: Path | None = None) -> Scene:
@@ -115,7 +146,8 @@ def _list(value: Any, field: str) -> list:
     if value is None:
         return []
     if not isinstance(value, list):
-        raise SceneError(field, f"must be a list, got {type(value).__name__}")
+        raise SceneError(field, f"must be a list, got {type(value).__name__} {show(value)}",
+                         f"write {field} as a list of mappings, one '- kind: ...' per item")
     return value
 
 
@@ -139,7 +171,9 @@ def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
                             required={"positions", "radius"})
     raw_pos = agents["positions"]
     positions = (np.empty((0, 2)) if isinstance(raw_pos, list) and not raw_pos
-                 else checks.array(raw_pos, "agents.positions", (None, 2), "as [[x, y], ...]"))
+                 else checks.array(raw_pos, "agents.positions", (None, 2), "as [[x, y], ...]",
+                                          "write agents.positions as [[x, y], ...], one pair "
+                                          "of coordinates (m) per agent"))
     n = len(positions)
     radius = checks.per_agent(agents["radius"], n, "agents.radius", positive=True)
     law = radius_law_from_spec(agents.get("radius_law"))
@@ -214,7 +248,7 @@ def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, l
             normal = checks.vec2(wall["normal"], f"{field}.normal")
             norm = float(np.hypot(*normal))
             if norm < 1e-12:
-                raise SceneError(f"{field}.normal", "is the zero vector",
+                raise SceneError(f"{field}.normal", f"is the zero vector {show(normal)}",
                                  "give the direction pointing into the free side, e.g. [1, 0]")
             offset = checks.number(wall["offset"], f"{field}.offset")
             velocity = checks.number(wall.get("velocity", 0.0), f"{field}.velocity")
@@ -228,7 +262,7 @@ def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, l
             checks.mapping(wall, field, allowed={"kind", "a", "b"}, required={"a", "b"})
             a, b = checks.vec2(wall["a"], f"{field}.a"), checks.vec2(wall["b"], f"{field}.b")
             if np.hypot(*(b - a)) < 1e-12:
-                raise SceneError(field, "has a == b (a segment of zero length)",
+                raise SceneError(field, f"has a == b = {show(a)} (a segment of zero length)",
                                  "for a round obstacle use obstacles: [{kind: circle, ...}]")
             add_chain(np.array([a, b]), False, k, "segment", -1)
             walls_spec.append({"kind": kind, "a": a.tolist(), "b": b.tolist()})
@@ -331,21 +365,26 @@ def _check_initial(scene: Scene) -> None:
         d = np.hypot(*(q[g.pair_i] - q[g.pair_j]).T)
         if np.any(d < 1e-12):
             k = int(np.argmin(d))
+            a, b = int(g.pair_i[k]), int(g.pair_j[k])
             raise SceneError("agents.positions",
-                             f"agents {g.pair_i[k]} and {g.pair_j[k]} have coincident centres "
-                             f"{q[g.pair_i[k]].tolist()}", "move one of them")
+                             f"agents {a} and {b} have coincident centres {show(q[a])}",
+                             f"move agent {b} at least r_{a} + r_{b} = {r[a] + r[b]:g} m away "
+                             f"from agent {a}")
         i, j, gap = g.worst_pair
         bad = int(np.count_nonzero(g.pair_gap < -INITIAL_TOLERANCE))
-        more = f" ({bad} overlapping pairs in all)" if bad > 1 else ""
-        raise SceneError("agents.positions", f"agents {i} and {j} overlap by {-gap:.3f} m{more}",
-                         "place agents at least r_i + r_j apart")
+        more = f"; {bad} overlapping pairs in all" if bad > 1 else ""
+        raise SceneError("agents.positions",
+                         f"agents {i} and {j} overlap by {-gap:.3f} m (centres {show(q[i])} and "
+                         f"{show(q[j])}, radii {r[i]:g} m and {r[j]:g} m{more})",
+                         f"place agents {i} and {j} at least r_{i} + r_{j} = {r[i] + r[j]:g} m "
+                         "apart, centre to centre")
     if g.worst_single is not None and g.min_single < -INITIAL_TOLERANCE:
         a, kind, item, gap = g.worst_single
-        name = scene.geometry.describe(kind, item)
-        field = name.split("[")[0].split(" ")[0]
-        raise SceneError(field, f"agent {a} violates {name} "
-                         f"by {-gap:.3f} m at t = 0",
-                         "move the agent to the free side, at least its radius away")
+        path = scene.geometry.path(kind, item)
+        raise SceneError(path, f"agent {a} at {show(q[a])} (radius {r[a]:g} m) violates "
+                         f"{scene.geometry.describe(kind, item)} by {-gap:.3f} m at t = 0",
+                         f"move agent {a} to the free side of {path}, at least its radius "
+                         f"{r[a]:g} m away from it")
 
 
 def copy_spec(scene: Scene) -> dict:
