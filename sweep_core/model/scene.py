@@ -6,6 +6,7 @@ metres and seconds. The keys are a public contract, documented in the README:
     name, description                      free text
     horizon                                optional end time (s) the scene is meant for
     agents.positions   [[x, y], ...]       centres at t = 0
+    agents.spawn       {region, count, radius, seed} instead of positions and radius (spawn.py)
     agents.radius      scalar or list      base radii (> 0)
     agents.radius_law  {kind: constant | linear (rate) | sine (amplitude, period)}
     agents.speed       preferred speed (m/s) used when a goal command arrives (default 1.3)
@@ -31,7 +32,9 @@ from sweep_core.errors import SceneError, show
 from sweep_core.model.fields import Field, field_from_spec
 from sweep_core.model.geometry import Geometry, gaps
 from sweep_core.model.maps import OccupancyMap, map_from_spec
+from sweep_core.model.outlines import chain_points
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
+from sweep_core.model.spawn import spawn
 from sweep_core.model.yaml_files import YAMLError, dump_yaml, load_yaml, yaml_problem
 
 #: overlap (m) tolerated in a given initial configuration (rounding of touching disks)
@@ -166,9 +169,18 @@ def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
         horizon = checks.number(data["horizon"], "horizon", positive=True)
         spec["horizon"] = horizon
 
+    grid = map_from_spec(data["map"], "map", base) if data.get("map") is not None else None
+    geometry, walls_spec, obstacles_spec = _geometry(data, grid)
+    spec["walls"], spec["obstacles"] = walls_spec, obstacles_spec
     agents = checks.mapping(data["agents"], "agents",
-                            allowed={"positions", "radius", "radius_law", "speed"},
-                            required={"positions", "radius"})
+                            allowed={"positions", "radius", "radius_law", "speed", "spawn"})
+    if "spawn" in agents:
+        if "positions" in agents or "radius" in agents:
+            raise SceneError("agents.spawn", "is given with agents.positions or agents.radius",
+                             "give either spawn or positions and radius")
+        positions, radius = spawn(agents["spawn"], "agents.spawn", geometry, grid)
+        agents = {**agents, "positions": positions.tolist(), "radius": radius.tolist()}
+    checks.mapping(agents, "agents", required={"positions", "radius"})
     raw_pos = agents["positions"]
     positions = (np.empty((0, 2)) if isinstance(raw_pos, list) and not raw_pos
                  else checks.array(raw_pos, "agents.positions", (None, 2), "as [[x, y], ...]",
@@ -181,9 +193,6 @@ def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
     spec["agents"] = {"positions": positions.tolist(), "radius": _compact(radius, agents["radius"]),
                       "radius_law": law.to_spec(), "speed": speed}
 
-    grid = map_from_spec(data["map"], "map", base) if data.get("map") is not None else None
-    geometry, walls_spec, obstacles_spec = _geometry(data, grid)
-    spec["walls"], spec["obstacles"] = walls_spec, obstacles_spec
     if grid is not None:
         spec["map"] = grid.to_spec()
         blocked = np.flatnonzero(grid.is_blocked(positions))
@@ -302,57 +311,6 @@ def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, l
                     np.array(c_i, dtype=np.intp), np.array(s_poly, dtype=np.intp),
                     np.array(s_part, dtype=np.intp), tuple(s_kind))
     return geom, walls_spec, obstacles_spec
-
-
-def chain_points(value: Any, field: str, closed: bool, least: int) -> np.ndarray:
-    """The vertices (M, 2) of a polyline or polygon, checked: at least ``least`` points, no
-    edge of zero length, and for a closed chain no two edges crossing (a closed chain given
-    with its first point repeated at the end is accepted without the repeat)."""
-    points = checks.array(value, field, (None, 2), "as [[x, y], ...]")
-    if closed and len(points) > 1 and np.array_equal(points[0], points[-1]):
-        points = points[:-1]
-    if len(points) < least:
-        shape = "a closed outline" if closed else "a chain"
-        raise SceneError(field, f"has {len(points)} points; {shape} needs at least {least}",
-                         "list the vertices in order, e.g. [[0, 0], [4, 0], [4, 3]]")
-    ends = np.roll(points, -1, axis=0) if closed else points[1:]
-    length = np.hypot(*(ends - points[: len(ends)]).T)
-    if length.min() < 1e-12:
-        k = int(np.argmin(length))
-        raise SceneError(field, f"points {k} and {(k + 1) % len(points)} coincide at "
-                         f"[{points[k, 0]:g}, {points[k, 1]:g}] (an edge of zero length)",
-                         "remove the repeated point")
-    if closed:
-        crossing = _first_crossing(points)
-        if crossing is not None:
-            i, j = crossing
-            raise SceneError(field, f"edges {i} and {j} cross (the outline is not simple)",
-                             "give the vertices in order around the outline, or split it into "
-                             "several polygons")
-    return points
-
-
-def _first_crossing(points: np.ndarray) -> tuple[int, int] | None:
-    """The first pair of non-adjacent edges of a closed chain that intersect, or None."""
-    a, b = points, np.roll(points, -1, axis=0)
-    m = len(points)
-
-    def orient(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
-        return np.sign((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1])
-                       - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
-
-    for i in range(m - 2):
-        j = np.arange(i + 2, m if i > 0 else m - 1)
-        if len(j) == 0:
-            continue
-        o1 = orient(a[i], b[i], a[j])
-        o2 = orient(a[i], b[i], b[j])
-        o3 = orient(a[j], b[j], a[i])
-        o4 = orient(a[j], b[j], b[i])
-        hit = (o1 * o2 <= 0) & (o3 * o4 <= 0)
-        if np.any(hit):
-            return i, int(j[np.argmax(hit)])
-    return None
 
 
 def _check_initial(scene: Scene) -> None:
