@@ -198,7 +198,7 @@ def test_cut_at_every_chunk_boundary_recovers_what_sweep_reads(tmp_path, capsys)
     capsys.readouterr()
     # a complete file is copied whole
     assert main(["recover", str(out)]) == 0
-    assert "nothing (the file was complete)" in capsys.readouterr().out
+    assert "nothing (the file's data section was complete)" in capsys.readouterr().out
     assert _standard_counts(tmp_path / "c.recovered.mcap") == Counter(
         m.topic for m in read_recording(out))
 

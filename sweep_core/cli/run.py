@@ -171,7 +171,11 @@ def _write_summary(args: argparse.Namespace, out: Path, scene: Scene, sim: Simul
         "recording_bytes": out.stat().st_size if out.exists() else 0,
     }
     summary_path = out.with_suffix(".summary.json")
-    summary_path.write_text(json.dumps(summary, indent=2) + "\n")
+    try:
+        summary_path.write_text(json.dumps(summary, indent=2) + "\n")
+    except OSError as err:  # e.g. the disk that stopped the recording is full
+        print(f"sweep: warning: {summary_path}: cannot write the summary ({err.strerror}); "
+              "it is printed below", file=sys.stderr)
     width = max(len(k) for k in summary)
     for key, value in summary.items():
         if key == "error" and not value:

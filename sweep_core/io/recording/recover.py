@@ -49,7 +49,8 @@ class Recovery:
     """What :func:`recover` kept and lost.
 
     ``messages``: messages kept per topic; ``start_ns``/``end_ns``: their log-time range
-    (None if none); ``complete``: the source already had its footer (nothing was lost);
+    (None if none); ``complete``: the source's data section was complete (it ends with a
+    DataEnd record: nothing was lost, only the summary or footer may have been missing);
     ``kept_bytes``: the source's bytes up to the end of its last complete record;
     ``source_bytes``: its size; ``tail``: what the bytes after that were (empty if none);
     ``error``: why reading stopped (None at a clean end).
@@ -259,7 +260,7 @@ def format_recovery(r: Recovery, t_end: float | None = None) -> str:
                  f"{', '.join(r.metadata) or 'none'}, {r.attachments} attachments; "
                  f"{r.kept_bytes} of {r.source_bytes} bytes read")
     if r.complete:
-        lines.append("lost       nothing (the file was complete)")
+        lines.append("lost       nothing (the file's data section was complete)")
         return "\n".join(lines)
     lost = [r.tail or "no partial record (the file ends at a record boundary)"]
     lost.append("whatever the writer had not flushed when it stopped (sweep run and "
