@@ -285,6 +285,7 @@ def test_failed_run_says_why_in_the_recording_and_the_summary(tmp_path, capsys):
      "than the limit 2 GB (fix: --record-every 2 or more, a shorter --t-end, or --force)"),
     (["--dt", "0.001", "--t-end", "10", "--path-dt", "1e-6"],
      "--path-dt: 1e-06 s over 10 s draws 1e+07 fine increments"),
+    (["--path-dt", "0.003"], "path_dt: dt = 0.01 s is not a whole multiple of path_dt"),
 ])
 def test_run_refuses_runs_beyond_its_bounds(tmp_path, capsys, args, message):
     """Before: dt = 1e-9 started 1e9 steps, dt = 2 ran, a 3.6 GB recording started."""

@@ -84,8 +84,10 @@ def _run(args: argparse.Namespace) -> int:
                                        method=args.method)
     sim = Simulator(scene, dt=dt, seed=args.seed, scheme=args.scheme, solver=solver)
     scene.check_horizon(t_end)
-    limits.check_run_size(scene.n_agents, dt, t_end, args.record_every, path_dt=args.path_dt,
-                          frame_id=args.frame_id, force=args.force)
+    if args.path_dt:
+        paths.substeps(dt, args.path_dt)  # refused before the recording is created
+    limits.check_run_size(scene.n_agents, dt, t_end, args.record_every,
+                          path_dt=args.path_dt or None, frame_id=args.frame_id, force=args.force)
     out = Path(args.out)
     stats = {"min_gap": math.inf, "active_rows_max": 0, "active_rows_sum": 0, "steps": 0,
              "backend_agents_max": 0, "bound_max_m": 0.0}
