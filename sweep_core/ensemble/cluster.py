@@ -6,6 +6,8 @@ from __future__ import annotations
 import importlib.util
 import os
 import re
+import signal
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -35,6 +37,21 @@ def dashboard(client: Any) -> str | None:
     except Exception:  # noqa: BLE001 - an address only for display
         return None
     return client.dashboard_link if "dashboard" in services else None
+
+
+@contextmanager
+def sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while the local workers start: they inherit that (an ignored signal stays
+    ignored across exec, and Python keeps it so), so Ctrl-C on a terminal, sent to the whole
+    process group, interrupts the ensemble only; it then cancels the runs and closes them."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 @contextmanager
@@ -77,8 +94,9 @@ def connect(client: Any = None, scheduler: str | None = None, workers: int | Non
         raise SweepError(f"--workers: {n_workers!r} is not a positive number of worker "
                          "processes (fix: e.g. --workers 2)")
     # every server (scheduler, workers, their HTTP servers) on 127.0.0.1, free ports
-    cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                           host="127.0.0.1", dashboard_address="127.0.0.1:0")
+    with sigint_ignored():
+        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                               host="127.0.0.1", dashboard_address="127.0.0.1:0")
     try:
         local = Client(cluster)
         try:
