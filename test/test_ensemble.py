@@ -19,8 +19,8 @@ from sweep_core.analysis.frames import FrameReader  # noqa: E402
 from sweep_core.analysis.metrics import analyze, parse_line  # noqa: E402
 from sweep_core.analysis.run import load_run  # noqa: E402
 from sweep_core.cli import main  # noqa: E402
-from sweep_core.ensemble import cluster, run  # noqa: E402
-from sweep_core.ensemble.task import digest, flatten  # noqa: E402
+from sweep_core.ensemble import cluster, run, store  # noqa: E402
+from sweep_core.ensemble.task import Task, digest, flatten, simulate  # noqa: E402
 
 SCENE = """
 name: small
@@ -164,10 +164,16 @@ def test_resume_skips_finished_runs(tmp_path, scene, client):
         assert again_wall[seed] == by_seed[seed]
     pd.testing.assert_frame_equal(again.drop(columns=WHERE), first.drop(columns=WHERE))
     assert len(pd.read_parquet(out / "runs.parquet")) == 4
-    # more runs extend the same directory: only the new seeds run
+    # a run the cluster lost (status lost) is run again; more runs extend the directory
+    store.write_row(out, files[0].stem, {"status": "lost", "error": "KilledWorker: x",
+                                         "wall_time_s": math.nan})
+    lost_seed = int(files[0].stem.rsplit("_s", 1)[1])
     more = run(scene, runs=5, t_end=0.3, client=client, out=out)
-    assert list(more["seed"]) == [0, 1, 2, 3, 4]
-    assert more.set_index("seed")["wall_time_s"].drop(4).equals(again_wall)
+    assert list(more["seed"]) == [0, 1, 2, 3, 4] and (more["status"] == "ok").all()
+    assert more.set_index("seed")["wall_time_s"].drop([lost_seed, 4]).equals(
+        again_wall.drop(lost_seed))
+    assert pd.read_parquet(files[0])["status"].iloc[0] == "ok"
+    pd.testing.assert_frame_equal(more.drop(columns=WHERE).iloc[:4], first.drop(columns=WHERE))
     # another configuration in the same directory is refused
     with pytest.raises(Exception, match=r"--out: .* another configuration \(t_end differ"):
         run(scene, runs=1, t_end=0.2, client=client, out=out)
@@ -184,7 +190,7 @@ def test_external_scheduler_from_the_command_line(tmp_path, scene, capsys):
         captured = capsys.readouterr()
         assert code == 0, captured.err
         assert f"scheduler {lc.scheduler_address}: 1 workers" in captured.err
-        assert "runs 4  completed 4  failed 0  grid points 2" in captured.out
+        assert "runs 4  completed 4  failed 0  lost 0  grid points 2" in captured.out
         # the scheduler is not ours: it still runs after the ensemble
         with Client(lc.scheduler_address) as cl:
             assert len(cl.scheduler_info()["workers"]) == 1
@@ -193,6 +199,16 @@ def test_external_scheduler_from_the_command_line(tmp_path, scene, capsys):
     assert list(table["frames"]) == [11, 11, 21, 21]
     summ = json.loads(table["summary_json"].iloc[0])
     assert summ["dt_s"] == 0.02 and len(list((out / "summaries").glob("*.json"))) == 4
+
+
+def test_record_full_needs_the_directory_on_the_worker(tmp_path):
+    spec = _scene_dict(SCENE)
+    row = simulate(Task(spec=spec, name="small", seed=0, dt=0.01, scheme="projected_euler",
+                        t_end=0.1, mcap=str(tmp_path / "r.mcap"),
+                        marker=str(tmp_path / "elsewhere" / ".shared-x")))
+    assert row["status"] == "failed" and not (tmp_path / "r.mcap").exists()
+    assert row["error"].startswith("--record full: the output directory ")
+    assert "is not visible on worker" in row["error"] and "fix:" in row["error"]
 
 
 @pytest.mark.parametrize("args, needle", [

@@ -33,11 +33,16 @@ def _ensemble(args: argparse.Namespace) -> int:
              "(re-run the same command to resume)")
         return 130
     ok = int((table["status"] == "ok").sum())
-    print(f"runs {len(table)}  completed {ok}  failed {len(table) - ok}  "
+    lost = int((table["status"] == "lost").sum())
+    print(f"runs {len(table)}  completed {ok}  failed {len(table) - ok - lost}  lost {lost}  "
           f"grid points {table['point'].nunique()}  out {args.out}")
-    failed = table[table["status"] != "ok"]
-    for _, row in failed.head(3).iterrows():
-        print(f"  failed: point {row['point']} seed {row['seed']}: {row['error']}")
+    for _, row in table[table["status"] != "ok"].head(3).iterrows():
+        print(f"  {row['status']}: point {row['point']} seed {row['seed']}: {row['error']}")
+    if lost:
+        _say(f"sweep ensemble: {lost} runs lost by the cluster (not by the simulation; the "
+             "scheduler and every worker need this sweep_core installed); re-run the same "
+             "command to run them again")
+        return 1
     return 0
 
 
