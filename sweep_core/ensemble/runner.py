@@ -26,7 +26,7 @@ from sweep_core.numerics.schemes import SCHEMES
 
 #: columns first in the table, in this order (grid keys follow "point")
 FIRST = ("point", "run", "seed", "dt", "scheme", "status", "error", "wall_time_s", "worker",
-         "t_reached_s", "final_sha256")
+         "t_reached_s", "final_sha256", "recording")
 
 
 def resolve_scene(scene: Scene | dict | str | Path | None) -> Scene:
@@ -91,8 +91,12 @@ def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0:
         One row per run, ordered by grid point and seed: point, the grid keys, run, seed, dt,
         scheme, status (``ok``, ``failed``; ``lost`` if the worker died), error, wall_time_s
         (on the worker: build, simulate, record, analyse), worker, t_reached_s, final_sha256
-        (SHA-256 of the final float64 positions), then the metrics of ``sweep analyze`` as
-        ``section.key`` columns (``min_gap.min_m``, ``arrivals.t_90_s``, ...).
+        (SHA-256 of the final float64 positions), recording (its MCAP, record full), then the
+        metrics of ``sweep analyze`` as ``section.key`` columns (``min_gap.min_m``,
+        ``arrivals.t_90_s``, ...).
+
+    Called from a script, guard the call with ``if __name__ == "__main__":``: the local
+    workers are new processes that import the script's main module.
     """
     say = log or (lambda _text: None)
     _check_options(runs, seed0, t_end, dt, scheme, record, out, arrive_radius)
@@ -118,14 +122,14 @@ def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0:
         p_scheme = str(point.get("scheme", scheme))
         for k in range(runs):
             name = store.run_name(pid, seed0 + k)
+            mcap = str(out_dir / "mcap" / f"{name}.mcap") if record == "full" and out_dir else None
             heads[name] = {"point": i, **point, "run": k, "seed": seed0 + k, "dt": p_dt,
                            "scheme": p_scheme}
+            if mcap is not None:
+                heads[name]["recording"] = mcap
             tasks[name] = Task(spec=point_spec, name=base.name, seed=seed0 + k, dt=p_dt,
                                scheme=p_scheme, t_end=t_end, line=line,
-                               arrive_radius=arrive_radius,
-                               mcap=str(out_dir / "mcap" / f"{name}.mcap")
-                               if record == "full" and out_dir else None,
-                               summary=record != "none")
+                               arrive_radius=arrive_radius, mcap=mcap, summary=record != "none")
     rows = store.read_rows(out_dir, heads) if out_dir is not None else {}
     if rows:
         say(f"resume: {len(rows)} of {len(heads)} runs already in {out_dir}, skipped")

@@ -36,7 +36,7 @@ DONE = ("ok", "failed")
 Z95 = 1.959963984540054
 #: columns of a row that are not metrics (the grid keys come on top)
 BOOKKEEPING = ("point", "run", "seed", "dt", "scheme", "status", "error", "worker",
-               "t_reached_s", "final_sha256", "summary_json", "agents", "frames")
+               "t_reached_s", "final_sha256", "recording", "summary_json", "agents", "frames")
 
 
 def run_name(pid: str, seed: int) -> str:
