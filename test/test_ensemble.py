@@ -214,6 +214,8 @@ def test_record_full_needs_the_directory_on_the_worker(tmp_path):
 
 @pytest.mark.parametrize("args, needle", [
     (["--runs", "0"], "--runs: must be an integer >= 1, got 0"),
+    (["--runs", "2", "--t-end", "-1"], "--t-end: must be a positive number, got -1"),
+    (["--runs", "2", "--workers", "0"], "--workers: 0 is not a positive number"),
     (["--runs", "2", "--vary", "noise.sgima=0.1,0.2"], "--vary: unknown key 'noise.sgima'"),
     (["--runs", "2", "--vary", "noise.sigma=0.1,,0.2"], "--vary: noise.sigma: bad value list"),
     (["--runs", "2", "--vary", "dt=0.01,-1"], "--vary: dt: value -1 is not a positive number"),
@@ -224,8 +226,8 @@ def test_record_full_needs_the_directory_on_the_worker(tmp_path):
 def test_bad_input_is_one_line_naming_the_field(tmp_path, scene, capsys, monkeypatch, args,
                                                  needle):
     monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", 2)
-    code = main(["ensemble", str(scene), "--t-end", "0.1", "--out", str(tmp_path / "o"),
-                 "--quiet", *args])
+    code = main(["ensemble", str(scene), "--out", str(tmp_path / "o"), "--quiet",
+                 *(args if "--t-end" in args else ["--t-end", "0.1", *args])])
     err = capsys.readouterr().err.strip()
     assert code == 2
     assert err.startswith("sweep: error: " + needle), err

@@ -39,6 +39,15 @@ def dashboard(client: Any) -> str | None:
     return client.dashboard_link if "dashboard" in services else None
 
 
+def check_workers(workers: int | None) -> int:
+    """The worker count of a local cluster (None: the cores)."""
+    n = default_workers() if workers is None else workers
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise SweepError(f"--workers: {n!r} is not a positive number of worker processes "
+                         "(fix: e.g. --workers 2)")
+    return n
+
+
 @contextmanager
 def sigint_ignored() -> Iterator[None]:
     """SIGINT ignored while the local workers start: they inherit that (an ignored signal stays
@@ -89,10 +98,7 @@ def connect(client: Any = None, scheduler: str | None = None, workers: int | Non
         finally:
             remote.close()
         return
-    n_workers = default_workers() if workers is None else workers
-    if isinstance(n_workers, bool) or not isinstance(n_workers, int) or n_workers < 1:
-        raise SweepError(f"--workers: {n_workers!r} is not a positive number of worker "
-                         "processes (fix: e.g. --workers 2)")
+    n_workers = check_workers(workers)
     # every server (scheduler, workers, their HTTP servers) on 127.0.0.1, free ports
     with sigint_ignored():
         cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,

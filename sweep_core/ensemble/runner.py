@@ -45,8 +45,16 @@ def _check_options(runs: int, seed0: int, t_end: float, dt: float, scheme: str, 
                    out: str | Path | None, arrive_radius: float | None) -> None:
     checks.integer(runs, "--runs", low=1, fix="e.g. --runs 200")
     checks.integer(seed0, "--seed0", fix="e.g. --seed0 0")
-    checks.number(t_end, "--t-end", positive=True)
-    checks.number(dt, "--dt", positive=True)
+    for field, value, example in (("--t-end", t_end, "60"), ("--dt", dt, "0.01"),
+                                  ("--arrive-radius", arrive_radius, "1.0")):
+        if value is None and field == "--arrive-radius":
+            continue
+        ok = (not isinstance(value, bool) and isinstance(value, (int, float))
+              and math.isfinite(value) and value > 0)
+        if not ok:
+            shown = f"{value:g}" if isinstance(value, float) else repr(value)
+            raise SceneError(field, f"must be a positive number, got {shown}",
+                             f"e.g. {field} {example}")
     if scheme not in SCHEMES:
         raise SceneError("--scheme", f"unknown scheme {scheme!r}", f"use one of {sorted(SCHEMES)}")
     if record not in RECORD:
@@ -55,8 +63,6 @@ def _check_options(runs: int, seed0: int, t_end: float, dt: float, scheme: str, 
     if record == "full" and out is None:
         raise SceneError("--record", "full writes one MCAP per run into the output directory",
                          "give --out DIR (out=DIR)")
-    if arrive_radius is not None:
-        checks.number(arrive_radius, "--arrive-radius", positive=True)
 
 
 def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0: int = 0,
@@ -100,6 +106,8 @@ def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0:
     """
     say = log or (lambda _text: None)
     _check_options(runs, seed0, t_end, dt, scheme, record, out, arrive_radius)
+    if client is None and scheduler is None:
+        cluster.check_workers(workers)
     if isinstance(line, str):
         line = parse_line(line)
     base = resolve_scene(scene)
