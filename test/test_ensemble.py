@@ -219,6 +219,8 @@ def test_record_full_needs_the_directory_on_the_worker(tmp_path):
     (["--runs", "2", "--vary", "noise.sgima=0.1,0.2"], "--vary: unknown key 'noise.sgima'"),
     (["--runs", "2", "--vary", "noise.sigma=0.1,,0.2"], "--vary: noise.sigma: bad value list"),
     (["--runs", "2", "--vary", "dt=0.01,-1"], "--vary: dt: value -1 is not a positive number"),
+    (["--runs", "2", "--vary", "noise.sigma=1e-2,abc"], "--vary: noise.sigma: value 'abc' is "
+                                                         "not a number"),
     (["--runs", "2", "--vary", "scheme=euler"], "--vary: scheme: unknown scheme 'euler'"),
     (["--runs", "2", "--scheduler", "localhost"], "--scheduler: 'localhost' is not an address"),
     (["--runs", "2", "--scheduler", "tcp://127.0.0.1:9"], "--scheduler: cannot reach"),

@@ -15,8 +15,6 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
-import yaml
-
 from sweep_core.errors import SceneError
 from sweep_core.numerics.schemes import SCHEMES
 
@@ -96,10 +94,37 @@ def check_value(key: str, value: Any) -> Value:
     return value
 
 
+def _scalar(text: str) -> Value:
+    """``"3"`` -> 3, ``"1e-2"`` -> 0.01, anything else stays a string (a name)."""
+    for conv in (int, float):
+        try:
+            return conv(text)
+        except ValueError:
+            pass
+    return text
+
+
+def _check_kind(key: str, spec: dict, values: list[Value]) -> None:
+    """A scene key that holds numbers (or a list of numbers) takes numbers only."""
+    found = _container(spec, key)
+    if found is None:  # not a scene key: check_key refuses it
+        return
+    node, last = found
+    current = node[last]
+    numeric = (isinstance(current, (int, float)) and not isinstance(current, bool)) or (
+        isinstance(current, list) and current
+        and all(isinstance(v, (int, float)) for v in current))
+    for v in values:
+        if numeric and isinstance(v, str):
+            raise SceneError("--vary", f"{key}: value {v!r} is not a number",
+                             f"give numbers, e.g. {key}=0.05,0.1")
+
+
 def parse_vary(texts: Sequence[str]) -> dict[str, list[Value]]:
     """``["noise.sigma=0.05,0.1", "dt=0.02,0.01"]`` -> ``{"noise.sigma": [0.05, 0.1], ...}``.
 
-    Values are read as YAML scalars (``0.1`` a number, ``bridge`` a name).
+    A value that reads as an int or a float is a number (``0.1``, ``1e-2``), otherwise a name
+    (``bridge``).
     """
     vary: dict[str, list[Value]] = {}
     for text in texts:
@@ -114,14 +139,7 @@ def parse_vary(texts: Sequence[str]) -> dict[str, list[Value]]:
             raise SceneError("--vary", f"{key}: bad value list {values!r}",
                              "give comma-separated values without empty items, e.g. "
                              f"{key}=0.05,0.1")
-        parsed = []
-        for v in parts:
-            try:
-                item = yaml.safe_load(v)
-            except yaml.YAMLError:
-                item = v
-            parsed.append(check_value(key, v if item is None else item))
-        vary[key] = parsed
+        vary[key] = [check_value(key, _scalar(v)) for v in parts]
     return vary
 
 
@@ -142,6 +160,8 @@ def grid(vary: Mapping[str, Sequence[Any]] | None, spec: dict) -> list[Point]:
             raise SceneError("--vary", f"{key}: repeated value in {list(values)!r}",
                              "give each value once")
         lists.append([check_value(key, v) for v in values])
+        if key not in RUN_OPTIONS:
+            _check_kind(key, spec, lists[-1])
     return [dict(zip(keys, combo)) for combo in itertools.product(*lists)]
 
 
