@@ -202,6 +202,11 @@ def test_external_scheduler_from_the_command_line(tmp_path, scene, capsys):
     assert summ["dt_s"] == 0.02 and len(list((out / "summaries").glob("*.json"))) == 4
 
 
+def test_the_bundled_scene_by_name(client):
+    table = run("room_door", runs=1, t_end=0.02, client=client)
+    assert list(table["status"]) == ["ok"] and list(table["agents"]) == [200]
+
+
 def test_record_full_needs_the_directory_on_the_worker(tmp_path):
     spec = _scene_dict(SCENE)
     row = simulate(Task(spec=spec, name="small", seed=0, dt=0.01, scheme="projected_euler",
