@@ -484,3 +484,86 @@ def test_cut_tail_reads_without_exception(tmp_path):
         if cut >= starts[0]:
             assert md == {"sweep_ros": META, "scene_spec": {"yaml": "agents: 13\n"}}, cut
     assert previous == len(full)
+
+
+def test_recover_keeps_exactly_what_our_reader_reads_at_any_cut(tmp_path):
+    """`sweep recover` (recover()) at cuts inside and between chunks, metadata and the summary:
+    the same messages as read_recording (bit for bit, in order, with sequence numbers and
+    publish times), schemas, channel metadata (QoS) and metadata records, in a file that mcap's
+    seeking reader opens with its summary."""
+    from sweep_core.io.recording.recover import recover
+
+    path = tmp_path / "full.mcap"
+    _write_run(path, n_steps=120, chunk_size=8192)
+    data = path.read_bytes()
+    with open(path, "rb") as f:
+        summary = SeekingReader(f).get_summary()
+    starts = sorted(ci.chunk_start_offset for ci in summary.chunk_indexes)
+    offsets = {8, 9, 20, 100, len(data) - 1, len(data) - 37, len(data) - 200}
+    for s in starts:
+        offsets |= {s - 1, s, s + 9, s + 100}
+    offsets |= set(range(0, len(data), 1999))
+    for cut in sorted(o for o in offsets if 8 <= o <= len(data)):
+        p = tmp_path / "cut.mcap"
+        p.write_bytes(data[:cut])
+        ours = [(m.topic, m.msgtype, m.log_time_ns, m.publish_time_ns, m.data)
+                for m in read_recording(p)]
+        res = recover(p, tmp_path / "fixed.mcap")
+        assert res.message_count == len(ours) and res.kept_bytes <= cut, cut
+        assert res.lost_bytes == cut - res.kept_bytes, cut
+        with open(tmp_path / "fixed.mcap", "rb") as f:
+            reader = make_reader(f)
+            fixed_summary = reader.get_summary()
+            assert fixed_summary is not None, cut
+            got = [(c.topic, s.name, m.log_time, m.publish_time, m.data)
+                   for s, c, m in reader.iter_messages(log_time_order=False)]
+            seqs = {}
+            for _, c, m in reader.iter_messages(log_time_order=False):
+                seqs.setdefault(c.topic, []).append(m.sequence)
+            md = {m.name: m.metadata for m in reader.iter_metadata()}
+        assert got == ours, cut
+        assert all(s == list(range(1, len(s) + 1)) for s in seqs.values()), cut
+        assert md.pop("sweep_recover")["kept_bytes"] == str(res.kept_bytes)
+        assert md == read_metadata(p), cut
+        if got:
+            qos = {c.topic: c.metadata for c in fixed_summary.channels.values()}
+            assert qos["/crowd/poses"]["offered_qos_profiles"] == DEFAULT_QOS_PROFILES
+    assert res.complete  # the last cut is the whole file
+
+
+def test_recover_keeps_attachments_and_never_overwrites_its_input(tmp_path):
+    from mcap.writer import Writer
+
+    from sweep_core.io.recording.recover import recover
+
+    path = tmp_path / "a.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f, chunk_size=256)
+        w.start(profile="ros2", library="test")
+        w.add_attachment(5, 6, "scene.yaml", "text/yaml", b"agents: 1\n")
+        sid = w.register_schema(cdr.CLOCK, "ros2msg", b"builtin_interfaces/Time clock\n")
+        cid = w.register_channel("/clock", "cdr", sid)
+        for i in range(50):
+            w.add_message(cid, i, cdr.encode_clock(i), i, i + 1)
+        w.finish()
+    data = path.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) // 2])
+    res = recover(cut)
+    assert res.out == str(tmp_path / "cut.recovered.mcap") and res.attachments == 1
+    assert 0 < res.message_count < 50 and not res.complete and res.tail
+    with open(res.out, "rb") as f:
+        reader = make_reader(f)
+        assert reader.get_header().profile == "ros2"
+        [att] = list(reader.iter_attachments())
+        assert (att.name, att.media_type, att.data, att.create_time, att.log_time) == \
+            ("scene.yaml", "text/yaml", b"agents: 1\n", 5, 6)
+    before = cut.read_bytes()
+    with pytest.raises(RecordingError, match="never overwrites its input"):
+        recover(cut, cut)
+    link = tmp_path / "link.mcap"
+    link.symlink_to(cut)
+    with pytest.raises(RecordingError, match="never overwrites its input"):
+        recover(cut, link)
+    assert cut.read_bytes() == before
+    assert not list(tmp_path.glob(".*partial"))

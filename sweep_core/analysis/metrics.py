@@ -9,7 +9,9 @@ frames (one per recorded step), :func:`analyze` the metrics.
 
 Precision of each metric:
 
-* minimum gap, contacts, flow through a line, arrival times, density map: from ``/poses``
+* minimum gap, touching (true constraints with gap <= CONTACT_TOL: agent pairs, agent-wall
+  and agent-obstacle; not ``sweep run``'s active_rows, the rows of the linearised set that hold
+  with equality after a step's projection), flow through a line, arrival times, density map: from ``/poses``
   (float64, the engine's own numbers) with radii r_i(t) evaluated from the recorded scene in
   float64, so the minimum gap is the engine's ``State.min_gap`` bit for bit;
 * speeds and reaction (contact pressure): from ``/agents`` (float32, relative error about 6e-8).
@@ -36,6 +38,8 @@ from sweep_core.model.geometry import Geometry, gaps
 CONTACT_TOL = 1e-6
 #: width of the speed histogram bins (m/s); speed quantiles are exact to half of it
 SPEED_BIN = 1e-3
+#: most cells of the density map (``--cell``): 4e6 cells are 32 MB of counts, a 2000 x 2000 grid
+MAX_CELLS = 4_000_000
 
 
 def parse_line(text: str) -> tuple[float, float, float, float]:
@@ -78,16 +82,32 @@ def line_crossings(p0: np.ndarray, p1: np.ndarray, line: tuple[float, float, flo
     return out
 
 
+def _cells(lo: float, hi: float, cell: float) -> int:
+    """Cells of side ``cell`` spanned along one axis by points in [lo, hi] (m)."""
+    return math.floor(hi / cell) - math.floor(lo / cell) + 1
+
+
 class _Hist2D:
-    """Counts of points per square cell, on a grid that grows as needed."""
+    """Counts of points per square cell, on a grid that grows as needed up to MAX_CELLS.
+
+    A grid that would grow beyond MAX_CELLS stops counting but keeps the extent of the points;
+    :meth:`check` then refuses it, naming the smallest cell that fits the whole run.
+    """
 
     def __init__(self, cell: float) -> None:
         self.cell = cell
         self.counts = np.zeros((0, 0), dtype=np.int64)
         self.ix0 = self.iy0 = 0
+        self.lo = np.array([math.inf, math.inf])
+        self.hi = -self.lo
+        self.too_fine = False
 
     def add(self, q: np.ndarray) -> None:
         if not len(q):
+            return
+        self.lo = np.minimum(self.lo, q.min(axis=0))
+        self.hi = np.maximum(self.hi, q.max(axis=0))
+        if self.too_fine:
             return
         ix = np.floor(q[:, 0] / self.cell).astype(np.int64)
         iy = np.floor(q[:, 1] / self.cell).astype(np.int64)
@@ -97,11 +117,37 @@ class _Hist2D:
         lo_x, lo_y = min(self.ix0, int(ix.min())), min(self.iy0, int(iy.min()))
         hi_x, hi_y = max(self.ix0 + w, int(ix.max()) + 1), max(self.iy0 + h, int(iy.max()) + 1)
         if (lo_x, lo_y, hi_x - lo_x, hi_y - lo_y) != (self.ix0, self.iy0, w, h):
+            if (hi_x - lo_x) * (hi_y - lo_y) > MAX_CELLS:
+                self.too_fine = True
+                self.counts = np.zeros((0, 0), dtype=np.int64)
+                return
             grown = np.zeros((hi_y - lo_y, hi_x - lo_x), dtype=np.int64)
             grown[self.iy0 - lo_y:self.iy0 - lo_y + h, self.ix0 - lo_x:self.ix0 - lo_x + w] = \
                 self.counts
             self.counts, self.ix0, self.iy0 = grown, lo_x, lo_y
         np.add.at(self.counts, (iy - self.iy0, ix - self.ix0), 1)
+
+    def _fits(self, cell: float) -> bool:
+        (x0, y0), (x1, y1) = self.lo, self.hi
+        return _cells(x0, x1, cell) * _cells(y0, y1, cell) <= MAX_CELLS
+
+    def check(self) -> None:
+        """Raises SweepError if the grid needed more than MAX_CELLS cells (see the class)."""
+        if not self.too_fine:
+            return
+        (x0, y0), (x1, y1) = self.lo, self.hi
+        nx, ny = _cells(x0, x1, self.cell), _cells(y0, y1, self.cell)
+        c = max(math.sqrt((x1 - x0) * (y1 - y0) / MAX_CELLS), self.cell)
+        while not self._fits(c):
+            c *= 1.01
+        # shown with 2 significant digits, rounded up to a cell that fits
+        shown = float(f"{c:.2g}")
+        while shown < c or not self._fits(shown):
+            shown = float(f"{shown + 10.0 ** (math.floor(math.log10(shown)) - 1):.2g}")
+        raise SweepError(f"--cell: {self.cell:g} m makes a density grid of {nx} x {ny} = "
+                         f"{nx * ny:.3g} cells over the {x1 - x0:.3g} x {y1 - y0:.3g} m the "
+                         f"agents cover, more than the limit {MAX_CELLS:g} "
+                         f"(fix: --cell {shown:g} or larger)")
 
 
 @dataclass
@@ -111,7 +157,7 @@ class Analysis:
     ``speed_hist`` (counts per SPEED_BIN), ``arrival`` and ``evacuation`` times per agent
     (s from the first frame, NaN if never)."""
 
-    COLUMNS = ("t_s", "step", "min_gap_m", "contacts", "reaction_total_m", "pressure_m_per_s",
+    COLUMNS = ("t_s", "step", "min_gap_m", "touching", "reaction_total_m", "pressure_m_per_s",
                "speed_mean_m_per_s", "speed_max_m_per_s", "crossings_net", "arrived")
 
     meta: RunMeta
@@ -265,6 +311,7 @@ class _Metrics:
         return True
 
     def result(self, reader: FrameReader) -> Analysis:
+        self.density.check()
         meta, cell = self.meta, self.density.cell
         table = np.array(self.rows, dtype=np.float64).reshape(-1, len(Analysis.COLUMNS))
         frames = len(table)
@@ -275,8 +322,16 @@ class _Metrics:
         duration = float(table[-1, 0] - table[0, 0])
         dens = self.density.counts / (frames * cell * cell)
         origin = (self.density.ix0 * cell, self.density.iy0 * cell)
+        touching = {
+            "mean": float(np.mean(table[:, 3])),
+            "max": int(np.max(table[:, 3])),
+            "tolerance_m": CONTACT_TOL,
+            "precision": "float64 (/poses): true constraints (agent pairs, agent-wall, "
+                         "agent-obstacle) with gap <= tolerance in the recorded frame",
+        }
         summary: dict[str, Any] = {
             "recording": meta.path,
+            "status": meta.status,
             "truncated": bool(reader.truncated),
             "read_until": reader.error if reader.truncated else None,
             "scene": meta.scene.name if meta.scene is not None else None,
@@ -295,12 +350,10 @@ class _Metrics:
                 "precision": "float64 (/poses, radii from the scene)" if meta.scene is not None
                              else "float64 centres, float32 radii (no scene in the metadata)",
             },
-            "contacts": {
-                "mean": float(np.mean(table[:, 3])),
-                "max": int(np.max(table[:, 3])),
-                "tolerance_m": CONTACT_TOL,
-                "precision": "float64 (/poses): constraints with gap <= tolerance",
-            },
+            "touching": touching,
+            # the same numbers under their old name, kept for scripts that read it; "touching"
+            # says what they are (sweep run's active_rows counts something else)
+            "contacts": dict(touching),
             "reaction": {
                 "total_mean_m": _stats(table[:, 4], np.mean),
                 "total_max_m": _stats(table[:, 4], np.max),

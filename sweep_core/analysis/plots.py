@@ -55,11 +55,11 @@ def plot_analysis(an: Analysis, png: Path) -> None:
     ax = axes[0, 1]
     ax.plot(t, tab[:, 3], lw=1, color="C0")
     ax.set_xlabel("t (s)")
-    ax.set_ylabel("active contacts", color="C0")
+    ax.set_ylabel("touching (gap <= 1e-6 m)", color="C0")
     ax2 = ax.twinx()
     ax2.plot(t, tab[:, 5], lw=1, color="C3")
     ax2.set_ylabel("total reaction / dt (m/s)", color="C3")
-    ax.set_title("contacts and pressure")
+    ax.set_title("touching constraints and pressure")
     ax = axes[0, 2]
     ax.plot(t, tab[:, 6], lw=1, label="mean")
     ax.plot(t, tab[:, 7], lw=0.8, alpha=0.6, label="max")

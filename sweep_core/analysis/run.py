@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import bisect
 import json
+import os
 import re
 from dataclasses import dataclass, field
 from dataclasses import fields as dc_fields
@@ -13,6 +14,7 @@ from typing import Any
 
 from sweep_core.errors import RecordingError, SweepError
 from sweep_core.io import cdr
+from sweep_core.io.metadata import describe_status
 from sweep_core.io.recording import ChannelInfo, scan_recording
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.projection import SolverOptions
@@ -73,6 +75,8 @@ class RunMeta:
     truncated: bool
     error: str | None
     problems: list[str] = field(default_factory=list)
+    #: how the run ended (its ``sweep_status`` record), see :func:`describe_status`
+    status: str = ""
 
     @property
     def dt_ns(self) -> int | None:
@@ -160,6 +164,14 @@ def load_run(path: str | Path) -> RunMeta:
     seed = _number(raw, "seed", int, problems)
     declared = _json(raw.get("topics"), "topics", problems)
     poses = _pick_topic(info.channels, "/poses", cdr.POSE_ARRAY, declared)
+    if info.message_count == 0 and poses is None:
+        if info.truncated:
+            raise RecordingError(f"{info.path}: no messages: the file ends at byte "
+                                 f"{os.path.getsize(info.path)} before its first chunk; it was "
+                                 "cut short before its first flush (fix: record again and let "
+                                 "the run last more than a second)")
+        raise RecordingError(f"{info.path}: no messages: the recording is empty (fix: record "
+                             "at least one step)")
     if poses is None:
         raise RecordingError(f"{info.path}: no geometry_msgs/msg/PoseArray topic '/poses' "
                              f"(topics: {sorted(info.channels)}) (fix: analyse a recording "
@@ -179,7 +191,8 @@ def load_run(path: str | Path) -> RunMeta:
         commands=[], parameter_changes=[], resets=resets, poses_topic=poses,
         agents_topic=agents,
         frames=info.channels[poses].message_count if poses in info.channels else 0,
-        truncated=info.truncated, error=info.error, problems=problems)
+        truncated=info.truncated, error=info.error, problems=problems,
+        status=describe_status(info.metadata, info.truncated))
     for k, rec in _indexed(info.metadata, "command"):
         spec = _json(rec.get("field"), f"command_{k:06d}.field", problems)
         try:

@@ -1,11 +1,11 @@
 """The ``sweep`` command: ``run`` a scene headless and record it, ``analyze``, ``replay`` and
-``compare`` recordings, ``bench accuracy`` and ``bench speed``."""
+``compare`` recordings, ``recover`` one cut short, ``bench accuracy`` and ``bench speed``."""
 from __future__ import annotations
 
 import argparse
 import sys
 
-from sweep_core.cli import analysis, bench, run
+from sweep_core.cli import analysis, bench, ensemble, recover, run
 from sweep_core.errors import SweepError
 
 
@@ -14,7 +14,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     run.register(sub)
     analysis.register(sub)
+    recover.register(sub)
     bench.register(sub)
+    ensemble.register(sub)
     return parser
 
 

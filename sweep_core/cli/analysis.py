@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from sweep_core.analysis import compare, metrics, replay, report
+from sweep_core.io.recording.recover import hint
 
 __all__ = ["register"]
 
@@ -23,13 +25,18 @@ def _analyze(args: argparse.Namespace) -> int:
         if an.summary["truncated"]:
             print(f"truncated recording: read up to its last complete chunk "
                   f"({an.summary['read_until']})")
-        print(report.format_summary(an.summary))
+        # "contacts" repeats "touching" under its old name, for JSON readers only
+        print(report.format_summary(an.summary, skip=("precision", "contacts")))
+    if an.summary["truncated"]:
+        print(hint(args.recording), file=sys.stderr)
     return 0
 
 
 def _replay(args: argparse.Namespace) -> int:
     res = replay.replay(args.recording, progress=not args.quiet)
     print(report.dumps(res.to_dict()) if args.json else replay.format_replay(res))
+    if res.truncated:
+        print(hint(args.recording), file=sys.stderr)
     return 0 if res.identical else 1
 
 
@@ -43,23 +50,33 @@ def _compare(args: argparse.Namespace) -> int:
     else:
         print(compare.format_comparison(cmp))
         print(f"{'outputs':<18} {', '.join(files.values())}")
+    for path in cmp.truncated:
+        print(hint(path), file=sys.stderr)
     return 0
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Adds the ``analyze``, ``replay`` and ``compare`` subcommands to ``sweep``."""
-    p = sub.add_parser("analyze", help="metrics of a recording: gaps, contacts, pressure, "
-                       "speeds, flow, arrivals, density (CSV, PNG, summary)",
+    p = sub.add_parser("analyze", help="metrics of a recording: gaps, touching constraints, "
+                       "pressure, speeds, flow, arrivals, density (CSV, PNG, summary)",
                        description="Writes RUN.analysis.csv (one row per recorded step), "
                        "RUN.density.csv and RUN.analysis.png next to RUN.mcap and prints a "
-                       "summary. A recording cut short is read up to its last complete chunk.")
+                       "summary, starting with how the run ended (its status record: completed, "
+                       "interrupted, failed). 'touching' counts the true constraints (agent "
+                       "pairs, agent-wall, agent-obstacle) with a gap <= 1e-6 m in each recorded "
+                       "frame; sweep run's 'active_rows' counts the rows of the linearised set "
+                       "that hold with equality after each step's projection, a different "
+                       "number. A recording cut short is read up to its last complete chunk "
+                       "(sweep recover makes a complete copy of it).")
     p.add_argument("recording", help="MCAP file from sweep run or sweep_node")
     p.add_argument("--line", metavar="x0,y0,x1,y1",
                    help="counting line (m): flow through it, positive from left to right "
                         "looking from (x0, y0) to (x1, y1), and evacuation times")
     p.add_argument("--arrive-radius", type=float, default=None, metavar="R",
                    help="arrived = within R m of the goal in effect (default: its slow_radius)")
-    p.add_argument("--cell", type=float, default=0.5, help="density map cell, m (default 0.5)")
+    p.add_argument("--cell", type=float, default=0.5,
+                   help=f"density map cell, m (default 0.5; the map has at most "
+                        f"{metrics.MAX_CELLS:g} cells)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

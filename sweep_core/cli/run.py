@@ -1,17 +1,27 @@
-"""``sweep run``: run a scene headless, record it to MCAP, print and write the summary."""
+"""``sweep run``: run a scene headless, record it to MCAP, print and write the summary.
+
+SIGINT and SIGTERM stop the run between two steps; however it ends (completed, interrupted,
+failed), the recording gets a last metadata record ``sweep_status`` and its summary and footer,
+and ``OUT.summary.json`` is written with that status.
+"""
 from __future__ import annotations
 
 import argparse
 import json
 import math
+import signal
+import sys
+import threading
 import time
 from pathlib import Path
+from typing import Any
 
-from sweep_core.errors import RecordingError
-from sweep_core.io import topics
-from sweep_core.io.metadata import run_metadata
+from sweep_core import checks
+from sweep_core.errors import RecordingError, SweepError
+from sweep_core.io import limits, topics
+from sweep_core.io.metadata import STATUS_RECORD, run_metadata, status_metadata
 from sweep_core.io.recording import BackgroundRecorder
-from sweep_core.model.scene import load_scene
+from sweep_core.model.scene import Scene, load_scene
 from sweep_core.numerics import paths
 from sweep_core.numerics.projection import SolverOptions
 from sweep_core.numerics.projection.options import METHODS
@@ -19,23 +29,78 @@ from sweep_core.numerics.schemes import SCHEMES
 from sweep_core.numerics.simulator import Simulator
 
 
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM stopped the run between two steps; ``signum`` says which."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+class StopOnSignal:
+    """SIGINT and SIGTERM set a flag that the run checks after every step.
+
+    The run then stops between two steps and takes its ordinary exit: the status record, the
+    recording's summary and footer, the summary JSON. A step that blocks in native code (a QP
+    solve) delays the stop until it returns; a second signal of the same kind gets the default
+    action (immediate termination: the recording stays readable up to its last flushed chunk,
+    and ``sweep recover`` turns it into a complete file). Handlers can only be installed from
+    the main thread; elsewhere this does nothing (SIGINT then stays a KeyboardInterrupt).
+    """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> StopOnSignal:
+        if threading.current_thread() is threading.main_thread():
+            for sig in self.SIGNALS:
+                self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous.clear()
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        self.signum = signum
+        signal.signal(signum, signal.SIG_DFL)
+
+    def check(self) -> None:
+        """Raises :class:`Interrupted` once a signal has arrived."""
+        if self.signum is not None:
+            raise Interrupted(self.signum)
+
+
 def _run(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene)
+    dt = limits.check_dt(args.dt, "--dt")
+    t_end = checks.number(args.t_end, "--t-end", nonnegative=True)
     solver = SolverOptions.from_values(args.eps_abs, args.max_iter, exact_vars=args.exact_vars,
                                        tol=args.tol, max_rounds=args.max_rounds,
                                        method=args.method)
-    sim = Simulator(scene, dt=args.dt, seed=args.seed, scheme=args.scheme, solver=solver)
-    scene.check_horizon(args.t_end)
+    sim = Simulator(scene, dt=dt, seed=args.seed, scheme=args.scheme, solver=solver)
+    scene.check_horizon(t_end)
+    if args.path_dt:
+        paths.substeps(dt, args.path_dt)  # refused before the recording is created
+    limits.check_run_size(scene.n_agents, dt, t_end, args.record_every,
+                          path_dt=args.path_dt or None, frame_id=args.frame_id, force=args.force)
     out = Path(args.out)
-    stats = {"min_gap": math.inf, "contacts_max": 0, "contacts_sum": 0, "steps": 0,
+    stats = {"min_gap": math.inf, "active_rows_max": 0, "active_rows_sum": 0, "steps": 0,
              "backend_agents_max": 0, "bound_max_m": 0.0}
 
-    meta = run_metadata(scene, sim, args.t_end, args.record_every)
+    meta = run_metadata(scene, sim, t_end, args.record_every)
     meta["path_dt"] = repr(args.path_dt) if args.path_dt else ""
+    status, error = "completed", ""
+    failure: BaseException | None = None
+    wall = 0.0
     # compression and disk writes happen on the recorder's own thread; a backlog of 64 messages
     # (32 recorded steps) at most, so a writer that falls behind slows the run instead of
     # filling the memory
-    with BackgroundRecorder(out, metadata=meta, max_backlog=64) as rec:
+    with StopOnSignal() as stop, BackgroundRecorder(out, metadata=meta, max_backlog=64) as rec:
         for name, msgtype in topics.TYPES.items():
             rec.add_channel("/" + name, msgtype)
 
@@ -48,51 +113,100 @@ def _run(args: argparse.Namespace) -> int:
             if state.step:
                 stats["steps"] += 1
                 stats["min_gap"] = min(stats["min_gap"], state.min_gap)
-                stats["contacts_max"] = max(stats["contacts_max"], state.contacts)
-                stats["contacts_sum"] += state.contacts
+                stats["active_rows_max"] = max(stats["active_rows_max"], state.contacts)
+                stats["active_rows_sum"] += state.contacts
                 stats["backend_agents_max"] = max(stats["backend_agents_max"], s.backend_agents)
                 stats["bound_max_m"] = max(stats["bound_max_m"], s.bound)
+            stop.check()
 
-        record(sim)
         start = time.perf_counter()
-        if args.path_dt:
-            paths.run(sim, args.t_end, args.path_dt, progress=not args.quiet, callback=record)
-        else:
-            sim.run(args.t_end, progress=not args.quiet, callback=record)
+        try:
+            record(sim)
+            if args.path_dt:
+                paths.run(sim, t_end, args.path_dt, progress=not args.quiet, callback=record)
+            else:
+                sim.run(t_end, progress=not args.quiet, callback=record)
+        except Interrupted as err:
+            status, error, failure = "interrupted", str(err), err
+        except KeyboardInterrupt as err:  # SIGINT outside the main thread's handler
+            status, error, failure = "interrupted", "SIGINT", err
+        except Exception as err:  # noqa: BLE001 - recorded as the run's status, then re-raised
+            status, failure = "failed", err
+            error = str(err) if isinstance(err, SweepError) else f"{type(err).__name__}: {err}"
         wall = time.perf_counter() - start
-    if rec.error:
-        raise RecordingError(rec.error)
+        rec.metadata(STATUS_RECORD, status_metadata(status, steps=stats["steps"], t=sim.t,
+                                                    error=error))
+    if rec.error and status == "completed":
+        status, error = "failed", rec.error
+        failure = RecordingError(rec.error)
+    summary_path = _write_summary(args, out, scene, sim, solver, stats, wall, status, error)
+    if isinstance(failure, Interrupted):
+        print(f"sweep: interrupted by {error} at t = {sim.t:g} s (step {stats['steps']}); "
+              f"the recording was closed: {out}; summary: {summary_path}", file=sys.stderr)
+        return 128 + failure.signum
+    if failure is not None:
+        raise failure
+    return 0
+
+
+def _write_summary(args: argparse.Namespace, out: Path, scene: Scene, sim: Simulator,
+                   solver: SolverOptions, stats: dict, wall: float, status: str,
+                   error: str) -> Path:
+    """Writes ``OUT.summary.json`` and prints it (to stdout); returns its path.
+
+    ``active_rows_*``: rows of a step's linearised constraint set (agent pairs near enough to
+    be built, walls, obstacles) that hold with equality after its projection.
+    """
     steps = stats["steps"]
     summary = {
+        "status": status, "error": error,
         "scene": scene.name, "agents": scene.n_agents, "t_end_s": sim.t, "dt_s": sim.dt,
         "seed": sim.seed, "scheme": sim.scheme.name, "steps": steps, "wall_time_s": wall,
         "steps_per_s": steps / wall if wall > 0 else math.inf,
         "ms_per_step": 1e3 * wall / steps if steps else 0.0,
         "min_gap_m": stats["min_gap"] if steps else sim.min_gap,
         "max_overlap_m": max(0.0, -stats["min_gap"]) if steps else 0.0,
-        "contacts_mean": stats["contacts_sum"] / steps if steps else 0.0,
-        "contacts_max": stats["contacts_max"],
+        "active_rows_mean": stats["active_rows_sum"] / steps if steps else 0.0,
+        "active_rows_max": stats["active_rows_max"],
         "backend_agents_max": stats["backend_agents_max"],
         "bound_max_m": stats["bound_max_m"], "tol_m": solver.tol, "recording": str(out),
-        "recording_bytes": out.stat().st_size,
+        "recording_bytes": out.stat().st_size if out.exists() else 0,
     }
     summary_path = out.with_suffix(".summary.json")
-    summary_path.write_text(json.dumps(summary, indent=2) + "\n")
+    try:
+        summary_path.write_text(json.dumps(summary, indent=2) + "\n")
+    except OSError as err:  # e.g. the disk that stopped the recording is full
+        print(f"sweep: warning: {summary_path}: cannot write the summary ({err.strerror}); "
+              "it is printed below", file=sys.stderr)
     width = max(len(k) for k in summary)
     for key, value in summary.items():
+        if key == "error" and not value:
+            continue
         shown = f"{value:.6g}" if isinstance(value, float) else str(value)
         print(f"{key:<{width}}  {shown}")
     print(f"{'summary':<{width}}  {summary_path}")
-    return 0
+    return summary_path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``run`` to the ``sweep`` command's subparsers."""
-    parser = sub.add_parser("run", help="run a scene headless and record it to MCAP")
+    parser = sub.add_parser(
+        "run", help="run a scene headless and record it to MCAP",
+        description="Runs a scene, records every K-th step to OUT (MCAP) and writes "
+        "OUT.summary.json. The summary's status is completed, interrupted (SIGINT, SIGTERM: the "
+        "run stops between two steps and the recording is closed) or failed (with the error); "
+        "the recording ends with a metadata record sweep_status saying the same. "
+        "active_rows_mean/max count the rows of a step's linearised constraint set (agent "
+        "pairs near enough to be built, walls, obstacles) that hold with equality after its "
+        "projection; sweep analyze's 'touching' counts true constraints with a gap <= 1e-6 m, "
+        "a different number. A run of more than 1e6 steps, or whose recording would exceed "
+        "2 GB, is refused unless --force.")
     parser.add_argument("scene", nargs="?", default=None,
                         help="scene YAML (default: the bundled room with a door, 200 agents)")
     parser.add_argument("--t-end", type=float, default=10.0, help="simulated time, s (default 10)")
-    parser.add_argument("--dt", type=float, default=0.01, help="time step, s (default 0.01)")
+    parser.add_argument("--dt", type=float, default=0.01,
+                        help=f"time step, s, in [{limits.DT_MIN:g}, {limits.DT_MAX:g}] as the "
+                             "node's dt parameter (default 0.01)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the Brownian path (default 0)")
     parser.add_argument("--scheme", default="projected_euler", choices=sorted(SCHEMES))
     parser.add_argument("--out", default="run.mcap", help="MCAP file to write (default run.mcap)")
@@ -120,5 +234,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--path-dt", type=float, default=None, metavar="FINE",
                         help="draw the Brownian path at FINE s and sum dt/FINE increments per step, "
                              "so runs at different dt share one path (sweep compare)")
+    parser.add_argument("--force", action="store_true",
+                        help=f"run even beyond {limits.MAX_STEPS:g} steps or a recording of "
+                             f"more than {limits.MAX_RECORDING_BYTES / 1e9:g} GB (estimated "
+                             "uncompressed: 88 bytes per agent per recorded step)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=_run)
