@@ -387,8 +387,10 @@ def _box(m: Marker, a: np.ndarray, b: np.ndarray, thickness: float, height: floa
 def wall_markers(geometry: Geometry, positions: np.ndarray, frame_id: str, stamp_ns: int,
                  t: float, height: float = 1.0) -> MarkerArray:
     """Walls (namespace ``walls``: CUBE per segment, a long CUBE per half-plane at time t) and
-    obstacles (namespace ``obstacles``: CYLINDER per circle)."""
+    obstacles (namespace ``obstacles``: CYLINDER per circle); moving obstacles at their pose
+    at t."""
     out = []
+    geometry = geometry.at(t)
     lo, hi = scene_extent(geometry, positions)
     centre, reach = (lo + hi) / 2, float(np.hypot(*(hi - lo)))
 

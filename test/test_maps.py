@@ -127,3 +127,27 @@ def test_bad_map_files_are_refused(tmp_path: Path) -> None:
         read_map_yaml(path)
     with pytest.raises(SceneError, match="cannot read"):
         read_map_yaml(tmp_path / "missing.yaml")
+
+
+def test_sweep_map_prints_draws_and_writes_a_scene(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from sweep_core.cli import main
+
+    path = write_map(tmp_path)
+    png, scene_file = tmp_path / "walls.png", tmp_path / "scene.yaml"
+    assert main(["map", str(path), "--png", str(png), "--scene", str(scene_file),
+                 "--count", "10", "--radius", "0.15"]) == 0
+    out = capsys.readouterr().out
+    assert "8 x 6 of 0.5 m" in out and "wall_length_m" in out and "12" in out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    scene = sc.Scene.from_yaml(scene_file)  # the map path is relative to the scene file
+    assert scene.n_agents == 10
+    sim = sc.Simulator(scene, dt=0.01, seed=0)
+    sim.step(20)
+
+
+def test_sweep_map_bad_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from sweep_core.cli import main
+
+    assert main(["map", str(tmp_path / "nope.yaml")]) != 0
+    err = capsys.readouterr().err
+    assert "cannot read" in err and "Traceback" not in err

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from sweep_core.cli import analysis, bench, ensemble, recover, run
+from sweep_core.cli import analysis, bench, ensemble, maps, recover, run
 from sweep_core.errors import SweepError
 
 
@@ -15,6 +15,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.register(sub)
     analysis.register(sub)
     recover.register(sub)
+    maps.register(sub)
     bench.register(sub)
     ensemble.register(sub)
     return parser

@@ -6,7 +6,7 @@ Distances in m, positions (N, 2).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -49,6 +49,15 @@ class Geometry:
     segment_polygon: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.intp))
     segment_part: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.intp))
     segment_kind: tuple[str, ...] = ()
+    #: rigid motions of moving obstacles: row m of motion_velocity (M, 2) m/s,
+    #: motion_angular (M,) rad/s, motion_pivot (M, 2) m moves a point p0 to
+    #: pivot + Rot(w t) (p0 - pivot) + v t; segment_motion (S,) and circle_motion (O,) give
+    #: each segment's or circle's motion row (-1: static)
+    motion_velocity: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    motion_angular: np.ndarray = field(default_factory=lambda: np.empty(0))
+    motion_pivot: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    segment_motion: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.intp))
+    circle_motion: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.intp))
 
     def __post_init__(self) -> None:
         s = len(self.segment_a)
@@ -58,6 +67,43 @@ class Geometry:
             object.__setattr__(self, "segment_part", np.zeros(s, dtype=np.intp))
         if len(self.segment_kind) != s:
             object.__setattr__(self, "segment_kind", ("segment",) * s)
+        if len(self.segment_motion) != s:
+            object.__setattr__(self, "segment_motion", np.full(s, -1, dtype=np.intp))
+        if len(self.circle_motion) != len(self.circle_radius):
+            object.__setattr__(self, "circle_motion",
+                               np.full(len(self.circle_radius), -1, dtype=np.intp))
+
+    @property
+    def is_moving(self) -> bool:
+        """Some obstacle moves (``at`` gives its pose at a time)."""
+        return len(self.motion_angular) > 0
+
+    def at(self, t: float) -> Geometry:
+        """The geometry at time t (s): moving obstacles at their pose, with no motion left
+        (the same object when nothing moves). Half-planes keep their own velocity."""
+        if not self.is_moving:
+            return self
+        angle = self.motion_angular * t
+        cos, sin = np.cos(angle), np.sin(angle)
+
+        def move(p: np.ndarray, m: np.ndarray) -> np.ndarray:
+            out = p.copy()
+            on = m >= 0
+            k = m[on]
+            d = p[on] - self.motion_pivot[k]
+            out[on, 0] = (self.motion_pivot[k, 0] + cos[k] * d[:, 0] - sin[k] * d[:, 1]
+                          + self.motion_velocity[k, 0] * t)
+            out[on, 1] = (self.motion_pivot[k, 1] + sin[k] * d[:, 0] + cos[k] * d[:, 1]
+                          + self.motion_velocity[k, 1] * t)
+            return out
+
+        return replace(self, segment_a=move(self.segment_a, self.segment_motion),
+                       segment_b=move(self.segment_b, self.segment_motion),
+                       circle_center=move(self.circle_center, self.circle_motion),
+                       motion_velocity=np.empty((0, 2)), motion_angular=np.empty(0),
+                       motion_pivot=np.empty((0, 2)),
+                       segment_motion=np.full(len(self.segment_a), -1, dtype=np.intp),
+                       circle_motion=np.full(len(self.circle_radius), -1, dtype=np.intp))
 
     @property
     def is_empty(self) -> bool:
@@ -87,6 +133,7 @@ def single_values(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray
                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """For each kind: (g, n, foot) with g (N, K) = constraint values at (t, q) in m,
     n (N, K, 2) the unit gradient, foot (N, K) the bound offset <n, point on the wall>."""
+    geom = geom.at(t)
     out = []
     # half-planes: g = <n, q> - (c + v t) - r
     c = geom.halfplane_offset + geom.halfplane_velocity * t
@@ -145,6 +192,7 @@ def single_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: f
     1-D arrays (agent, item, g, n (M, 2), foot): what :func:`single_values` gives, without
     evaluating far pairs. Many segments (a map) are searched with a spatial index
     (:func:`segments_within`) instead of against every agent."""
+    geom = geom.at(t)
     n_seg = len(geom.segment_a)
     if n_seg == 0 or len(q) * n_seg <= DENSE_SEGMENTS:
         out = []

@@ -224,6 +224,7 @@ def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, l
     s_poly: list[int] = []
     s_part: list[int] = []
     s_kind: list[str] = []
+    s_m: list[int] = []
     walls_spec, obstacles_spec = [], []
 
     def add_chain(points: np.ndarray, closed: bool, index: int, kind: str, polygon: int) -> None:
@@ -235,6 +236,7 @@ def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, l
             s_poly.append(polygon)
             s_part.append(part)
             s_kind.append(kind)
+            s_m.append(-1)
 
     for k, wall in enumerate(_list(data.get("walls"), "walls")):
         field = f"walls[{k}]"
@@ -275,23 +277,48 @@ def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, l
                                  "for a round obstacle use obstacles: [{kind: circle, ...}]")
             add_chain(np.array([a, b]), False, k, "segment", -1)
             walls_spec.append({"kind": kind, "a": a.tolist(), "b": b.tolist()})
+    mv_v: list[np.ndarray] = []
+    mv_w: list[float] = []
+    mv_p: list[np.ndarray] = []
+    c_m: list[int] = []
+
+    def motion(obs: dict, field: str, centre: np.ndarray) -> tuple[int, dict]:
+        """The obstacle's rigid motion row (-1: static) and its normalised keys."""
+        if not any(key in obs for key in ("velocity", "angular_velocity", "pivot")):
+            return -1, {}
+        v = checks.vec2(obs.get("velocity", [0.0, 0.0]), f"{field}.velocity")
+        w = checks.number(obs.get("angular_velocity", 0.0), f"{field}.angular_velocity")
+        pivot = checks.vec2(obs["pivot"], f"{field}.pivot") if "pivot" in obs else centre
+        mv_v.append(v)
+        mv_w.append(w)
+        mv_p.append(pivot)
+        return len(mv_w) - 1, {"velocity": v.tolist(), "angular_velocity": w,
+                               "pivot": pivot.tolist()}
+
+    moving = {"velocity", "angular_velocity", "pivot"}
     for k, obs in enumerate(_list(data.get("obstacles"), "obstacles")):
         field = f"obstacles[{k}]"
         checks.mapping(obs, field)
         if checks.kind(obs, field, ("circle", "polygon")) == "polygon":
-            checks.mapping(obs, field, allowed={"kind", "points"}, required={"points"})
+            checks.mapping(obs, field, allowed={"kind", "points"} | moving, required={"points"})
             points = chain_points(obs["points"], f"{field}.points", True, 3)
+            first = len(sa)
             add_chain(points, True, k, "polygon", k)
-            obstacles_spec.append({"kind": "polygon", "points": points.tolist()})
+            row, keys = motion(obs, field, points.mean(axis=0))
+            s_m[first:] = [row] * (len(sa) - first)
+            obstacles_spec.append({"kind": "polygon", "points": points.tolist(), **keys})
             continue
-        checks.mapping(obs, field, allowed={"kind", "center", "radius"},
+        checks.mapping(obs, field, allowed={"kind", "center", "radius"} | moving,
                        required={"center", "radius"})
         center = checks.vec2(obs["center"], f"{field}.center")
         radius = checks.number(obs["radius"], f"{field}.radius", nonnegative=True)
         cc.append(center)
         cr.append(radius)
         c_i.append(k)
-        obstacles_spec.append({"kind": "circle", "center": center.tolist(), "radius": radius})
+        row, keys = motion(obs, field, center)
+        c_m.append(row)
+        obstacles_spec.append({"kind": "circle", "center": center.tolist(), "radius": radius,
+                               **keys})
 
     if grid is not None:
         for part, (a, b) in enumerate(zip(*grid.segments())):
@@ -301,6 +328,7 @@ def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, l
             s_poly.append(-1)
             s_part.append(part)
             s_kind.append("map")
+            s_m.append(-1)
 
     def arr(x: list, shape: tuple) -> np.ndarray:
         return np.array(x, dtype=np.float64).reshape(shape)
@@ -309,7 +337,10 @@ def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, l
                     arr(sb, (-1, 2)), arr(cc, (-1, 2)), arr(cr, (-1,)),
                     np.array(hp_i, dtype=np.intp), np.array(s_i, dtype=np.intp),
                     np.array(c_i, dtype=np.intp), np.array(s_poly, dtype=np.intp),
-                    np.array(s_part, dtype=np.intp), tuple(s_kind))
+                    np.array(s_part, dtype=np.intp), tuple(s_kind),
+                    arr(mv_v, (-1, 2)), arr(mv_w, (-1,)), arr(mv_p, (-1, 2)),
+                    np.array(s_m, dtype=np.intp),
+                    np.array(c_m, dtype=np.intp))
     return geom, walls_spec, obstacles_spec
 
 

@@ -1,0 +1,101 @@
+"""``sweep map``: what a map_server map becomes in a scene (its walls), a PNG of them over the
+map image, and a starter scene file that uses it."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from sweep_core.model.maps import OccupancyMap, read_map_yaml
+from sweep_core.model.yaml_files import dump_yaml
+
+__all__ = ["register"]
+
+
+def describe(grid: OccupancyMap) -> list[tuple[str, str]]:
+    """Key/value lines about the map and its walls."""
+    a, b = grid.segments()
+    h, w = grid.shape
+    free = ~grid.blocked
+    corners = grid.to_world(np.array([[0.0, 0.0], [w, h]]) * grid.resolution)
+    return [("map", grid.source), ("cells", f"{w} x {h} of {grid.resolution:g} m"),
+            ("origin", ", ".join(f"{v:g}" for v in grid.origin)),
+            ("extent_m", f"[{corners[0, 0]:g}, {corners[0, 1]:g}] to "
+                         f"[{corners[1, 0]:g}, {corners[1, 1]:g}]"),
+            ("free_cells", f"{int(free.sum())} ({100.0 * free.mean():.1f} %, "
+                           f"{float(free.sum()) * grid.resolution ** 2:g} m^2)"),
+            ("wall_segments", str(len(a))),
+            ("wall_length_m", f"{float(np.hypot(*(b - a).T).sum()):g}")]
+
+
+def starter_scene(grid: OccupancyMap, yaml_path: str, count: int, radius: float) -> dict:
+    """A scene on the map: agents spawned over the free cells' bounding box, no drift."""
+    rows, cols = np.nonzero(~grid.blocked)
+    lo = np.array([cols.min(), rows.min()], dtype=float) * grid.resolution
+    hi = (np.array([cols.max(), rows.max()], dtype=float) + 1.0) * grid.resolution
+    box = grid.to_world(np.array([lo, hi]))
+    return {"name": Path(yaml_path).stem, "map": {"yaml": yaml_path},
+            "agents": {"spawn": {"region": {"kind": "rectangle",
+                                            "min": box.min(axis=0).tolist(),
+                                            "max": box.max(axis=0).tolist()},
+                                 "count": count, "radius": radius, "seed": 0}},
+            "noise": {"sigma": 0.05}}
+
+
+def plot(grid: OccupancyMap, out: str) -> None:
+    """The blocked cells in grey and the walls in red, world coordinates."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    a, b = grid.segments()
+    h, w = grid.shape
+    fig, ax = plt.subplots(figsize=(8, 8 * h / max(w, 1) + 0.5))
+    x0, y0, yaw = grid.origin
+    if yaw == 0.0:
+        ax.imshow(~grid.blocked, cmap="gray", origin="lower", vmin=-0.5, vmax=1.0,
+                  extent=(x0, x0 + w * grid.resolution, y0, y0 + h * grid.resolution))
+    ax.plot(np.stack([a[:, 0], b[:, 0]]), np.stack([a[:, 1], b[:, 1]]), color="tab:red", lw=1)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"{Path(grid.source).name}: {len(a)} wall segments")
+    fig.savefig(out, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+
+
+def _map(args: argparse.Namespace) -> int:
+    grid = read_map_yaml(Path(args.map), "map")
+    width = max(len(k) for k, _ in describe(grid)) + 2
+    for key, value in describe(grid):
+        print(f"{key:<{width}}{value}")
+    if args.png:
+        plot(grid, args.png)
+        print(f"{'png':<{width}}{args.png}")
+    if args.scene:
+        rel = Path(args.map).resolve()
+        try:
+            rel = rel.relative_to(Path(args.scene).resolve().parent)
+        except ValueError:
+            pass
+        Path(args.scene).write_text(dump_yaml(starter_scene(grid, str(rel), args.count,
+                                                            args.radius)))
+        print(f"{'scene':<{width}}{args.scene}")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Adds ``map`` to the ``sweep`` command's subparsers."""
+    p = sub.add_parser("map", help="show what a map_server map becomes (walls), draw it, and "
+                       "write a scene that uses it",
+                       description="Reads a map_server YAML (PGM or PNG image) and prints its "
+                       "cells, free area and the wall segments a scene gets from it (the exact "
+                       "boundary of blocked cells: occupied or unknown).")
+    p.add_argument("map", help="map_server YAML file")
+    p.add_argument("--png", help="write the walls over the map to this PNG")
+    p.add_argument("--scene", help="write a starter scene (map + agents.spawn) to this YAML")
+    p.add_argument("--count", type=int, default=50, help="agents of the starter scene (50)")
+    p.add_argument("--radius", type=float, default=0.25, help="their radius, m (0.25)")
+    p.set_defaults(func=_map)
