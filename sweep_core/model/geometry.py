@@ -11,10 +11,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from sweep_core.model.neighbours import pairs_within, segments_within
+from sweep_core.model.user import constraint_name, evaluate
 
 # codes of single-row kinds, in the order of scene.geometry
-HALFPLANE, SEGMENT, CIRCLE = 0, 1, 2
-KIND_NAMES = ("walls(halfplane)", "walls(segment)", "obstacles(circle)")
+HALFPLANE, SEGMENT, CIRCLE, USER = 0, 1, 2, 3
+KIND_NAMES = ("walls(halfplane)", "walls(segment)", "obstacles(circle)", "constraints(user)")
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,8 @@ class Geometry:
     motion_pivot: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
     segment_motion: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.intp))
     circle_motion: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.intp))
+    #: user constraints g(t, q_i) >= r_i(t) (:mod:`sweep_core.model.user`)
+    user: tuple = ()
 
     def __post_init__(self) -> None:
         s = len(self.segment_a)
@@ -107,7 +110,8 @@ class Geometry:
 
     @property
     def is_empty(self) -> bool:
-        return not (len(self.halfplane_offset) or len(self.segment_a) or len(self.circle_radius))
+        return not (len(self.halfplane_offset) or len(self.segment_a) or len(self.circle_radius)
+                    or self.user)
 
     def path(self, kind: int, item: int) -> str:
         """Scene path of a wall/obstacle, e.g. ``walls[2]``."""
@@ -117,6 +121,8 @@ class Geometry:
         """Scene-facing name of a wall/obstacle, e.g. ``walls[2] (segment)``."""
         if kind == HALFPLANE:
             return f"walls[{int(self.halfplane_index[item])}] (halfplane)"
+        if kind == USER:
+            return f"constraints[{item}] ({constraint_name(self.user[item], item)})"
         if kind == SEGMENT:
             what, part = self.segment_kind[item], int(self.segment_part[item])
             if int(self.segment_polygon[item]) >= 0:
@@ -160,6 +166,18 @@ def single_values(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray
     e = d / np.maximum(dist, 1e-300)[..., None]
     out.append((dist - geom.circle_radius[None] - r[:, None], e,
                 np.einsum("nkc,kc->nk", e, geom.circle_center) + geom.circle_radius[None]))
+    # user constraints: value g - r, unit normal n = grad g / |grad g|, and the bound
+    # <n, q> + (r - g) / |grad g| of the normalised row written as foot + r
+    users = len(geom.user)
+    gu = np.empty((len(q), users))
+    nu, fu = np.empty((len(q), users, 2)), np.empty((len(q), users))
+    for u in range(users):
+        val, grad = evaluate(geom.user[u], u, t, q)
+        size = np.maximum(np.hypot(grad[:, 0], grad[:, 1]), 1e-300)
+        gu[:, u] = val - r
+        nu[:, u] = grad / size[:, None]
+        fu[:, u] = np.einsum("nc,nc->n", nu[:, u], q) + (r - val) / size - r
+    out.append((gu, nu, fu))
     return out
 
 
@@ -200,10 +218,10 @@ def single_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: f
             a, k = np.nonzero(g <= reach)
             out.append((a, k, g[a, k], nrm[a, k], foot[a, k]))
         return out
-    plain = Geometry(geom.halfplane_normal, geom.halfplane_offset, geom.halfplane_velocity,
-                     np.empty((0, 2)), np.empty((0, 2)), geom.circle_center,
-                     geom.circle_radius, geom.halfplane_index, np.empty(0, dtype=np.intp),
-                     geom.circle_index)
+    empty = np.empty(0, dtype=np.intp)
+    plain = replace(geom, segment_a=np.empty((0, 2)), segment_b=np.empty((0, 2)),
+                    segment_index=empty, segment_polygon=empty, segment_part=empty,
+                    segment_kind=(), segment_motion=empty)
     out = single_rows(plain, t, q, r, reach)
     a, k = segments_within(q, geom.segment_a, geom.segment_b, reach + float(r.max()))
     ab = geom.segment_b[k] - geom.segment_a[k]

@@ -20,7 +20,7 @@ metres and seconds. The keys are a public contract, documented in the README:
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -35,13 +35,14 @@ from sweep_core.model.maps import OccupancyMap, map_from_spec
 from sweep_core.model.outlines import chain_points
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
 from sweep_core.model.spawn import spawn
+from sweep_core.model.user import check_constraint, constraint_name
 from sweep_core.model.yaml_files import YAMLError, dump_yaml, load_yaml, yaml_problem
 
 #: overlap (m) tolerated in a given initial configuration (rounding of touching disks)
 INITIAL_TOLERANCE = 1e-9
 
 _TOP_KEYS = {"name", "description", "horizon", "agents", "walls", "obstacles", "map", "drift",
-             "noise"}
+             "noise", "constraints"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,6 +107,20 @@ class Scene:
             f"end the run before t = {when:g} s, set agents.radius_law.rate to more than "
             f"{-r / t_end:g} m/s, or make the radii larger")
 
+    def with_constraints(self, *constraints: Any) -> Scene:
+        """This scene with user constraints g(t, q_i) >= r_i(t) added (objects with
+        ``value(t, q)`` and ``gradient(t, q)``: :mod:`sweep_core.model.user` states what they
+        must satisfy). The initial configuration is checked against them. The spec records
+        their names under ``constraints``; such a spec cannot be rebuilt from a file."""
+        for k, c in enumerate(constraints):
+            check_constraint(c, k)
+        user = tuple(self.geometry.user) + tuple(constraints)
+        spec = {**copy.deepcopy(self.spec),
+                "constraints": [constraint_name(c, k) for k, c in enumerate(user)]}
+        scene = replace(self, geometry=replace(self.geometry, user=user), spec=spec)
+        _check_initial(scene)
+        return scene
+
     def to_yaml(self) -> str:
         """The normalised scene as YAML text (libyaml's dumper when present)."""
         return dump_yaml(self.spec)
@@ -169,6 +184,10 @@ def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
         horizon = checks.number(data["horizon"], "horizon", positive=True)
         spec["horizon"] = horizon
 
+    if data.get("constraints"):
+        raise SceneError("constraints", f"names Python constraints {show(data['constraints'])} "
+                         "that a scene file or a recording cannot rebuild",
+                         "build the scene in Python and add them with Scene.with_constraints")
     grid = map_from_spec(data["map"], "map", base) if data.get("map") is not None else None
     geometry, walls_spec, obstacles_spec = _geometry(data, grid)
     spec["walls"], spec["obstacles"] = walls_spec, obstacles_spec
