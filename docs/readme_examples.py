@@ -26,8 +26,8 @@ README = REPO / "README.md"
 BLOCK = re.compile(r"(<!-- example: (?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- /example -->)", re.S)
 
 #: the lines of ``sweep analyze``'s summary the README quotes
-ANALYZE_KEYS = ("frames", "duration_s", "min_gap.min_m", "min_gap.between",
-                "contacts.mean", "reaction.pressure_mean_m_per_s", "speed.mean_m_per_s",
+ANALYZE_KEYS = ("status", "frames", "duration_s", "min_gap.min_m", "min_gap.between",
+                "touching.mean", "reaction.pressure_mean_m_per_s", "speed.mean_m_per_s",
                 "speed.p50_m_per_s", "flow.net", "flow.per_s", "arrivals.arrived",
                 "density.max_per_m2")
 

@@ -8,6 +8,11 @@
   thousands of Marker objects takes longer than a timer tick; :func:`wall_markers` and
   :func:`delete_all` build the rare ones as message objects.
 * :func:`diagnostics` builds the DiagnosticArray, :func:`time_msg` a builtin_interfaces/Time.
+
+Longer than 400 lines because every conversion between the engine's arrays and the node's
+messages lives here, in both directions, so that the node itself holds no message layout;
+the refusal texts of malformed commands (each naming the field, the value and the fix) are
+most of the growth.
 """
 from __future__ import annotations
 

@@ -19,6 +19,11 @@ Precision of each metric:
 Time is the log time of the messages (equal to simulation time for ``sweep run``; the node
 keeps it increasing over resets). A file cut short (SIGKILL) is read up to its last complete
 chunk and reported as truncated.
+
+Longer than 400 lines because the metrics are computed in one pass over the frames by one
+accumulator (each frame is decoded once however many metrics read it), and the definitions
+of the metrics (minimum gap, touching, reaction, speeds, flow, arrivals, density with its
+grid bound) are what the README's table cites.
 """
 from __future__ import annotations
 
