@@ -664,3 +664,56 @@ def test_pause_answers_between_steps_of_a_long_tick(installed, probe, tmp_path):
         code = node.stop(signal.SIGTERM)
     assert code == 0, node.log
     assert "Traceback" not in node.log, node.log
+
+
+def test_client_module_commands_a_running_node(installed, probe, tmp_path):
+    """python -m sweep_ros.client, as the README shows it without a ROS CLI, from the
+    installed package: services, both command topics, status, and a one-line error."""
+    exe, env = installed
+    scene_path = tmp_path / "scene.yaml"
+    scene_path.write_text(yaml.safe_dump(SCENE))
+    node = Running(installed, tmp_path, {"scene": str(scene_path), "dt": DT, "rate_hz": 50.0,
+                                         "steps_per_tick": 2, "publish_markers": False})
+    python = exe.read_text().splitlines()[0].removeprefix("#!").strip()
+
+    def client(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([python, "-m", "sweep_ros.client", *args], env=env,
+                              cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    try:
+        probe.connect(node)
+        done = client("pause")
+        assert done.returncode == 0 and done.stdout.startswith("paused at step"), done
+        k = int(done.stdout.split("at step ")[1].split(",")[0])
+        done = client("step", "3")
+        assert done.returncode == 0, done
+        assert done.stdout.splitlines() == [f"step {k + i}, t = {(k + i) * DT:g} s"
+                                            for i in (1, 2, 3)]
+        done = client("cmd-vel", "0.6", "-0.8")
+        assert done.returncode == 0 and "/cmd_vel" in done.stdout, done
+        assert client("resume").returncode == 0
+        t0 = stamp(probe.agents[-1])
+        probe.spin_until(heading_is(probe, [0.6, -0.8], 1.0, t0), 10.0, "motion along cmd-vel",
+                         node)
+        done = client("goal", "2.0", "500.0")
+        assert done.returncode == 0 and "/goal" in done.stdout, done
+        t1 = stamp(probe.agents[-1])
+        probe.spin_until(heading_is(probe, [0, 1], 1.3, t1), 10.0, "motion towards the goal",
+                         node)
+        done = client("status")
+        assert done.returncode == 0 and "commands_applied: 2" in done.stdout, done
+        done = client("reset")
+        assert done.returncode == 0 and done.stdout.startswith("reset to t = 0"), done
+        # refusals: the node's reason (exit 1); bad input and no node (exit 2, one line)
+        done = client("step")
+        assert done.returncode == 1 and "not paused" in done.stdout, done
+        done = client("cmd-vel", "nan", "0")
+        assert done.returncode == 2 and "VX = 'nan' is not a finite number" in done.stderr
+        done = client("--namespace", "/nowhere", "--timeout", "1", "pause")
+        assert done.returncode == 2, done
+        assert done.stderr.strip().splitlines() == [
+            "sweep_client: error: no answer from service /nowhere/pause within 1 s (fix: "
+            "start sweep_node with the same ROS_DOMAIN_ID, ROS_AUTOMATIC_DISCOVERY_RANGE and "
+            "--namespace, or raise --timeout)"]
+    finally:
+        code = node.stop(signal.SIGTERM)
+    assert code == 0, node.log
