@@ -1,6 +1,7 @@
 """Entry point of ``ros2 run sweep_ros sweep_node`` (installed as ``lib/sweep_ros/sweep_node``):
-start rclpy, run :class:`sweep_ros.node.SweepNode` on a multi-threaded executor until SIGINT or
-SIGTERM, close the recording with a final status record.
+start rclpy, run :class:`sweep_ros.node.SweepNode` (its steps on a thread of their own, services
+and commands on this one) until SIGINT or SIGTERM, close the recording with a final status
+record.
 
     ros2 run sweep_ros sweep_node --ros-args --params-file config/sweep_node.yaml
     sweep_node --ros-args -p scene:=my_scene.yaml -p record:=run.mcap     (pip install, no ROS CLI)
@@ -10,20 +11,15 @@ from __future__ import annotations
 import signal
 import sys
 import threading
-import time
 from collections.abc import Callable
 from typing import Any
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from sweep_ros.errors import StartError
 from sweep_ros.node import NODE_NAME, SweepNode
-
-EXECUTOR_THREADS = 5
-#: s between the last spin_once and the executor's shutdown (see main)
-SETTLE_S = 0.2
 
 
 class StopOnSignal:
@@ -32,11 +28,11 @@ class StopOnSignal:
     With rclpy's own handlers SIGINT becomes a KeyboardInterrupt raised wherever the main
     thread happens to be (inside a publish, a queue operation), and SIGTERM is not handled at
     all. With a flag both take the same path: the tick in progress ends at its next step
-    boundary (``on_signal``), the executor waits for the callbacks running, then the node
-    writes its ``status`` record (``interrupted``, reason ``SIGINT`` or ``SIGTERM``) and closes
-    the recording. A step that blocks in native code (a QP solve) delays the stop until it
-    returns; a second signal of the same kind gets the default action (immediate termination;
-    the recording stays readable up to its last flushed chunk).
+    boundary (``on_signal``), then the node writes its ``status`` record (``interrupted``,
+    reason ``SIGINT`` or ``SIGTERM``) and closes the recording. A step that blocks in native
+    code (a QP solve) delays the stop until it returns; a second signal of the same kind gets
+    the default action (immediate termination; the recording stays readable up to its last
+    flushed chunk).
     """
 
     def __init__(self) -> None:
@@ -64,18 +60,19 @@ def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = StopOnSignal()
     node: SweepNode | None = None
-    executor: MultiThreadedExecutor | None = None
+    executor: SingleThreadedExecutor | None = None
     code = 0
     status, reason = "completed", "the ROS context was shut down"
     try:
         node = SweepNode()
         stop.on_signal = node.request_stop
-        # one thread per callback group: step timer, services, commands, diagnostics, and the
-        # node's default group (parameter services)
-        executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
+        # services, commands, parameters and diagnostics on this thread; steps on the node's
+        executor = SingleThreadedExecutor()
         executor.add_node(node)
-        while not stop.event.is_set() and rclpy.ok():
+        while not stop.event.is_set() and rclpy.ok() and node.crash is None:
             executor.spin_once(timeout_sec=0.1)
+        if node.crash is not None:
+            status, reason, code = "failed", node.crash, 1
     except StartError as err:
         for problem in err.problems:
             print(f"{NODE_NAME}: error: {problem}", file=sys.stderr)
@@ -89,15 +86,10 @@ def main(args: list[str] | None = None) -> int:
         if stop.event.is_set():
             status, reason = "interrupted", stop.name
         if node is not None:
-            node.request_stop()
+            node.close(status, reason)  # after the step in progress
         if executor is not None:
-            # Handlers the last spin_once submitted may still sit in the executor's thread
-            # pool: let them start before shutdown() destroys the guard condition they
-            # trigger (rclpy 9 then prints "exception was never retrieved").
-            time.sleep(SETTLE_S)
-            executor.shutdown()  # waits for the callbacks in progress
+            executor.shutdown()
         if node is not None:
-            node.close(status, reason)
             node.destroy_node()
         rclpy.try_shutdown()
     return code

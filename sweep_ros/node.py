@@ -9,15 +9,19 @@ recorded to MCAP by a background writer thread, so the timer never waits on the 
 node's topics, services and parameters are described in the README (section "The ROS 2 node");
 :mod:`sweep_ros.main` is the executable.
 
-Threads (a MultiThreadedExecutor, :mod:`sweep_ros.main`): the step timer, the services, the
-command subscriptions and the diagnostics timer are in callback groups of their own, so a long
-tick never holds up a service or a command. The engine and the adapter's state are guarded by
-a :class:`~sweep_ros.gate.StepGate`: a tick takes its steps one at a time, holding the gate for
-one step, and a service (pause, step, reset), a parameter change or diagnostics waiting for it
-goes first at the next step boundary. So a service answers within one step's time, and a state
-change such as reset takes effect between two steps, never inside one. Commands are latest-wins
-(:mod:`sweep_ros.inbox`): each replaces the drift field at the start of the next step; one
-replaced before a step used it is counted as superseded.
+Threads: the ticks run on a thread of their own (:meth:`SweepNode._step_loop`, paced at
+``rate_hz``); the executor's thread (:mod:`sweep_ros.main`, a SingleThreadedExecutor) takes
+the services, the command subscriptions, the parameter services and the diagnostics timer, so
+a long tick never holds up a service or a command. The engine and the adapter's state are
+guarded by a :class:`~sweep_ros.gate.StepGate`: a tick takes its steps one at a time, holding
+the gate for one step, and a service (pause, step, reset), a parameter change or diagnostics
+waiting for it goes first at the next step boundary. So a service answers within one step's
+time, and a state change such as reset takes effect between two steps, never inside one.
+(rclpy's MultiThreadedExecutor with callback groups would do the same, but its dispatch cost
+per message is higher: at 1 kHz of cmd_vel for 10 s it took 1 700 messages against 5 300 with
+this layout, on a loaded 2-core machine; see test/node_load.py.) Commands are
+latest-wins (:mod:`sweep_ros.inbox`): each replaces the drift field at the start of the next
+step; one replaced before a step used it is counted as superseded.
 
 Longer than 400 lines because it is one Node subclass (the ros2/demos layout): its
 constructor, callbacks, services and shutdown read together; the message building, parameter
@@ -30,12 +34,12 @@ import math
 import os
 import threading
 import time
+import traceback
 from collections.abc import Callable
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseArray, Twist
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -113,10 +117,9 @@ class SweepNode(Node):
         # threads: see the module docstring
         self._gate = StepGate()
         self._stopping = threading.Event()
-        self._step_group = MutuallyExclusiveCallbackGroup()
-        self._service_group = MutuallyExclusiveCallbackGroup()
-        self._command_group = MutuallyExclusiveCallbackGroup()
-        self._diag_group = MutuallyExclusiveCallbackGroup()
+        self._wake = threading.Event()  # a rate change or a stop ends the wait between ticks
+        #: the error that ended the step thread, if one did (main then stops the node)
+        self.crash: str | None = None
 
         # interfaces (relative names: namespaces and remapping apply)
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -131,30 +134,21 @@ class SweepNode(Node):
         self.pub_clock = (self.create_publisher(Clock, "clock", reliable)
                           if self._p["publish_clock"] else None)
         self.sub_cmd_vel = self.create_subscription(
-            Twist, "cmd_vel", self._on_cmd_vel, inbound, raw=True,
-            callback_group=self._command_group)
+            Twist, "cmd_vel", self._on_cmd_vel, inbound, raw=True)
         self.sub_goal = self.create_subscription(
-            PointStamped, "goal", self._on_goal, inbound, raw=True,
-            callback_group=self._command_group)
+            PointStamped, "goal", self._on_goal, inbound, raw=True)
         self.sub_field = self.create_subscription(
-            PointCloud2, "velocity_field", self._on_velocity_field, inbound, raw=True,
-            callback_group=self._command_group)
-        self.srv_reset = self.create_service(Trigger, "reset", self._on_reset,
-                                             callback_group=self._service_group)
-        self.srv_pause = self.create_service(SetBool, "pause", self._on_pause,
-                                             callback_group=self._service_group)
-        self.srv_step = self.create_service(Trigger, "step", self._on_step,
-                                            callback_group=self._service_group)
+            PointCloud2, "velocity_field", self._on_velocity_field, inbound, raw=True)
+        self.srv_reset = self.create_service(Trigger, "reset", self._on_reset)
+        self.srv_pause = self.create_service(SetBool, "pause", self._on_pause)
+        self.srv_step = self.create_service(Trigger, "step", self._on_step)
 
         if self._p["record"]:
             self._open_recording()
 
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
-        self._timer = self.create_timer(1.0 / self._p["rate_hz"], self._tick,
-                                        callback_group=self._step_group)
-        self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diag_timer,
-                                             callback_group=self._diag_group)
+        self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diag_timer)
 
         self._publish_walls()
         self._publish_state(force_markers=True)
@@ -162,6 +156,9 @@ class SweepNode(Node):
             f"scene {self.scene.name!r} ({self.scene.n_agents} agents), dt {self.sim.dt:g} s, "
             f"seed {self.sim.seed}, {self._p['rate_hz']:g} Hz x {self._p['steps_per_tick']} "
             f"steps, recording: {self._p['record'] or 'off'}")
+        self._step_thread = threading.Thread(target=self._step_loop, name="sweep steps",
+                                             daemon=True)
+        self._step_thread.start()
 
     # -- start-up ------------------------------------------------------------------------------
     def _declare_parameters(self) -> dict[str, Any]:
@@ -356,6 +353,25 @@ class SweepNode(Node):
         self._window.step_s += time.perf_counter() - start
         return True
 
+    def _step_loop(self) -> None:
+        """The step timer: a tick every 1 / rate_hz s (read at every tick) until the node
+        stops; after a tick that overran its period the next starts at once (_tick counts
+        the periods missed). An exception ends the loop and is kept in ``crash``."""
+        next_start = time.monotonic()
+        try:
+            while not self._stopping.is_set():
+                self._tick()
+                next_start += 1.0 / self._p["rate_hz"]
+                now = time.monotonic()
+                if next_start <= now:
+                    next_start = now
+                elif self._wake.wait(next_start - now):
+                    self._wake.clear()
+                    next_start = time.monotonic()
+        except Exception as err:  # noqa: BLE001 - reported by main, which stops the node
+            self.crash = f"{type(err).__name__}: {err}"
+            self.get_logger().error(f"step thread stopped: {traceback.format_exc()}")
+
     def _tick(self) -> None:
         """One timer tick: its steps one at a time (the gate held for one step each), then
         the state. A pause, reset or stop between two steps ends the tick there."""
@@ -510,9 +526,8 @@ class SweepNode(Node):
         if value == old:
             return
         if name == "rate_hz":
-            self._timer.timer_period_ns = round(1e9 / value)
-            self._timer.reset()
             self._last_tick_start = None
+            self._wake.set()  # the step thread starts the next tick now, at the new period
         elif name == "noise_sigma":
             self._apply_sigma()
             if self.recorder is not None:  # replay needs every live change of the model
@@ -530,8 +545,10 @@ class SweepNode(Node):
 
     # -- shutdown --------------------------------------------------------------------------------
     def request_stop(self) -> None:
-        """Ends the tick in progress at its next step boundary (any thread, signal-safe)."""
+        """Ends the tick in progress at its next step boundary and the step thread after it
+        (any thread, signal-safe)."""
         self._stopping.set()
+        self._wake.set()
 
     def close(self, status: str = "completed", reason: str = "") -> None:
         """Stops the timers and closes the recording cleanly (idempotent), after the step in
@@ -539,13 +556,14 @@ class SweepNode(Node):
         ``completed`` (the ROS context was shut down), ``interrupted`` (a signal; reason names
         it) or ``failed`` (reason: the error); ``simulation_error`` is the infeasible step the
         node is paused on, if any."""
-        self._stopping.set()
+        self.request_stop()
+        if self._step_thread.is_alive() and threading.current_thread() is not self._step_thread:
+            self._step_thread.join()  # after the step in progress
         with self._gate.control():
             if self._closed:
                 return
             self._closed = True
-            for timer in (self._timer, self._diag_timer):
-                timer.cancel()
+            self._diag_timer.cancel()
             if self.recorder is None:
                 return
             counters = {k: str(v) for k, v in self._inbox.counters().items()}

@@ -118,7 +118,7 @@ def jam(args: argparse.Namespace, probe: Probe, work: Path) -> None:
 
 
 def cmd_rate(args: argparse.Namespace, probe: Probe, work: Path) -> None:
-    proc = start_node(args.root, work, {})
+    proc = start_node(args.root, work, {"rate_hz": args.tick_hz} if args.tick_hz else {})
     try:
         probe.wait(lambda: probe.cmd_vel.get_subscription_count() > 0 and probe.diag, 60)
         period = 1.0 / args.rate
@@ -145,6 +145,7 @@ def main() -> None:
     ap.add_argument("--root", type=Path, default=REPO)
     ap.add_argument("--seconds", type=float, default=30.0)
     ap.add_argument("--rate", type=float, default=1000.0)
+    ap.add_argument("--tick-hz", type=float, default=0.0, help="cmd-rate: the node's rate_hz")
     ap.add_argument("--verbose", action="store_true", help="print every diagnostics window")
     args = ap.parse_args()
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
