@@ -1,4 +1,4 @@
-"""The lock between the node's steps (:class:`StepGate`): the timer thread holds it for one
+"""The lock between the node's steps (:class:`StepGate`): the step thread holds it for one
 step at a time, and a service, command or parameter callback waiting for it goes first at the
 next step boundary, so it waits at most one step, never a whole tick."""
 from __future__ import annotations
@@ -11,7 +11,7 @@ from contextlib import contextmanager
 class StepGate:
     """A mutual-exclusion lock with priority for control callbacks over the stepping loop.
 
-    ``with gate.step():`` wraps one step of the timer's loop; ``with gate.control():`` wraps a
+    ``with gate.step():`` wraps one step of the step thread's tick; ``with gate.control():`` wraps a
     service or parameter change. A plain lock is not enough: Python's locks are not fair, so
     a loop that releases and at once re-acquires one would keep it for the whole tick. Here
     :meth:`step` first waits until no control callback is waiting, so a control callback gets

@@ -62,9 +62,10 @@ from sweep_ros.timing import Window
 
 NODE_NAME = "sweep_node"
 DIAGNOSTICS_PERIOD_S = 1.0
-#: depth of the command subscriptions' queues: room for a burst while a callback waits for the
-#: GIL; under latest-wins only the newest matters, and what a full queue drops is counted
-#: (diagnostics: commands_lost) where the middleware gives publication sequence numbers
+#: depth of the command subscriptions' queues: room for a burst while the executor's thread
+#: waits (for the gate, at most one step); under latest-wins only the newest matters, and what
+#: a full queue drops is counted (diagnostics: commands_lost) where the middleware gives
+#: publication sequence numbers
 COMMAND_QUEUE_DEPTH = 100
 #: rclpy's own parameters, never reported as unknown
 _RCLPY_PARAMS = ("use_sim_time", "start_type_description_service", "qos_overrides.")
