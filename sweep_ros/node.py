@@ -51,7 +51,7 @@ from visualization_msgs.msg import MarkerArray
 
 from sweep_core import InfeasibleError, SceneError, Simulator, SweepError
 from sweep_core.io import cdr, topics
-from sweep_core.io.metadata import run_metadata
+from sweep_core.io.metadata import STATUS_RECORD, run_metadata, status_metadata
 from sweep_core.io.recording import DEFAULT_QOS_PROFILES, BackgroundRecorder
 from sweep_core.model.scene import load_scene
 from sweep_ros import messages, msgdefs, params
@@ -553,9 +553,9 @@ class SweepNode(Node):
 
     def close(self, status: str = "completed", reason: str = "") -> None:
         """Stops the timers and closes the recording cleanly (idempotent), after the step in
-        progress. The recording gets a ``summary`` and a ``status`` metadata record: status
-        ``completed`` (the ROS context was shut down), ``interrupted`` (a signal; reason names
-        it) or ``failed`` (reason: the error); ``simulation_error`` is the infeasible step the
+        progress. The recording gets a ``summary`` and a ``sweep_status`` metadata record: status
+        ``completed`` (the ROS context was shut down), ``interrupted`` (a signal; ``error``
+        names it) or ``failed`` (``error``: the error); ``simulation_error`` is the infeasible step the
         node is paused on, if any."""
         self.request_stop()
         if self._step_thread.is_alive() and threading.current_thread() is not self._step_thread:
@@ -572,9 +572,10 @@ class SweepNode(Node):
                 "steps": str(self.sim.n_steps), "t": repr(self.sim.t),
                 "resets": str(self._resets), "timer_overruns": str(self._overruns),
                 **counters})
-            self.recorder.metadata("status", {
-                "status": status, "reason": reason, "step": str(self.sim.n_steps),
-                "t": repr(self.sim.t), "log_time_ns": str(self._last_log_ns),
+            # the record sweep run writes too, so that sweep analyze reports node runs
+            self.recorder.metadata(STATUS_RECORD, {
+                **status_metadata(status, steps=self.sim.n_steps, t=self.sim.t, error=reason),
+                "log_time_ns": str(self._last_log_ns),
                 "simulation_error": self.failure or ""})
             self.recorder.close()
             if self.recorder.error:

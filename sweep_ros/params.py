@@ -27,6 +27,7 @@ from rcl_interfaces.msg import (
 
 from sweep_core import SceneError, SolverOptions
 from sweep_core.errors import show
+from sweep_core.io.limits import DT_MAX, DT_MIN
 from sweep_core.model.yaml_files import SAFE_LOADER, YAMLError, yaml_problem
 
 _INT64_MAX = 2**63 - 1
@@ -55,7 +56,7 @@ _DEFAULT_SOLVER = SolverOptions()
 SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("scene", "", "Scene YAML file; empty = the bundled room with a door (200 agents).",
               False, constraints="readable scene YAML (see the README's scene schema)"),
-    ParamSpec("dt", 0.01, "Time step h of the projected Euler scheme, s.", False, 1e-5, 1.0),
+    ParamSpec("dt", 0.01, "Time step h of the projected Euler scheme, s.", False, DT_MIN, DT_MAX),
     ParamSpec("seed", 0, "Seed of the Brownian path; reset restarts it.", False, 0, _INT64_MAX),
     ParamSpec("rate_hz", 20.0, "Timer rate, Hz: each tick steps, then publishes poses, agents "
               "and clock once.", True, 0.1, 1000.0),

@@ -5,11 +5,14 @@ from pathlib import Path
 
 # Fast DDS must never multicast off the machine.
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-# A domain per test process: pytest-xdist workers (gw0, gw1, ...) share their parent's pid, so
-# their domains are that pid's slot plus the worker's index, never equal within one run.
+# A domain per test process. pytest-xdist's controller imports this file before it starts the
+# workers (gw0, gw1, ...), which inherit its environment: so the controller picks a base slot
+# (from its pid) and every process, controller or worker, sets its own domain from that base
+# and its worker index, unconditionally (a setdefault would leave every worker on the
+# controller's domain, and their nodes would hear each other).
 _worker = os.environ.get("PYTEST_XDIST_WORKER", "")
 _index = int(_worker[2:]) if _worker.startswith("gw") and _worker[2:].isdigit() else 0
-_base = os.getppid() if _worker else os.getpid()
-os.environ.setdefault("ROS_DOMAIN_ID", str(1 + (_base * 4 + _index) % 100))
+os.environ.setdefault("SWEEP_TEST_DOMAIN_BASE", str(os.getpid() % 25))
+os.environ["ROS_DOMAIN_ID"] = str(1 + 4 * int(os.environ["SWEEP_TEST_DOMAIN_BASE"]) + _index % 4)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))

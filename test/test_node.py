@@ -413,7 +413,8 @@ def _check_recording(record: Path) -> None:
     assert [yaml.safe_load(c["field"])["kind"] for c in commands] == ["uniform", "goal", "grid"]
     assert all(int(c["step"]) * DT == pytest.approx(float(c["t"])) for c in commands)
     assert "reset_000001" in meta and meta["summary"]["commands_refused"] == "8"
-    assert meta["status"]["status"] == "interrupted" and meta["status"]["reason"] == "SIGINT"
+    assert meta["sweep_status"]["status"] == "interrupted"
+    assert meta["sweep_status"]["error"] == "SIGINT"
 
     # mcap_ros2 decodes every message of every channel
     seen: dict[str, int] = {}
@@ -517,6 +518,19 @@ def test_bad_parameters_refused_at_start(installed, tmp_path, overrides, names):
         assert f"sweep_node: error: parameter {name}" in log, log
 
 
+def test_broken_params_file_is_one_line_error(installed, tmp_path):
+    # a YAML syntax error in --params-file: the file, line and column and a fix, exit 2, no
+    # rclpy traceback (it was "RCLError: ... Couldn't parse params file")
+    exe, env = installed
+    bad = tmp_path / "broken.yaml"
+    bad.write_text("/**:\n  ros__parameters:\n    dt: [0.01,\n    seed: 1\n")
+    done = subprocess.run([str(exe), "--ros-args", "--params-file", str(bad)], env=env,
+                          cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    out = done.stdout + done.stderr
+    assert done.returncode == 2, out
+    assert f"params file {bad} line" in out and "fix:" in out and "Traceback" not in out, out
+
+
 def _read_standard(record: Path) -> tuple[dict, dict[str, dict[str, str]]]:
     """What the standard readers see: mcap's seeking reader (summary section, metadata) and
     rosbags' AnyReader when it is installed. Returns (message counts per topic, metadata)."""
@@ -557,10 +571,10 @@ def test_signal_closes_recording_with_status(installed, probe, tmp_path, sig):
     assert "Traceback" not in node.log and "never retrieved" not in node.log, node.log
     counts, meta = _read_standard(record)
     assert counts["/poses"] >= 10
-    status = meta["status"]
-    assert status["status"] == "interrupted" and status["reason"] == sig.name, status
-    assert int(status["step"]) >= 9 and status["simulation_error"] == ""
-    assert int(meta["summary"]["steps"]) == int(status["step"])
+    status = meta["sweep_status"]
+    assert status["status"] == "interrupted" and status["error"] == sig.name, status
+    assert int(status["steps"]) >= 9 and status["simulation_error"] == ""
+    assert int(meta["summary"]["steps"]) == int(status["steps"])
 
 
 def test_command_burst_latest_wins_and_counted(installed, probe, tmp_path):
