@@ -112,8 +112,10 @@ class SweepNode(Node):
         self._last_markers = -math.inf
         self._rt_anchor: tuple[float, float] | None = None
         self._window = Window(self.sim.t)
-        self._moving_walls = bool(len(self.scene.geometry.halfplane_velocity)
-                                  and (self.scene.geometry.halfplane_velocity != 0).any())
+        # moving walls and obstacles are republished with the markers, at their pose then
+        self._moving_walls = bool(self.scene.geometry.is_moving or (
+            len(self.scene.geometry.halfplane_velocity)
+            and (self.scene.geometry.halfplane_velocity != 0).any()))
         self._agent_markers = messages.AgentMarkers(self.frame_id, self._p["marker_height"])
         # threads: see the module docstring
         self._gate = StepGate()
