@@ -39,6 +39,7 @@ setup(
         "console_scripts": [
             "sweep = sweep_core.cli:main",
             "sweep_node = sweep_ros.main:main",
+            "sweep_client = sweep_ros.client:main",
         ],
     },
 )
