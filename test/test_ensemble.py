@@ -239,3 +239,25 @@ def test_bad_input_is_one_line_naming_the_field(tmp_path, scene, capsys, monkeyp
     assert code == 2
     assert err.startswith("sweep: error: " + needle), err
     assert "\n" not in err and "fix:" in err and "Traceback" not in err
+
+
+def test_bench_accuracy_crowd_paths_on_a_cluster_equal_the_local_ones() -> None:
+    # the crowd's paths are pure functions of (config, path index): on Dask workers they give
+    # the same errors as in-process, in path order
+    import dataclasses
+
+    from distributed import Client, LocalCluster
+
+    from sweep_core.bench.accuracy import StudyConfig
+    from sweep_core.bench.accuracy_problems import study_crowd
+
+    cfg = dataclasses.replace(StudyConfig.make(True), levels=2, crowd_paths=2, crowd_t=0.16,
+                              solver_tols=())
+    local = study_crowd(cfg, log=lambda _s: None)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp://",
+                      host="127.0.0.1",
+                      dashboard_address="127.0.0.1:0") as cluster, Client(cluster) as client:
+        remote = study_crowd(cfg, log=lambda _s: None, client=client)
+    assert [(m.scheme, m.dt, m.tol) for m in local] == [(m.scheme, m.dt, m.tol) for m in remote]
+    for a, b in zip(local, remote):
+        assert np.array_equal(a.values, b.values) and a.error == b.error

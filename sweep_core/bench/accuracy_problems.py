@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -178,33 +179,57 @@ def crowd_scene(walls: bool = True, sigma: float = 0.2, radius_law: dict | None 
     return Scene.from_dict(spec)
 
 
-def study_crowd(cfg: StudyConfig, log=print) -> list[Measurement]:
+def crowd_path(cfg: StudyConfig, p: int) -> dict[tuple, tuple[float, float, float]]:
+    """Path p of the crowd study (its own seed, cfg.seed + 100 + p): for each variant and dt,
+    the mean error over agents against the fine reference, the wall time per simulated second
+    and the sub-steps. A pure function of (cfg, p), so paths can run anywhere (a Dask
+    worker) and give the same errors."""
     scene = crowd_scene()
     n, t_end = scene.n_agents, cfg.crowd_t
     dts = levels(cfg.crowd_dt0, cfg.levels)
     h_ref = dts[-1] / cfg.crowd_ref_factor
     n_f = int(round(t_end / h_ref))
+    rng = generator(cfg.seed + 100 + p)
+    fine = math.sqrt(h_ref) * rng.standard_normal((n_f, n, 2))
+    ref = Simulator(scene, dt=h_ref, seed=0)
+    ref.step(n_f, dB=fine)
+    q_ref = ref.positions
+    out = {}
+    for v in variants(cfg, True):
+        for k, dt in enumerate(dts):
+            factor = cfg.crowd_ref_factor * 2 ** (cfg.levels - 1 - k)
+            dB = coarse(fine, factor)
+            holder = {}
+            wall, sub = run_variant(scene, v, dt, dB, len(dB),
+                                    lambda s: holder.__setitem__("q", s.positions))
+            d = holder["q"] - q_ref
+            out[(v.label, v.tol, dt)] = (float(np.sqrt(np.einsum("ij,ij->i", d, d)).mean()),
+                                         wall / t_end, float(sub))
+    return out
+
+
+def study_crowd(cfg: StudyConfig, log=print, client: Any = None) -> list[Measurement]:
+    """The crowd's strong error against dt and variant over ``cfg.crowd_paths`` paths; with a
+    ``distributed.Client`` the paths run on its workers (same errors; the wall times are those
+    of the workers, which may share cores)."""
+    dts = levels(cfg.crowd_dt0, cfg.levels)
     vs = variants(cfg, True)
     per = {(v.label, v.tol, dt): ([], [], []) for v in vs for dt in dts}
-    for p in range(cfg.crowd_paths):
-        rng = generator(cfg.seed + 100 + p)
-        fine = math.sqrt(h_ref) * rng.standard_normal((n_f, n, 2))
-        ref = Simulator(scene, dt=h_ref, seed=0)
-        ref.step(n_f, dB=fine)
-        q_ref = ref.positions
-        for v in vs:
-            for k, dt in enumerate(dts):
-                factor = cfg.crowd_ref_factor * 2 ** (cfg.levels - 1 - k)
-                dB = coarse(fine, factor)
-                holder = {}
-                wall, sub = run_variant(scene, v, dt, dB, len(dB),
-                                 lambda s: holder.__setitem__("q", s.positions))
-                d = holder["q"] - q_ref
-                e, w, s_ = per[(v.label, v.tol, dt)]
-                e.append(float(np.sqrt(np.einsum("ij,ij->i", d, d)).mean()))
-                w.append(wall / t_end)
-                s_.append(sub)
-        log(f"  crowd: path {p + 1}/{cfg.crowd_paths} done")
+    if client is None:
+        paths = []
+        for p in range(cfg.crowd_paths):
+            paths.append(crowd_path(cfg, p))
+            log(f"  crowd: path {p + 1}/{cfg.crowd_paths} done")
+    else:
+        futures = client.map(crowd_path, [cfg] * cfg.crowd_paths, range(cfg.crowd_paths),
+                             pure=False)
+        paths = client.gather(futures)
+        log(f"  crowd: {cfg.crowd_paths} paths done on the cluster")
+    for result in paths:  # in path order, whatever finished first
+        for key, (e, w, sub) in result.items():
+            per[key][0].append(e)
+            per[key][1].append(w)
+            per[key][2].append(sub)
     out = []
     for v in vs:
         for dt in dts:

@@ -6,6 +6,7 @@ import dataclasses
 import math
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -17,8 +18,9 @@ from sweep_core.bench.accuracy import (
     Variant,
     group_slopes,
 )
-from sweep_core.bench.accuracy_problems import STUDIES, study_features
+from sweep_core.bench.accuracy_problems import STUDIES, study_crowd, study_features
 from sweep_core.bench.tables import write_csv
+from sweep_core.errors import SweepError
 from sweep_core.numerics.schemes import SCHEMES
 
 
@@ -124,15 +126,17 @@ def plot(ms: list[Measurement], out: Path) -> list[Path]:
 
 
 def run_study(cfg: StudyConfig, out: Path, problems: tuple[str, ...] = PROBLEMS,
-              log=print) -> tuple[list[Measurement], list[Slope], list[dict]]:
-    """Run the chosen problems, print the tables, write CSVs and plots into ``out``."""
+              log=print, client: Any = None) -> tuple[list[Measurement], list[Slope], list[dict]]:
+    """Run the chosen problems, print the tables, write CSVs and plots into ``out``; with a
+    ``distributed.Client`` the crowd's paths run on its workers."""
     out.mkdir(parents=True, exist_ok=True)
     ms: list[Measurement] = []
     start = time.perf_counter()
     for name in problems:
         if name in STUDIES:
             t0 = time.perf_counter()
-            ms.extend(STUDIES[name](cfg, log))
+            ms.extend(study_crowd(cfg, log, client) if name == "crowd"
+                      else STUDIES[name](cfg, log))
             log(f"  {name}: {time.perf_counter() - t0:.1f} s")
     features = study_features(cfg, log) if "features" in problems else []
     slopes = group_slopes(ms, cfg.seed)
@@ -154,9 +158,26 @@ def run_study(cfg: StudyConfig, out: Path, problems: tuple[str, ...] = PROBLEMS,
 
 def _accuracy(args: argparse.Namespace) -> int:
     cfg = StudyConfig.make(args.quick, args.seed)
+    if args.crowd_paths is not None:
+        if args.crowd_paths < 2:
+            raise SweepError(f"--crowd-paths: {args.crowd_paths} gives no interval (fix: 2 or "
+                             "more)")
+        cfg = dataclasses.replace(cfg, crowd_paths=args.crowd_paths)
     print(f"sweep bench accuracy: {'quick' if cfg.quick else 'full'} study, {cfg.levels} dt "
-          f"levels, problems {' '.join(args.problems)}", flush=True)
-    run_study(cfg, Path(args.out), tuple(args.problems), log=lambda s: print(s, flush=True))
+          f"levels, problems {' '.join(args.problems)}, {cfg.crowd_paths} crowd paths",
+          flush=True)
+
+    def log(text: str) -> None:
+        print(text, flush=True)
+
+    if args.workers is None and args.scheduler is None:
+        run_study(cfg, Path(args.out), tuple(args.problems), log=log)
+        return 0
+    from sweep_core.ensemble.cluster import check_workers, connect
+
+    workers = check_workers(args.workers) if args.scheduler is None else None
+    with connect(scheduler=args.scheduler, workers=workers, log=log) as client:
+        run_study(cfg, Path(args.out), tuple(args.problems), log=log, client=client)
     return 0
 
 
@@ -174,4 +195,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     acc.add_argument("--seed", type=int, default=0, help="seed of the Brownian paths")
     acc.add_argument("--problems", nargs="+", default=list(PROBLEMS), choices=PROBLEMS,
                      metavar="NAME", help=f"subset of: {' '.join(PROBLEMS)} (default all)")
+    acc.add_argument("--crowd-paths", type=int, default=None, metavar="N",
+                     help="independent paths of the crowd problem (default 4, --quick 3)")
+    where = acc.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, metavar="K",
+                       help="run the crowd's paths on a local Dask cluster of K workers")
+    where.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                       help="run the crowd's paths on an existing Dask cluster")
     acc.set_defaults(func=_accuracy)
