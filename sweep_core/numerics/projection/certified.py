@@ -45,7 +45,7 @@ CG_ITERS = 50
 #: face passes of a round (each drops the rows whose multipliers reach 0)
 PASSES = 4
 #: rounds without progress of the largest gap after which the rounds stop
-STALL = 5
+STALL = 10
 
 
 @dataclass
