@@ -731,3 +731,116 @@ def test_client_module_commands_a_running_node(installed, probe, tmp_path):
     finally:
         code = node.stop(signal.SIGTERM)
     assert code == 0, node.log
+
+
+# ---------------------------------------------------------------------------------------------
+# maps from a topic (issue 13)
+# ---------------------------------------------------------------------------------------------
+
+#: 8 agents on cell centres of a 0.5 m grid, no drift: they only diffuse until told to move
+MAP_AGENTS = [[0.25 + 1.0 * i, 0.25 + 1.0 * j] for j in range(2) for i in range(4)]
+MAP_SCENE = {"name": "test_map_topic", "agents": {"positions": MAP_AGENTS, "radius": 0.15},
+             "noise": {"sigma": 0.05}}
+
+
+def room_grid(width_cells: int, height_cells: int = 8, res: float = 0.5,
+              origin=(-1.0, -1.0)):
+    """An OccupancyGrid (frame map): a room of free cells (0) inside a one-cell border of
+    occupied cells (100); with 8 rows from y = -1 the free space is -0.5 <= y <= 2.5."""
+    from nav_msgs.msg import OccupancyGrid
+
+    cells = np.zeros((height_cells, width_cells), dtype=np.int8)
+    cells[0, :] = cells[-1, :] = cells[:, 0] = cells[:, -1] = 100
+    msg = OccupancyGrid()
+    msg.header.frame_id = "map"
+    msg.info.resolution = res
+    msg.info.width, msg.info.height = width_cells, height_cells
+    msg.info.origin.position.x, msg.info.origin.position.y = origin
+    msg.info.origin.orientation.w = 1.0
+    msg.data = cells.ravel().tolist()
+    return msg
+
+
+def grid_of(msg):
+    from sweep_core.model.maps import OccupancyMap
+
+    i = msg.info
+    return OccupancyMap.from_occupancy_grid(np.array(msg.data, dtype=np.int8), i.width, i.height,
+                                            i.resolution, (i.origin.position.x,
+                                                           i.origin.position.y, 0.0))
+
+
+def test_map_topic_walls_refusal_and_replay(installed, probe, tmp_path):
+    """A map published (transient-local) before the node starts becomes its walls (markers
+    show its pieces); a wider map mid-run lets the crowd further; a map that cuts agents is
+    refused naming them while the run goes on; no recorded state has an agent in a blocked
+    cell of the map in effect; sweep replay reproduces the run bit for bit."""
+    from rclpy.qos import DurabilityPolicy
+    from visualization_msgs.msg import MarkerArray
+
+    from sweep_core.cli import main as sweep_main
+
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    walls: list[MarkerArray] = []
+    probe.node.create_subscription(MarkerArray, "/walls", walls.append, latched)
+    map_pub = probe.node.create_publisher(type(room_grid(4)), "/map", latched)
+    narrow, wide = room_grid(12), room_grid(16)  # free x up to 4.5 m, then up to 6.5 m
+    map_pub.publish(narrow)  # before the node exists: transient-local keeps it for it
+    scene_path = tmp_path / "scene.yaml"
+    scene_path.write_text(yaml.safe_dump(MAP_SCENE))
+    record = tmp_path / "map.mcap"
+    node = Running(installed, tmp_path, {
+        "scene": str(scene_path), "dt": DT, "seed": 5, "rate_hz": 50.0, "steps_per_tick": 2,
+        "map_topic": "map", "record": str(record), "record_flush_interval_s": 0.2})
+    try:
+        probe.connect(node)
+        probe.spin_until(lambda: diag_value(probe, "maps_applied") == "1", DISCOVERY_S,
+                         "the first map applied", node)
+
+        def map_pieces():
+            last = walls[-1] if walls else None
+            return last and [m for m in last.markers if m.ns == "map"]
+        pieces = probe.spin_until(map_pieces, 5.0, "walls markers of the map", node)
+        a, b = grid_of(narrow).segments()
+        got = sorted((m.pose.position.x, m.pose.position.y) for m in pieces)
+        want = sorted(map(tuple, ((a + b) / 2).tolist()))
+        assert len(pieces) == len(a) and np.allclose(got, want, atol=1e-9)
+
+        probe.cmd_vel.publish(Twist(linear=Vector3(x=1.0)))  # into the east wall at x = 4.5
+        probe.spin_for(4.0)
+        map_pub.publish(wide)
+        probe.spin_until(lambda: diag_value(probe, "maps_applied") == "2", 10.0,
+                         "the wider map applied", node)
+        probe.spin_until(lambda: max(p.position.x for p in probe.poses[-1].poses) > 5.0, 10.0,
+                         "the crowd beyond the old wall", node)
+        probe.spin_for(3.0)
+        map_pub.publish(narrow)  # now cuts the agents piled at x ~ 6.35: refused
+        probe.spin_until(lambda: diag_value(probe, "map_refused") == "1", 10.0,
+                         "the narrow map refused", node)
+        assert diag_value(probe, "maps_applied") == "2"
+        n, t_refused = len(probe.poses), stamp(probe.poses[-1])
+        probe.spin_until(lambda: len(probe.poses) > n + 10, 5.0, "the run going on", node)
+        assert stamp(probe.poses[-1]) > t_refused and node.alive()
+    finally:
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
+    assert "Traceback" not in node.log
+    refusal = [line for line in node.log.splitlines() if "map refused" in line]
+    assert len(refusal) == 1 and "agents [" in refusal[0] and "old walls kept" in refusal[0]
+
+    meta = scan_recording(record).metadata
+    maps = [meta[k] for k in sorted(meta) if k.startswith("map_")]
+    assert [m["topic"] for m in maps] == ["/map", "/map"]
+    steps = [int(m["step"]) for m in maps]
+    grids = [grid_of(narrow), grid_of(wide)]
+    seen = 0
+    for m in read_recording(record, ["/poses"]):
+        t, _, q = cdr.decode_pose_array(m.data)
+        k = round(t / (DT * 1e9))
+        if k >= steps[0]:
+            in_effect = grids[1] if k >= steps[1] else grids[0]
+            assert not in_effect.is_blocked(q).any(), k
+            seen += 1
+    assert seen > 100
+    assert sweep_main(["replay", str(record)]) == 0

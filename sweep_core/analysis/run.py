@@ -16,7 +16,8 @@ from sweep_core.errors import RecordingError, SweepError
 from sweep_core.io import cdr
 from sweep_core.io.metadata import describe_status
 from sweep_core.io.recording import ChannelInfo, scan_recording
-from sweep_core.model.scene import Scene, copy_spec
+from sweep_core.model.maps import replace_map
+from sweep_core.model.scene import Scene
 from sweep_core.numerics.projection import SolverOptions
 
 #: nanoseconds per second
@@ -67,7 +68,7 @@ class MapChange:
 
 def scene_with_map(scene: Scene, spec: dict) -> Scene:
     """``scene`` with its map replaced by ``spec`` (the packed form), as the node builds it."""
-    return Scene.from_dict({**copy_spec(scene), "map": spec}, name=scene.name)
+    return Scene.from_dict(replace_map(scene.spec, spec))
 
 
 @dataclass

@@ -23,6 +23,7 @@ negate); p > occupied_thresh: occupied; p < free_thresh: free; otherwise unknown
 from __future__ import annotations
 
 import base64
+import copy
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -155,6 +156,15 @@ def _runs(edge: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     r1, c1 = np.nonzero(step == -1)
     # both are in row-major order, one start and one end per run
     return r0, c0, c1 - 1
+
+
+def replace_map(spec: dict, packed: dict) -> dict:
+    """A copy of a scene's normalised spec with its ``map`` entry replaced by ``packed`` (what
+    :meth:`OccupancyMap.to_spec` gives): ``Scene.from_dict`` of it is the scene with the new
+    map's walls and everything else as before (how the node and replay apply a map)."""
+    out = copy.deepcopy(spec)
+    out["map"] = copy.deepcopy(packed)
+    return out
 
 
 def map_from_spec(value: Any, field: str, base: Path | None) -> OccupancyMap:
