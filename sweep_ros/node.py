@@ -532,7 +532,8 @@ class SweepNode(Node):
             h, w = grid.shape
             self.get_logger().info(
                 f"{topic}: map of {w} x {h} cells of {grid.resolution:g} m, "
-                f"{len(scene.geometry.segment_a)} wall pieces, in effect from step "
+                f"{sum(1 for k in scene.geometry.segment_kind if k == 'map')} wall pieces, "
+                f"in effect from step "
                 f"{self.sim.n_steps}")
 
     def _refuse_map(self, why: str) -> None:

@@ -7,6 +7,7 @@ subprocess with a params file, talks to it from this process over DDS, and reads
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -740,6 +741,7 @@ def test_client_module_commands_a_running_node(installed, probe, tmp_path):
 #: 8 agents on cell centres of a 0.5 m grid, no drift: they only diffuse until told to move
 MAP_AGENTS = [[0.25 + 1.0 * i, 0.25 + 1.0 * j] for j in range(2) for i in range(4)]
 MAP_SCENE = {"name": "test_map_topic", "agents": {"positions": MAP_AGENTS, "radius": 0.15},
+             "walls": [{"kind": "segment", "a": [20.0, 20.0], "b": [21.0, 20.0]}],  # kept
              "noise": {"sigma": 0.05}}
 
 
@@ -814,33 +816,53 @@ def test_map_topic_walls_refusal_and_replay(installed, probe, tmp_path):
                          "the wider map applied", node)
         probe.spin_until(lambda: max(p.position.x for p in probe.poses[-1].poses) > 5.0, 10.0,
                          "the crowd beyond the old wall", node)
+        a, b = grid_of(wide).segments()
+        assert len(walls[-1].markers) == 1 + 1 + len(a)  # DELETEALL, the scene's wall, map
+        assert walls[-1].markers[0].action == 3
+        got = sorted((m.pose.position.x, m.pose.position.y) for m in map_pieces())
+        assert np.allclose(got, sorted(map(tuple, ((a + b) / 2).tolist())), atol=1e-9)
         probe.spin_for(3.0)
         map_pub.publish(narrow)  # now cuts the agents piled at x ~ 6.35: refused
         probe.spin_until(lambda: diag_value(probe, "map_refused") == "1", 10.0,
                          "the narrow map refused", node)
         assert diag_value(probe, "maps_applied") == "2"
+        assert "map refused" in probe.diagnostics[-1].status[0].message
         n, t_refused = len(probe.poses), stamp(probe.poses[-1])
         probe.spin_until(lambda: len(probe.poses) > n + 10, 5.0, "the run going on", node)
         assert stamp(probe.poses[-1]) > t_refused and node.alive()
+        # free where the agents are now, but not where a reset puts them: refused too
+        map_pub.publish(room_grid(6, origin=(5.0, -1.0)))
+        probe.spin_until(lambda: diag_value(probe, "map_refused") == "2", 10.0,
+                         "the map without the start refused", node)
+        # reset: back to the start, the wide map kept; then the run goes on
+        assert probe.call(Trigger, "/reset", Trigger.Request(), node).success
+        probe.spin_until(lambda: stamp(probe.poses[-1]) > topics.stamp_ns(2.0), 10.0,
+                         "2 s after the reset", node)
+        assert len(walls[-1].markers) == 1 + len(a)  # the wide map's walls, republished
     finally:
         code = node.stop(signal.SIGINT)
     assert code == 0, node.log
     assert "Traceback" not in node.log
     refusal = [line for line in node.log.splitlines() if "map refused" in line]
-    assert len(refusal) == 1 and "agents [" in refusal[0] and "old walls kept" in refusal[0]
+    assert len(refusal) == 2 and "old walls kept" in refusal[0]
+    assert re.search(r"agents \[\d+(, \d+)*\] at t = [\d.]+ s would be inside", refusal[0])
+    assert "initial positions (where reset returns)" in refusal[1] and "agent 0" in refusal[1]
 
     meta = scan_recording(record).metadata
     maps = [meta[k] for k in sorted(meta) if k.startswith("map_")]
     assert [m["topic"] for m in maps] == ["/map", "/map"]
     steps = [int(m["step"]) for m in maps]
     grids = [grid_of(narrow), grid_of(wide)]
-    seen = 0
+    seen, after_reset = 0, 0
     for m in read_recording(record, ["/poses"]):
         t, _, q = cdr.decode_pose_array(m.data)
         k = round(t / (DT * 1e9))
-        if k >= steps[0]:
+        if m.log_time_ns > int(meta["reset_000001"]["log_time_ns"]) - 1:
+            assert not grids[1].is_blocked(q).any(), k  # the wide map stays over the reset
+            after_reset += 1
+        elif k >= steps[0]:
             in_effect = grids[1] if k >= steps[1] else grids[0]
             assert not in_effect.is_blocked(q).any(), k
             seen += 1
-    assert seen > 100
+    assert seen > 100 and after_reset > 10
     assert sweep_main(["replay", str(record)]) == 0

@@ -196,7 +196,7 @@ class Simulator:
             more = "" if len(bad) <= 12 else f" and {len(bad) - 12} more"
             first = self._q[bad[0]]
             raise SceneError("scene", f"agents [{shown}{more}] at t = {self.t:g} s would be "
-                             f"inside its walls, obstacles or blocked map cells (agent {bad[0]} "
+                             f"inside the new walls, obstacles or blocked map cells (agent {bad[0]} "
                              f"at [{first[0]:g}, {first[1]:g}])",
                              "keep those agents' positions free in the new geometry")
         self.scene = scene
