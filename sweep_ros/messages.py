@@ -151,7 +151,8 @@ def map_from_grid(msg: Any, frame_id: str, topic: str = "map") -> OccupancyMap:
             float(info.resolution), (float(p.x), float(p.y), yaw), source=topic, field="grid")
     except SceneError as err:
         where = "the grid" if err.field == "grid" else err.field.removeprefix("grid.")
-        raise CommandError(topic, f"{where} {err.problem} (fix: {err.fix})") from err
+        fix = err.fix.replace("grid.", "")
+        raise CommandError(topic, f"{where} {err.problem} (fix: {fix})") from err
 
 
 _DTYPES = {PointField.FLOAT32: "f4", PointField.FLOAT64: "f8"}

@@ -506,6 +506,7 @@ def test_infeasible_step_pauses_and_reports(installed, probe, tmp_path):
     ({"frame_id": "/map", "noise_sigma": -0.5}, "frame_id|noise_sigma"),
     ({"scene": "/no/such/scene.yaml"}, "scene"),
     ({"solver_eps_abs": 1e-15, "solver_max_iter": 0}, "solver_max_iter"),
+    ({"map_topic": "my map"}, "map_topic"),
 ])
 def test_bad_parameters_refused_at_start(installed, tmp_path, overrides, names):
     node = Running(installed, tmp_path, overrides)
