@@ -161,7 +161,7 @@ class SweepNode(Node):
         if self._p["map_topic"]:
             try:  # as nav2's map_server publishes it
                 self.sub_map = self.create_subscription(OccupancyGrid, self._p["map_topic"],
-                                                        self._on_map, latched)
+                                                        self._on_map, latched, raw=True)
             except InvalidTopicNameException as err:
                 raise StartError([f"parameter map_topic: {self._p['map_topic']!r} is not a "
                                   f"valid topic name ({err}) (fix: e.g. 'map')"]) from err
@@ -223,6 +223,10 @@ class SweepNode(Node):
         }
         if self.pub_clock is not None:
             names[self.pub_clock.topic_name] = cdr.CLOCK
+        if self.sub_map is not None:
+            names[self.sub_map.topic_name] = msgdefs.msgtype_of(OccupancyGrid)
+        latched = {self.pub_walls.topic_name} | (
+            {self.sub_map.topic_name} if self.sub_map is not None else set())
         meta.update({
             "node": self.get_fully_qualified_name(),
             "parameters": json.dumps(self._p, sort_keys=True),
@@ -237,7 +241,7 @@ class SweepNode(Node):
                 flush_interval_s=self._p["record_flush_interval_s"])
             for topic, msgtype in names.items():
                 definition = None if msgtype in cdr.SCHEMAS else msgdefs.definition(msgtype)
-                qos = qos_yaml(1, True) if topic == self.pub_walls.topic_name else qos_yaml(10)
+                qos = qos_yaml(1, True) if topic in latched else qos_yaml(10)
                 self.recorder.add_channel(topic, msgtype, definition, offered_qos_profiles=qos)
         except (SweepError, msgdefs.MsgDefError) as err:
             if self.recorder is not None:
@@ -494,11 +498,16 @@ class SweepNode(Node):
                                                          self.sub_field.topic_name))
 
     # -- maps ----------------------------------------------------------------------------------
-    def _on_map(self, msg: OccupancyGrid) -> None:
+    def _on_map(self, raw: bytes) -> None:
         """A map (executor thread): parsed and its walls built here, then swapped in between
-        two steps, or refused (see the module docstring)."""
+        two steps (and recorded: the message on its topic, a ``map_NNNNNN`` metadata record),
+        or refused (see the module docstring)."""
         topic = self.sub_map.topic_name if self.sub_map is not None else "map"
         try:
+            try:
+                msg = deserialize_message(raw, OccupancyGrid)
+            except Exception as err:  # noqa: BLE001 - any undecodable payload is refused
+                raise messages.CommandError(topic, f"cannot decode ({err})") from err
             grid = messages.map_from_grid(msg, self.frame_id, topic)
         except messages.CommandError as err:
             self._refuse_map(str(err))
@@ -524,6 +533,7 @@ class SweepNode(Node):
                 and (scene.geometry.halfplane_velocity != 0).any()))
             self._maps_applied += 1
             log_ns = self._log_ns(self.sim.t)
+            self._record(topic, log_ns, bytes(raw))
             if self.recorder is not None:
                 self.recorder.metadata(f"map_{self._maps_applied:06d}", {
                     "topic": topic, "step": str(self.sim.n_steps), "t": repr(self.sim.t),

@@ -849,7 +849,9 @@ def test_map_topic_walls_refusal_and_replay(installed, probe, tmp_path):
     assert re.search(r"agents \[\d+(, \d+)*\] at t = [\d.]+ s would be inside", refusal[0])
     assert "initial positions (where reset returns)" in refusal[1] and "agent 0" in refusal[1]
 
-    meta = scan_recording(record).metadata
+    info = scan_recording(record)
+    meta = info.metadata
+    assert info.channels["/map"].message_count == 2  # the maps applied, as received
     maps = [meta[k] for k in sorted(meta) if k.startswith("map_")]
     assert [m["topic"] for m in maps] == ["/map", "/map"]
     steps = [int(m["step"]) for m in maps]
