@@ -1,8 +1,8 @@
 """Arrays <-> ROS messages for sweep_node, as pure functions (no node, no engine state).
 
 * Incoming velocity-field commands are parsed and validated here (:func:`uniform_from_twist`,
-  :func:`goal_from_point`, :func:`grid_from_cloud`); anything malformed raises
-  :class:`CommandError` and never reaches the engine.
+  :func:`goal_from_point`, :func:`grid_from_cloud`), and maps (:func:`map_from_grid`);
+  anything malformed raises :class:`CommandError` and never reaches the engine.
 * Outgoing markers: :class:`AgentMarkers` encodes the per-agent cylinder MarkerArray straight to
   CDR with numpy (a template serialised once by rclpy, patched per agent), because building
   thousands of Marker objects takes longer than a timer tick; :func:`wall_markers` and
@@ -33,6 +33,7 @@ from sweep_core import SceneError, grid_field
 from sweep_core.errors import show
 from sweep_core.model.fields import Goal, Grid, Uniform
 from sweep_core.model.geometry import Geometry
+from sweep_core.model.maps import OccupancyMap
 
 #: largest grid (points) a velocity_field command may carry
 MAX_GRID_POINTS = 1_000_000
@@ -114,6 +115,44 @@ def goal_from_point(msg: Any, speed: float, slow_radius: float, frame_id: str,
                                   f"of {frame_id!r})")
     return Goal(goal=np.array([float(p[0]), float(p[1])]), speed=float(speed),
                 slow_radius=float(slow_radius))
+
+
+#: largest |roll| or |pitch| quaternion component of a map's origin taken as planar
+PLANAR_TOLERANCE = 1e-6
+
+
+def map_from_grid(msg: Any, frame_id: str, topic: str = "map") -> OccupancyMap:
+    """nav_msgs/OccupancyGrid -> OccupancyMap (its cells, resolution and origin; a cell is
+    free iff its occupancy is 0..24 %, the map files' free_thresh 0.25). The header's frame
+    must be empty or ``frame_id`` (there is no TF lookup); the origin's orientation must be a
+    rotation about z."""
+    frame = msg.header.frame_id
+    if frame not in ("", frame_id):
+        raise CommandError(topic, f"frame {frame!r} is not the simulation frame {frame_id!r} "
+                                  f"(fix: publish the map in {frame_id!r}, or set the node's "
+                                  f"frame_id to {frame!r})")
+    info = msg.info
+    o, p = info.origin.orientation, info.origin.position
+    quat = [o.x, o.y, o.z, o.w]
+    if not all(math.isfinite(c) for c in quat + [p.x, p.y]):
+        raise CommandError(topic, f"non-finite info.origin {show([p.x, p.y] + quat)} (fix: "
+                                  "publish a finite origin pose)")
+    norm = math.sqrt(sum(c * c for c in quat))
+    if norm < 1e-9 or max(abs(o.x), abs(o.y)) > PLANAR_TOLERANCE * norm:
+        raise CommandError(topic, f"info.origin.orientation {show(quat)} is not a rotation "
+                                  "about z (fix: publish a planar map, quaternion x = y = 0)")
+    yaw = 2.0 * math.atan2(o.z, o.w)
+    if not math.isfinite(info.resolution):
+        raise CommandError(topic, f"info.resolution {show(info.resolution)} is not finite "
+                                  "(fix: publish the cell size, m)")
+    try:
+        return OccupancyMap.from_occupancy_grid(
+            np.asarray(msg.data, dtype=np.int8), int(info.width), int(info.height),
+            float(info.resolution), (float(p.x), float(p.y), yaw), source=topic, field="grid")
+    except SceneError as err:
+        where = "the grid" if err.field == "grid" else err.field.removeprefix("grid.")
+        fix = err.fix.replace("grid.", "")
+        raise CommandError(topic, f"{where} {err.problem} (fix: {fix})") from err
 
 
 _DTYPES = {PointField.FLOAT32: "f4", PointField.FLOAT64: "f8"}
@@ -391,7 +430,8 @@ def _box(m: Marker, a: np.ndarray, b: np.ndarray, thickness: float, height: floa
 
 def wall_markers(geometry: Geometry, positions: np.ndarray, frame_id: str, stamp_ns: int,
                  t: float, height: float = 1.0) -> MarkerArray:
-    """Walls (namespace ``walls``: CUBE per segment, a long CUBE per half-plane at time t) and
+    """Walls (namespace ``walls``: CUBE per segment, a long CUBE per half-plane at time t; a
+    map's wall pieces in namespace ``map``, id = piece) and
     obstacles (namespace ``obstacles``: CYLINDER per circle); moving obstacles at their pose
     at t."""
     out = []
@@ -414,6 +454,8 @@ def wall_markers(geometry: Geometry, positions: np.ndarray, frame_id: str, stamp
         poly, index = int(geometry.segment_polygon[k]), int(geometry.segment_index[k])
         if poly >= 0:
             m = base(f"obstacles[{poly}]", int(geometry.segment_part[k]), OBSTACLE_COLOR)
+        elif geometry.segment_kind[k] == "map":
+            m = base("map", int(geometry.segment_part[k]), WALL_COLOR)
         elif geometry.segment_kind[k] != "segment":
             m = base(f"walls[{index}]", int(geometry.segment_part[k]), WALL_COLOR)
         else:

@@ -23,6 +23,14 @@ this layout, on a loaded 2-core machine; see test/node_load.py.) Commands are
 latest-wins (:mod:`sweep_ros.inbox`): each replaces the drift field at the start of the next
 step; one replaced before a step used it is counted as superseded.
 
+Maps (parameter ``map_topic``): each nav_msgs/OccupancyGrid is parsed and its walls built on
+the executor's thread (:meth:`SweepNode._on_map`), then swapped into the simulator between two
+steps like a reset (``Simulator.set_scene``: time, positions, drift, noise and the Brownian
+path kept). The map replaces the scene's ``map`` entry (its other walls and obstacles stay),
+and stays over resets. A map is refused, the old walls kept, when an agent at its current
+position, or at its initial position (where a reset returns), would be in a blocked cell or
+cut by a wall: the error names the agents, diagnostics count it (``map_refused``).
+
 Longer than 400 lines because it is one Node subclass (the ros2/demos layout): its
 constructor, callbacks, services and shutdown read together; the message building, parameter
 checks and timing it uses live in :mod:`.messages`, :mod:`.params` and :mod:`.timing`.
@@ -40,7 +48,8 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseArray, Twist
-from rclpy.exceptions import ParameterException
+from nav_msgs.msg import OccupancyGrid
+from rclpy.exceptions import InvalidTopicNameException, ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
@@ -53,7 +62,8 @@ from sweep_core import InfeasibleError, SceneError, Simulator, SweepError
 from sweep_core.io import cdr, topics
 from sweep_core.io.metadata import STATUS_RECORD, run_metadata, status_metadata
 from sweep_core.io.recording import DEFAULT_QOS_PROFILES, BackgroundRecorder
-from sweep_core.model.scene import load_scene
+from sweep_core.model.maps import replace_map
+from sweep_core.model.scene import Scene, load_scene
 from sweep_ros import messages, msgdefs, params
 from sweep_ros.errors import StartError
 from sweep_ros.gate import StepGate
@@ -91,6 +101,8 @@ class SweepNode(Node):
         self._parameter_changes = 0
         try:
             self.scene = load_scene(os.path.expanduser(self._p["scene"]))
+            #: the scene as loaded: a map received replaces its spec's map (as replay does)
+            self.scene0 = self.scene
             self.sim = Simulator(self.scene, dt=self._p["dt"], seed=self._p["seed"],
                                  solver=params.solver_options(self._p))
         except SceneError as err:
@@ -112,6 +124,9 @@ class SweepNode(Node):
         self._last_markers = -math.inf
         self._rt_anchor: tuple[float, float] | None = None
         self._window = Window(self.sim.t)
+        self._maps_applied = 0
+        self._maps_refused = 0
+        self._map_problem: str | None = None  # the last refusal, for the next diagnostics
         # moving walls and obstacles are republished with the markers, at their pose then
         self._moving_walls = bool(self.scene.geometry.is_moving or (
             len(self.scene.geometry.halfplane_velocity)
@@ -142,6 +157,14 @@ class SweepNode(Node):
             PointStamped, "goal", self._on_goal, inbound, raw=True)
         self.sub_field = self.create_subscription(
             PointCloud2, "velocity_field", self._on_velocity_field, inbound, raw=True)
+        self.sub_map = None
+        if self._p["map_topic"]:
+            try:  # as nav2's map_server publishes it
+                self.sub_map = self.create_subscription(OccupancyGrid, self._p["map_topic"],
+                                                        self._on_map, latched, raw=True)
+            except InvalidTopicNameException as err:
+                raise StartError([f"parameter map_topic: {self._p['map_topic']!r} is not a "
+                                  f"valid topic name ({err}) (fix: e.g. 'map')"]) from err
         self.srv_reset = self.create_service(Trigger, "reset", self._on_reset)
         self.srv_pause = self.create_service(SetBool, "pause", self._on_pause)
         self.srv_step = self.create_service(Trigger, "step", self._on_step)
@@ -158,7 +181,8 @@ class SweepNode(Node):
         self.get_logger().info(
             f"scene {self.scene.name!r} ({self.scene.n_agents} agents), dt {self.sim.dt:g} s, "
             f"seed {self.sim.seed}, {self._p['rate_hz']:g} Hz x {self._p['steps_per_tick']} "
-            f"steps, recording: {self._p['record'] or 'off'}")
+            f"steps, recording: {self._p['record'] or 'off'}"
+            + (f", maps from {self.sub_map.topic_name}" if self.sub_map is not None else ""))
         self._step_thread = threading.Thread(target=self._step_loop, name="sweep steps",
                                              daemon=True)
         self._step_thread.start()
@@ -199,6 +223,10 @@ class SweepNode(Node):
         }
         if self.pub_clock is not None:
             names[self.pub_clock.topic_name] = cdr.CLOCK
+        if self.sub_map is not None:
+            names[self.sub_map.topic_name] = msgdefs.msgtype_of(OccupancyGrid)
+        latched = {self.pub_walls.topic_name} | (
+            {self.sub_map.topic_name} if self.sub_map is not None else set())
         meta.update({
             "node": self.get_fully_qualified_name(),
             "parameters": json.dumps(self._p, sort_keys=True),
@@ -213,7 +241,7 @@ class SweepNode(Node):
                 flush_interval_s=self._p["record_flush_interval_s"])
             for topic, msgtype in names.items():
                 definition = None if msgtype in cdr.SCHEMAS else msgdefs.definition(msgtype)
-                qos = qos_yaml(1, True) if topic == self.pub_walls.topic_name else qos_yaml(10)
+                qos = qos_yaml(1, True) if topic in latched else qos_yaml(10)
                 self.recorder.add_channel(topic, msgtype, definition, offered_qos_profiles=qos)
         except (SweepError, msgdefs.MsgDefError) as err:
             if self.recorder is not None:
@@ -257,10 +285,15 @@ class SweepNode(Node):
             if self._moving_walls:
                 self._publish_walls()
 
-    def _publish_walls(self) -> None:
+    def _publish_walls(self, clear: bool = False) -> None:
+        """The walls markers at the current time; clear: first delete every marker (a new map
+        can have fewer wall pieces than the last)."""
         t = self.sim.t
         msg = messages.wall_markers(self.scene.geometry, self.scene.positions, self.frame_id,
                                     topics.stamp_ns(t), t, self._p["marker_height"])
+        if clear:
+            msg.markers.insert(0, messages.delete_all(self.frame_id, topics.stamp_ns(t),
+                                                      "walls").markers[0])
         self._publish(self.pub_walls, bytes(serialize_message(msg)), self._log_ns(t))
 
     def _on_diag_timer(self) -> None:
@@ -280,6 +313,8 @@ class SweepNode(Node):
             level, message = "ERROR", f"infeasible, paused: {self.failure}"
         elif rec is not None and rec.error:
             level, message = "WARN", f"recording stopped: {rec.error}"
+        elif self._map_problem:
+            level, message = "WARN", self._map_problem
         elif w.overruns:
             level, message = "WARN", f"{w.overruns} timer overruns in the last {wall:.1f} s"
         elif new_lost > 0:
@@ -305,6 +340,8 @@ class SweepNode(Node):
             "drift": sim.drift.kind,
             **counters,
             "resets": self._resets,
+            "maps_applied": self._maps_applied,
+            "map_refused": self._maps_refused,
             "recording": rec.path if rec is not None else "off",
             "recording_backlog": rec.backlog if rec is not None else 0,
             "recorded_messages": rec.written if rec is not None else 0,
@@ -313,6 +350,7 @@ class SweepNode(Node):
                                    self.scene.name, level, message, values)
         self._publish(self.pub_diag, bytes(serialize_message(msg)), self._log_ns(sim.t))
         self._window = Window(sim.t)
+        self._map_problem = None
 
     # -- stepping ------------------------------------------------------------------------------
     def _steps_this_tick(self, now: float) -> int:
@@ -458,6 +496,60 @@ class SweepNode(Node):
         self._command(self.sub_field, PointCloud2, raw, info,
                       lambda m: messages.grid_from_cloud(m, self._p["max_speed"],
                                                          self.sub_field.topic_name))
+
+    # -- maps ----------------------------------------------------------------------------------
+    def _on_map(self, raw: bytes) -> None:
+        """A map (executor thread): parsed and its walls built here, then swapped in between
+        two steps (and recorded: the message on its topic, a ``map_NNNNNN`` metadata record),
+        or refused (see the module docstring)."""
+        topic = self.sub_map.topic_name if self.sub_map is not None else "map"
+        try:
+            try:
+                msg = deserialize_message(raw, OccupancyGrid)
+            except Exception as err:  # noqa: BLE001 - any undecodable payload is refused
+                raise messages.CommandError(topic, f"cannot decode ({err})") from err
+            grid = messages.map_from_grid(msg, self.frame_id, topic)
+        except messages.CommandError as err:
+            self._refuse_map(str(err))
+            return
+        spec = grid.to_spec()
+        try:
+            scene = Scene.from_dict(replace_map(self.scene0.spec, spec))
+        except SceneError as err:
+            self._refuse_map(f"{topic}: the scene's initial positions (where reset returns) do "
+                             f"not fit it: {err}")
+            return
+        with self._gate.control():
+            if self._closed:
+                return
+            try:
+                self.sim.set_scene(scene)
+            except SceneError as err:  # names the agents
+                self._refuse_map(f"{topic}: {err.problem} (fix: {err.fix})")
+                return
+            self.scene = scene
+            self._moving_walls = bool(scene.geometry.is_moving or (
+                len(scene.geometry.halfplane_velocity)
+                and (scene.geometry.halfplane_velocity != 0).any()))
+            self._maps_applied += 1
+            log_ns = self._log_ns(self.sim.t)
+            self._record(topic, log_ns, bytes(raw))
+            if self.recorder is not None:
+                self.recorder.metadata(f"map_{self._maps_applied:06d}", {
+                    "topic": topic, "step": str(self.sim.n_steps), "t": repr(self.sim.t),
+                    "log_time_ns": str(log_ns), "map": json.dumps(spec)})
+            self._publish_walls(clear=True)
+            h, w = grid.shape
+            self.get_logger().info(
+                f"{topic}: map of {w} x {h} cells of {grid.resolution:g} m, "
+                f"{sum(1 for k in scene.geometry.segment_kind if k == 'map')} wall pieces, "
+                f"in effect from step "
+                f"{self.sim.n_steps}")
+
+    def _refuse_map(self, why: str) -> None:
+        self._maps_refused += 1
+        self._map_problem = f"map refused, old walls kept: {why}"
+        self.get_logger().error(self._map_problem)
 
     # -- services (each between two steps: see the module docstring) ---------------------------
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response

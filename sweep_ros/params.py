@@ -24,6 +24,8 @@ from rcl_interfaces.msg import (
     ParameterType,
     SetParametersResult,
 )
+from rclpy.exceptions import InvalidTopicNameException
+from rclpy.validate_topic_name import validate_topic_name
 
 from sweep_core import SceneError, SolverOptions
 from sweep_core.errors import show
@@ -56,6 +58,10 @@ _DEFAULT_SOLVER = SolverOptions()
 SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("scene", "", "Scene YAML file; empty = the bundled room with a door (200 agents).",
               False, constraints="readable scene YAML (see the README's scene schema)"),
+    ParamSpec("map_topic", "", "nav_msgs/OccupancyGrid topic (e.g. map, as nav2's map_server "
+              "publishes it, transient-local) whose maps replace the scene's map walls between "
+              "two steps; empty = off.", False,
+              constraints="a ROS topic name, or empty"),
     ParamSpec("dt", 0.01, "Time step h of the projected Euler scheme, s.", False, DT_MIN, DT_MAX),
     ParamSpec("seed", 0, "Seed of the Brownian path; reset restarts it.", False, 0, _INT64_MAX),
     ParamSpec("rate_hz", 20.0, "Timer rate, Hz: each tick steps, then publishes poses, agents "
@@ -166,6 +172,12 @@ def check_value(name: str, value: Any) -> str | None:
             return f"{name}: folder {folder!r} does not exist (fix: create it or record elsewhere)"
         if os.path.isdir(os.path.expanduser(value)):
             return f"{name}: {value!r} is a folder (fix: give a file path ending in .mcap)"
+    if name == "map_topic" and value:
+        try:
+            validate_topic_name(value)
+        except InvalidTopicNameException:
+            return (f"{name}: {value!r} is not a valid topic name (fix: letters, digits, '_' "
+                    "and '/', e.g. 'map', or '' for no map subscription)")
     if name == "scene" and value and not os.path.isfile(os.path.expanduser(value)):
         return f"{name}: no file {value!r} (fix: give a scene YAML path, or '' for the default)"
     return None

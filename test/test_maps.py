@@ -6,7 +6,7 @@ import pytest
 
 import sweep_core as sc
 from sweep_core.errors import SceneError
-from sweep_core.model.maps import map_from_spec, read_map_yaml
+from sweep_core.model.maps import OccupancyMap, map_from_spec, read_map_yaml
 
 # 8 x 6 cells of 0.5 m: a wall all round, a 1 x 1 cell pillar at column 5, row 3 from the top;
 # '#' occupied (0), '.' free (254), '?' unknown (205)
@@ -174,3 +174,49 @@ def test_long_noisy_run_never_enters_a_polygon_or_a_blocked_cell(tmp_path: Path)
         sim.step()
         assert not grid.is_blocked(sim.positions).any()
         assert not inside_polygons(sim.positions, scene.geometry).any()
+
+
+def grid_message_data(rows: list[str], free: float = 0.196, occupied: float = 0.65) -> np.ndarray:
+    """What map_server publishes for the map write_map writes (trinary mode): 100 occupied,
+    0 free, -1 unknown, row-major from the origin (the image's last row first)."""
+    p = (255.0 - np.array([[PIXEL[c] for c in row] for row in rows], dtype=float)) / 255.0
+    values = np.where(p > occupied, 100, np.where(p < free, 0, -1)).astype(np.int8)
+    return values[::-1].ravel()
+
+
+def test_occupancy_grid_gives_the_map_files_cells_and_walls(tmp_path: Path) -> None:
+    from_file = read_map_yaml(write_map(tmp_path, origin="[1.0, -2.0, 0.5]"))
+    grid = OccupancyMap.from_occupancy_grid(grid_message_data(ROOM), 8, 6, 0.5, (1.0, -2.0, 0.5),
+                                            free_thresh=0.196, source="/map")
+    assert np.array_equal(grid.blocked, from_file.blocked)
+    for mine, theirs in zip(grid.segments(), from_file.segments()):
+        assert np.array_equal(mine, theirs)
+    assert grid.origin == from_file.origin and grid.resolution == 0.5
+    # the packed form round-trips, so a recording can hold it
+    again = map_from_spec(grid.to_spec(), "map", None)
+    assert np.array_equal(again.blocked, grid.blocked) and again.source == "/map"
+
+
+def test_occupancy_grid_threshold_and_orientation() -> None:
+    # 3 x 2, row 0 (lowest y) first: occupancy percent 24 is free, 25 (= free_thresh) blocked
+    grid = OccupancyMap.from_occupancy_grid([0, 24, 25, -1, 100, 10], 3, 2, 1.0, (0.0, 0.0))
+    assert grid.blocked.tolist() == [[False, False, True], [True, True, False]]
+    centres = np.array([[0.5, 0.5], [2.5, 0.5], [2.5, 1.5]])
+    assert grid.is_blocked(centres).tolist() == [False, True, False]
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"data": [0] * 5}, "holds 5 cells, not width x height = 3 x 2"),
+    ({"data": [0, 0, 0, 0, 0, 101]}, "holds 101 at cell 5"),
+    ({"data": [0, 0, 0, 0, 0, -2]}, "holds -2 at cell 5"),
+    ({"data": [0.5] * 6}, "flat sequence of integers"),
+    ({"width": 0}, "map.info.width"),
+    ({"resolution": 0.0}, "map.info.resolution"),
+    ({"free_thresh": 0.9}, "not 0 <= free <= occupied <= 1"),
+])
+def test_malformed_occupancy_grids_are_refused(kwargs: dict, words: str) -> None:
+    args = {"data": [0] * 6, "width": 3, "height": 2, "resolution": 1.0,
+            "origin_xy_yaw": (0.0, 0.0, 0.0), **kwargs}
+    with pytest.raises(SceneError) as err:
+        OccupancyMap.from_occupancy_grid(**args)
+    assert words in str(err.value) and err.value.fix

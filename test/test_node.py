@@ -7,6 +7,7 @@ subprocess with a params file, talks to it from this process over DDS, and reads
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -505,6 +506,7 @@ def test_infeasible_step_pauses_and_reports(installed, probe, tmp_path):
     ({"frame_id": "/map", "noise_sigma": -0.5}, "frame_id|noise_sigma"),
     ({"scene": "/no/such/scene.yaml"}, "scene"),
     ({"solver_eps_abs": 1e-15, "solver_max_iter": 0}, "solver_max_iter"),
+    ({"map_topic": "my map"}, "map_topic"),
 ])
 def test_bad_parameters_refused_at_start(installed, tmp_path, overrides, names):
     node = Running(installed, tmp_path, overrides)
@@ -731,3 +733,139 @@ def test_client_module_commands_a_running_node(installed, probe, tmp_path):
     finally:
         code = node.stop(signal.SIGTERM)
     assert code == 0, node.log
+
+
+# ---------------------------------------------------------------------------------------------
+# maps from a topic (issue 13)
+# ---------------------------------------------------------------------------------------------
+
+#: 8 agents on cell centres of a 0.5 m grid, no drift: they only diffuse until told to move
+MAP_AGENTS = [[0.25 + 1.0 * i, 0.25 + 1.0 * j] for j in range(2) for i in range(4)]
+MAP_SCENE = {"name": "test_map_topic", "agents": {"positions": MAP_AGENTS, "radius": 0.15},
+             "walls": [{"kind": "segment", "a": [20.0, 20.0], "b": [21.0, 20.0]}],  # kept
+             "noise": {"sigma": 0.05}}
+
+
+def room_grid(width_cells: int, height_cells: int = 8, res: float = 0.5,
+              origin=(-1.0, -1.0)):
+    """An OccupancyGrid (frame map): a room of free cells (0) inside a one-cell border of
+    occupied cells (100); with 8 rows from y = -1 the free space is -0.5 <= y <= 2.5."""
+    from nav_msgs.msg import OccupancyGrid
+
+    cells = np.zeros((height_cells, width_cells), dtype=np.int8)
+    cells[0, :] = cells[-1, :] = cells[:, 0] = cells[:, -1] = 100
+    msg = OccupancyGrid()
+    msg.header.frame_id = "map"
+    msg.info.resolution = res
+    msg.info.width, msg.info.height = width_cells, height_cells
+    msg.info.origin.position.x, msg.info.origin.position.y = origin
+    msg.info.origin.orientation.w = 1.0
+    msg.data = cells.ravel().tolist()
+    return msg
+
+
+def grid_of(msg):
+    from sweep_core.model.maps import OccupancyMap
+
+    i = msg.info
+    return OccupancyMap.from_occupancy_grid(np.array(msg.data, dtype=np.int8), i.width, i.height,
+                                            i.resolution, (i.origin.position.x,
+                                                           i.origin.position.y, 0.0))
+
+
+def test_map_topic_walls_refusal_and_replay(installed, probe, tmp_path):
+    """A map published (transient-local) before the node starts becomes its walls (markers
+    show its pieces); a wider map mid-run lets the crowd further; a map that cuts agents is
+    refused naming them while the run goes on; no recorded state has an agent in a blocked
+    cell of the map in effect; sweep replay reproduces the run bit for bit."""
+    from rclpy.qos import DurabilityPolicy
+    from visualization_msgs.msg import MarkerArray
+
+    from sweep_core.cli import main as sweep_main
+
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    walls: list[MarkerArray] = []
+    probe.node.create_subscription(MarkerArray, "/walls", walls.append, latched)
+    map_pub = probe.node.create_publisher(type(room_grid(4)), "/map", latched)
+    narrow, wide = room_grid(12), room_grid(16)  # free x up to 4.5 m, then up to 6.5 m
+    map_pub.publish(narrow)  # before the node exists: transient-local keeps it for it
+    scene_path = tmp_path / "scene.yaml"
+    scene_path.write_text(yaml.safe_dump(MAP_SCENE))
+    record = tmp_path / "map.mcap"
+    node = Running(installed, tmp_path, {
+        "scene": str(scene_path), "dt": DT, "seed": 5, "rate_hz": 50.0, "steps_per_tick": 2,
+        "map_topic": "map", "record": str(record), "record_flush_interval_s": 0.2})
+    try:
+        probe.connect(node)
+        probe.spin_until(lambda: diag_value(probe, "maps_applied") == "1", DISCOVERY_S,
+                         "the first map applied", node)
+
+        def map_pieces():
+            last = walls[-1] if walls else None
+            return last and [m for m in last.markers if m.ns == "map"]
+        pieces = probe.spin_until(map_pieces, 5.0, "walls markers of the map", node)
+        a, b = grid_of(narrow).segments()
+        got = sorted((m.pose.position.x, m.pose.position.y) for m in pieces)
+        want = sorted(map(tuple, ((a + b) / 2).tolist()))
+        assert len(pieces) == len(a) and np.allclose(got, want, atol=1e-9)
+
+        probe.cmd_vel.publish(Twist(linear=Vector3(x=1.0)))  # into the east wall at x = 4.5
+        probe.spin_for(4.0)
+        map_pub.publish(wide)
+        probe.spin_until(lambda: diag_value(probe, "maps_applied") == "2", 10.0,
+                         "the wider map applied", node)
+        probe.spin_until(lambda: max(p.position.x for p in probe.poses[-1].poses) > 5.0, 10.0,
+                         "the crowd beyond the old wall", node)
+        a, b = grid_of(wide).segments()
+        assert len(walls[-1].markers) == 1 + 1 + len(a)  # DELETEALL, the scene's wall, map
+        assert walls[-1].markers[0].action == 3
+        got = sorted((m.pose.position.x, m.pose.position.y) for m in map_pieces())
+        assert np.allclose(got, sorted(map(tuple, ((a + b) / 2).tolist())), atol=1e-9)
+        probe.spin_for(3.0)
+        map_pub.publish(narrow)  # now cuts the agents piled at x ~ 6.35: refused
+        probe.spin_until(lambda: diag_value(probe, "map_refused") == "1", 10.0,
+                         "the narrow map refused", node)
+        assert diag_value(probe, "maps_applied") == "2"
+        assert "map refused" in probe.diagnostics[-1].status[0].message
+        n, t_refused = len(probe.poses), stamp(probe.poses[-1])
+        probe.spin_until(lambda: len(probe.poses) > n + 10, 5.0, "the run going on", node)
+        assert stamp(probe.poses[-1]) > t_refused and node.alive()
+        # free where the agents are now, but not where a reset puts them: refused too
+        map_pub.publish(room_grid(6, origin=(5.0, -1.0)))
+        probe.spin_until(lambda: diag_value(probe, "map_refused") == "2", 10.0,
+                         "the map without the start refused", node)
+        # reset: back to the start, the wide map kept; then the run goes on
+        assert probe.call(Trigger, "/reset", Trigger.Request(), node).success
+        probe.spin_until(lambda: stamp(probe.poses[-1]) > topics.stamp_ns(2.0), 10.0,
+                         "2 s after the reset", node)
+        assert len(walls[-1].markers) == 1 + len(a)  # the wide map's walls, republished
+    finally:
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
+    assert "Traceback" not in node.log
+    refusal = [line for line in node.log.splitlines() if "map refused" in line]
+    assert len(refusal) == 2 and "old walls kept" in refusal[0]
+    assert re.search(r"agents \[\d+(, \d+)*\] at t = [\d.]+ s would be inside", refusal[0])
+    assert "initial positions (where reset returns)" in refusal[1] and "agent 0" in refusal[1]
+
+    info = scan_recording(record)
+    meta = info.metadata
+    assert info.channels["/map"].message_count == 2  # the maps applied, as received
+    maps = [meta[k] for k in sorted(meta) if k.startswith("map_")]
+    assert [m["topic"] for m in maps] == ["/map", "/map"]
+    steps = [int(m["step"]) for m in maps]
+    grids = [grid_of(narrow), grid_of(wide)]
+    seen, after_reset = 0, 0
+    for m in read_recording(record, ["/poses"]):
+        t, _, q = cdr.decode_pose_array(m.data)
+        k = round(t / (DT * 1e9))
+        if m.log_time_ns > int(meta["reset_000001"]["log_time_ns"]) - 1:
+            assert not grids[1].is_blocked(q).any(), k  # the wide map stays over the reset
+            after_reset += 1
+        elif k >= steps[0]:
+            in_effect = grids[1] if k >= steps[1] else grids[0]
+            assert not in_effect.is_blocked(q).any(), k
+            seen += 1
+    assert seen > 100 and after_reset > 10
+    assert sweep_main(["replay", str(record)]) == 0

@@ -5,7 +5,9 @@ scheme, solver settings; ``path_dt`` when the Brownian path was drawn finer than
 :mod:`sweep_core.paths`), applies the recorded commands at their recorded steps (metadata
 ``command_*`` written by the node: the drift spec in effect from step ``step`` on), restarts at
 each recorded reset (``reset_*``), applies recorded ``noise_sigma`` changes (``parameters`` at
-start, ``parameter_*`` live), and compares the raw float64 centres of every recorded
+start, ``parameter_*`` live) and the maps the node received (``map_*``: the scene's walls
+rebuilt from the recorded packed map at its step, kept over later resets, as the node does),
+and compares the raw float64 centres of every recorded
 ``/poses`` message with the simulator's, bit for bit. Steps that were not recorded (``sweep run
 --record-every K``, node ticks of several steps) are simulated but not compared. The same
 numpy / scipy / solver versions give the same floats; the recorded versions are checked and a
@@ -22,7 +24,7 @@ import numpy as np
 
 from sweep_core.analysis.frames import FrameReader, progress_bar
 from sweep_core.analysis.report import jsonable
-from sweep_core.analysis.run import RunMeta, load_run, require_replayable
+from sweep_core.analysis.run import MapChange, RunMeta, load_run, require_replayable, scene_with_map
 from sweep_core.errors import InfeasibleError, RecordingError, SweepError
 from sweep_core.io.versions import versions
 from sweep_core.model.fields import field_from_spec
@@ -66,6 +68,8 @@ class ReplayResult:
     read_until: str | None
     divergence: Divergence | None
     notes: list[str] = field(default_factory=list)
+    #: recorded maps (``map_*``) the replay rebuilt the walls with
+    maps_applied: int = 0
 
     def to_dict(self) -> dict:
         d = dict(self.__dict__)
@@ -106,7 +110,16 @@ class _Replayer:
         self.simulated = 0
         self.retries = 0
         self.noise_sigma = self.meta.parameters.get("noise_sigma", -1.0)
+        self.map_index: int | None = None  # the recorded map in effect (None: the scene's)
+        self.maps_applied = 0
         self._start(0)
+
+    def _map(self, change: MapChange) -> None:
+        if self.meta.scene is None:
+            return
+        self.sim.set_scene(scene_with_map(self.meta.scene, change.spec))
+        self.map_index = change.index
+        self.maps_applied += 1
 
     def _sigma(self, value: Any) -> None:
         self.noise_sigma = value
@@ -128,8 +141,14 @@ class _Replayer:
             if ch.name == "noise_sigma" and ch.segment < segment and ch.log_time_ns < epoch:
                 self.noise_sigma = ch.value
         self._sigma(self.noise_sigma)
-        ev = [(c.step, c.index, "command", c.spec) for c in self.meta.commands
-              if c.segment == segment]
+        # a map received before this segment is still in effect (the node keeps it on reset)
+        earlier = [m for m in self.meta.maps if m.segment < segment]
+        if earlier and earlier[-1].index != self.map_index:
+            self._map(earlier[-1])
+        ev: list[tuple[int, int, str, Any]] = [
+            (c.step, c.index, "command", c.spec) for c in self.meta.commands
+            if c.segment == segment]
+        ev += [(m.step, m.index, "map", m) for m in self.meta.maps if m.segment == segment]
         ev += [(c.step, c.index, "parameter", c) for c in self.meta.parameter_changes
                if c.segment == segment and c.name == "noise_sigma"]
         self.events = sorted(ev, key=lambda e: (e[0], e[2], e[1]))
@@ -147,6 +166,8 @@ class _Replayer:
                 if kind == "command":
                     self.sim.set_drift(field_from_spec(what, self.meta.scene.n_agents))
                     self.applied += 1
+                elif kind == "map":
+                    self._map(what)
                 else:
                     self._sigma(what.value)
             for attempt in range(MAX_ATTEMPTS):
@@ -225,7 +246,7 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
         steps_simulated=rep.simulated, last_step=last_step, last_t_s=last_t,
         segments=len(meta.resets) + 1, commands_applied=rep.applied,
         truncated=bool(reader.truncated), read_until=reader.error if reader.truncated else None,
-        divergence=div, notes=notes)
+        divergence=div, notes=notes, maps_applied=rep.maps_applied)
 
 
 def format_replay(res: ReplayResult) -> str:
@@ -236,7 +257,8 @@ def format_replay(res: ReplayResult) -> str:
     lines.append(f"frames compared    {res.frames_compared} (last: step {res.last_step}, "
                  f"t = {res.last_t_s:.6g} s)")
     lines.append(f"steps simulated    {res.steps_simulated} in {res.segments} segment(s), "
-                 f"{res.commands_applied} command(s) applied")
+                 f"{res.commands_applied} command(s) applied"
+                 + (f", {res.maps_applied} map(s)" if res.maps_applied else ""))
     d = res.divergence
     if d is None:
         lines.append("result             IDENTICAL: every recorded pose reproduced bit for bit")

@@ -1,5 +1,5 @@
 """What a recording says about its run: the ``sweep_ros`` metadata record (scene, seed, dt,
-scheme, solver) and the node's command, reset and parameter records (:func:`load_run`,
+scheme, solver) and the node's command, reset, parameter and map records (:func:`load_run`,
 :class:`RunMeta`, :class:`Schedule`)."""
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from sweep_core.errors import RecordingError, SweepError
 from sweep_core.io import cdr
 from sweep_core.io.metadata import describe_status
 from sweep_core.io.recording import ChannelInfo, scan_recording
+from sweep_core.model.maps import replace_map
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.projection import SolverOptions
 
@@ -50,6 +51,26 @@ class ParameterChange:
     segment: int
 
 
+@dataclass(frozen=True)
+class MapChange:
+    """A map the node accepted from its map topic (metadata ``map_NNNNNN``: ``topic``,
+    ``step``, ``log_time_ns``, ``map`` the packed map spec as JSON): the scene's walls are
+    rebuilt with it (:func:`scene_with_map`) before step ``step`` -> step + 1 of segment
+    ``segment``; it stays in effect over later resets, until the next map."""
+
+    index: int
+    topic: str
+    step: int
+    log_time_ns: int
+    spec: dict
+    segment: int
+
+
+def scene_with_map(scene: Scene, spec: dict) -> Scene:
+    """``scene`` with its map replaced by ``spec`` (the packed form), as the node builds it."""
+    return Scene.from_dict(replace_map(scene.spec, spec))
+
+
 @dataclass
 class RunMeta:
     """What a recording says about its run (None where it does not say)."""
@@ -77,6 +98,8 @@ class RunMeta:
     problems: list[str] = field(default_factory=list)
     #: how the run ended (its ``sweep_status`` record), see :func:`describe_status`
     status: str = ""
+    #: maps received by the node, in the order it accepted them
+    maps: list[MapChange] = field(default_factory=list)
 
     @property
     def dt_ns(self) -> int | None:
@@ -214,6 +237,16 @@ def load_run(path: str | Path) -> RunMeta:
         meta.parameter_changes.append(ParameterChange(
             change.index, change.name, change.value, change.step, change.log_time_ns,
             meta.segment_of(change.log_time_ns)))
+    for k, rec in _indexed(info.metadata, "map"):
+        spec = _json(rec.get("map"), f"map_{k:06d}.map", problems)
+        try:
+            step, log_ns = int(rec["step"]), int(rec["log_time_ns"])
+        except (KeyError, ValueError):
+            problems.append(f"metadata map_{k:06d} has no valid step / log_time_ns")
+            continue
+        if isinstance(spec, dict):
+            meta.maps.append(MapChange(k, rec.get("topic", ""), step, log_ns, spec,
+                                       meta.segment_of(log_ns)))
     return meta
 
 
@@ -230,7 +263,8 @@ def require_replayable(meta: RunMeta) -> None:
 
 class Schedule:
     """The drift spec in effect at (segment, step): the scene's, replaced by each command from
-    its step on (a command with step k is in effect for the step k -> k + 1)."""
+    its step on (a command with step k is in effect for the step k -> k + 1); and the map in
+    effect (:meth:`map_at`)."""
 
     def __init__(self, meta: RunMeta) -> None:
         base = meta.scene.drift.to_spec() if meta.scene is not None else {"kind": "none"}
@@ -241,7 +275,16 @@ class Schedule:
             steps.append(c.step)
             specs.append(c.spec)
 
+        #: (segment, step) from which each recorded map is in effect, and its spec
+        self._maps = sorted(((m.segment, m.step), m.index, m.spec) for m in meta.maps)
+
     def spec_at(self, segment: int, step: int) -> dict:
         steps, specs = self._by_segment.get(segment, ([], []))
         k = bisect.bisect_right(steps, step)
         return specs[k - 1] if k else self._base
+
+    def map_at(self, segment: int, step: int) -> dict | None:
+        """The packed map in effect for the step step -> step + 1 of segment (a recorded map
+        stays over resets), or None: the scene's own."""
+        k = bisect.bisect_right([m[0] for m in self._maps], (segment, step))
+        return self._maps[k - 1][2] if k else None

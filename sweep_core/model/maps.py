@@ -9,6 +9,10 @@ run. An agent whose centre is in a free cell and whose disk keeps clear of those
 in the free space; the steps never cross a segment (each segment's row is a half-plane clear
 of the segment: reference §4), so it stays there.
 
+A nav_msgs/OccupancyGrid (what map_server publishes; :meth:`OccupancyMap.from_occupancy_grid`)
+holds the same cells as values 0..100 (occupancy, percent) or -1 (unknown), row 0 at the
+origin (not flipped like an image); the same rule applies with p = value / 100.
+
 Map files (map_server's YAML): ``image`` (PGM or PNG, relative to the YAML file),
 ``resolution`` (m per cell), ``origin`` [x, y, yaw] (the pose of the lower-left corner of the
 lower-left pixel), ``negate`` (0/1), ``occupied_thresh``, ``free_thresh`` (probabilities),
@@ -19,6 +23,7 @@ negate); p > occupied_thresh: occupied; p < free_thresh: free; otherwise unknown
 from __future__ import annotations
 
 import base64
+import copy
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -93,6 +98,47 @@ class OccupancyMap:
         b = np.concatenate(ends) * self.resolution
         return self.to_world(a), self.to_world(b)
 
+    @classmethod
+    def from_occupancy_grid(cls, data: Any, width: int, height: int, resolution: float,
+                            origin_xy_yaw: Any, occupied_thresh: float = 0.65,
+                            free_thresh: float = 0.25, source: str = "OccupancyGrid",
+                            field: str = "map") -> OccupancyMap:
+        """A nav_msgs/OccupancyGrid: ``data`` (width x height int8 values, row-major from the
+        grid origin, row 0 the lowest y: not flipped like an image), 0..100 the occupancy in
+        percent, -1 unknown; ``resolution`` m per cell; ``origin_xy_yaw`` (m, m, rad) the pose
+        of the lower-left corner of cell (0, 0). The rule of the map files: a cell is free iff
+        p = value / 100 < free_thresh, blocked otherwise (occupied or unknown);
+        ``occupied_thresh`` only has to be >= free_thresh (it separates occupied from unknown,
+        both blocked here). Raises SceneError naming ``field`` for a malformed grid."""
+        w = checks.integer(width, f"{field}.info.width", low=1)
+        h = checks.integer(height, f"{field}.info.height", low=1)
+        if w * h > MAX_CELLS:
+            raise SceneError(field, f"has {w} x {h} = {w * h} cells, more than {MAX_CELLS}",
+                             "publish a coarser or cropped map")
+        occupied = checks.number(occupied_thresh, "occupied_thresh")
+        free = checks.number(free_thresh, "free_thresh")
+        if not 0.0 <= free <= occupied <= 1.0:
+            raise SceneError(field, f"free_thresh {free:g} and occupied_thresh {occupied:g} "
+                             "are not 0 <= free <= occupied <= 1", "use e.g. 0.25 and 0.65")
+        values = np.asarray(data)
+        if values.ndim != 1 or (len(values) and values.dtype.kind not in "iu"):
+            raise SceneError(f"{field}.data", f"must be a flat sequence of integers, got "
+                             f"{values.dtype} of shape {values.shape}",
+                             "give the OccupancyGrid's data (int8, row-major)")
+        if len(values) != w * h:
+            raise SceneError(f"{field}.data", f"holds {len(values)} cells, not width x height "
+                             f"= {w} x {h} = {w * h}", "publish width * height values")
+        values = values.astype(np.int64)
+        bad = np.flatnonzero((values < -1) | (values > 100))
+        if len(bad):
+            k = int(bad[0])
+            raise SceneError(f"{field}.data", f"holds {int(values[k])} at cell {k} (row "
+                             f"{k // w}, column {k % w}; {len(bad)} such cells)",
+                             "use 0..100 (occupancy, percent) or -1 (unknown)")
+        free_cells = (values >= 0) & (values / 100.0 < free)
+        return cls(~free_cells.reshape(h, w), _resolution(resolution, f"{field}.info.resolution"),
+                   _origin(origin_xy_yaw, f"{field}.info.origin"), source)
+
     def to_spec(self) -> dict:
         """The map in a scene's normalised dict, self-contained (the cells packed, base64), so a
         recording replays without the map file."""
@@ -110,6 +156,15 @@ def _runs(edge: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     r1, c1 = np.nonzero(step == -1)
     # both are in row-major order, one start and one end per run
     return r0, c0, c1 - 1
+
+
+def replace_map(spec: dict, packed: dict) -> dict:
+    """A copy of a scene's normalised spec with its ``map`` entry replaced by ``packed`` (what
+    :meth:`OccupancyMap.to_spec` gives): ``Scene.from_dict`` of it is the scene with the new
+    map's walls and everything else as before (how the node and replay apply a map)."""
+    out = copy.deepcopy(spec)
+    out["map"] = copy.deepcopy(packed)
+    return out
 
 
 def map_from_spec(value: Any, field: str, base: Path | None) -> OccupancyMap:

@@ -10,7 +10,8 @@ import numpy as np
 from sweep_core import checks
 from sweep_core.errors import InfeasibleError, SceneError
 from sweep_core.model.fields import Field
-from sweep_core.model.geometry import gaps
+from sweep_core.model.geometry import gaps, single_rows
+from sweep_core.model.maps import map_from_spec
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise
 from sweep_core.numerics.projection import SolverOptions
@@ -167,6 +168,43 @@ class Simulator:
         """Replace the noise intensities (scalar or (N,), m/sqrt(s)) from the next step on."""
         self._sigma = checks.per_agent(sigma, self.scene.n_agents, "noise.sigma", nonnegative=True)
 
+    # -- geometry ------------------------------------------------------------------------
+    def set_scene(self, scene: Scene) -> None:
+        """Replace the scene (its walls, obstacles and map) from the next step on, keeping the
+        time, the positions, the drift, the noise and the Brownian path; a later reset returns
+        to ``scene``'s initial positions. ``scene`` must have the same agents (count and radius
+        law). The warm start of the projection is dropped (its rows belong to the old walls),
+        so a replay that replaces the scene at the same step gets the same floats.
+
+        Raises:
+            SceneError: other agents, or some agent at the current positions would violate a
+                wall or obstacle of ``scene`` or sit in a blocked cell of its map (the message
+                names every such agent); the simulator is then unchanged.
+        """
+        if not isinstance(scene, Scene):
+            raise SceneError("scene", f"must be a sweep_core.Scene, got {type(scene).__name__}",
+                             "build it with Scene.from_yaml or Scene.from_dict")
+        old = self.scene
+        if (scene.n_agents != old.n_agents or not np.array_equal(scene.radius, old.radius)
+                or scene.radius_law.to_spec() != old.radius_law.to_spec()):
+            raise SceneError("scene", f"has {scene.n_agents} agents (radii or radius law "
+                             f"differing), the simulator {old.n_agents}",
+                             "keep the agents and their radii; build a new Simulator for others")
+        bad = violating_agents(scene, self.t, self._q)
+        if bad:
+            shown = ", ".join(str(a) for a in bad[:12])
+            more = "" if len(bad) <= 12 else f" and {len(bad) - 12} more"
+            first = self._q[bad[0]]
+            raise SceneError("scene", f"agents [{shown}{more}] at t = {self.t:g} s would be "
+                             f"inside the new walls, obstacles or blocked map cells (agent {bad[0]} "
+                             f"at [{first[0]:g}, {first[1]:g}])",
+                             "keep those agents' positions free in the new geometry")
+        self.scene = scene
+        self.scheme.scene = scene
+        self.scheme.reset()
+        r = scene.radii(self.t)
+        self._min_gap = gaps(scene.geometry, self.t, self._q, r).min_gap if len(r) else math.inf
+
     # -- stepping ------------------------------------------------------------------------
     def step(self, n: int = 1, dB: np.ndarray | None = None) -> None:
         """Take n steps. dB: Brownian increments, (N, 2) for one step or (n, N, 2) for n steps;
@@ -244,3 +282,18 @@ class Simulator:
         self._contacts = res.projection.active
         self._min_gap = min_gap
         self.last = res
+
+
+def violating_agents(scene: Scene, t: float, q: np.ndarray) -> list[int]:
+    """The agents (sorted indices) whose centres q (N, 2) violate a wall, obstacle or user
+    constraint of ``scene`` at time t by more than FEASIBILITY_TOLERANCE (m), or lie in a
+    blocked cell of its map (or outside the map's grid)."""
+    q = np.asarray(q, dtype=np.float64)
+    bad: set[int] = set()
+    if len(q) and not scene.geometry.is_empty:
+        for a, _, g, _, _ in single_rows(scene.geometry, t, q, scene.radii(t), 0.0):
+            bad.update(int(i) for i in a[g < -FEASIBILITY_TOLERANCE])
+    if len(q) and scene.spec.get("map") is not None:
+        grid = map_from_spec(scene.spec["map"], "map", None)
+        bad.update(int(i) for i in np.flatnonzero(grid.is_blocked(q)))
+    return sorted(bad)

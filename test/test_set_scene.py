@@ -1,0 +1,90 @@
+"""Simulator.set_scene: new walls (a map) between two steps, the state and the Brownian path
+kept (issue 13, the node's map topic)."""
+import numpy as np
+import pytest
+
+import sweep_core as sc
+from sweep_core.errors import SceneError
+from sweep_core.model.maps import OccupancyMap, map_from_spec
+from sweep_core.model.scene import copy_spec
+from sweep_core.numerics.simulator import violating_agents
+
+# 4 agents in a row, drifting +x with noise
+OPEN = {"agents": {"positions": [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]],
+                   "radius": 0.2},
+        "drift": {"kind": "uniform", "velocity": [0.5, 0.0]}, "noise": {"sigma": 0.2}}
+
+
+def box_map(x0: float, y0: float, w: int, h: int, blocked: list[tuple[int, int]] = (),
+            res: float = 0.5) -> dict:
+    """A packed map: w x h cells of res m from (x0, y0), free but for ``blocked`` (row, col)
+    and its border row/column of blocked cells all round."""
+    cells = np.zeros((h, w), dtype=bool)
+    cells[0, :] = cells[-1, :] = cells[:, 0] = cells[:, -1] = True
+    for r, c in blocked:
+        cells[r, c] = True
+    data = np.where(cells, 100, 0).ravel()
+    return OccupancyMap.from_occupancy_grid(data, w, h, res, (x0, y0, 0.0), source="test").to_spec()
+
+
+def with_map(scene: sc.Scene, spec: dict) -> sc.Scene:
+    return sc.Scene.from_dict({**copy_spec(scene), "map": spec})
+
+
+def test_far_walls_change_nothing_else() -> None:
+    """Time, positions, drift, noise and the Brownian path carry over: walls far from every
+    agent leave the run bit-identical to one without them."""
+    scene = sc.Scene.from_dict(OPEN)
+    a, b = sc.Simulator(scene, dt=0.01, seed=3), sc.Simulator(scene, dt=0.01, seed=3)
+    a.step(30)
+    b.step(30)
+    b.set_scene(with_map(scene, box_map(-50.0, -50.0, 200, 200)))
+    assert b.t == a.t and b.n_steps == 30 and len(b.scene.geometry.segment_a) == 4
+    a.step(50)
+    b.step(50)
+    assert np.array_equal(a.positions, b.positions)
+
+
+def test_walls_take_effect_from_the_next_step_and_are_never_crossed() -> None:
+    scene = sc.Scene.from_dict(OPEN)
+    sim = sc.Simulator(scene, dt=0.01, seed=1)
+    sim.step(10)
+    # a room of free cells x in [-1, 5.5], y in [-1, 1] (cells of 0.5 m, a blocked border)
+    spec = box_map(-1.5, -1.5, 15, 6)
+    sim.set_scene(with_map(scene, spec))
+    grid = map_from_spec(spec, "map", None)
+    for _ in range(600):
+        sim.step()
+        assert not grid.is_blocked(sim.positions).any()
+    # pushed +x for 6 s at 0.5 m/s: the crowd is held by the wall at x = 5.5
+    assert 5.2 < sim.positions[:, 0].max() <= 5.5 - 0.2 + 1e-9
+
+
+def test_a_wall_through_an_agent_is_refused_naming_it() -> None:
+    three = {**OPEN, "agents": {"positions": [[0.25, 0.25], [1.25, 0.25], [2.25, 0.25]],
+                                "radius": 0.2}, "noise": {"sigma": 0.0}}
+    scene = sc.Scene.from_dict(three)
+    sim = sc.Simulator(scene, dt=0.01, seed=0)
+    sim.step(100)  # moved 0.5 m: agent 1 now at x = 1.75
+    before = sim.scene
+    # a blocked cell [1.5, 2) x [0, 0.5) round agent 1's new position, clear of where it started
+    new = with_map(scene, box_map(-1.5, -1.5, 15, 6, blocked=[(3, 6)]))
+    assert violating_agents(new, sim.t, sim.positions) == [1]
+    with pytest.raises(SceneError) as err:
+        sim.set_scene(new)
+    assert "agents [1]" in str(err.value) and "[1.75, 0.25]" in str(err.value)
+    assert err.value.fix and sim.scene is before
+    sim.step(40)  # agent 2 at x = 2.95: a cell [3, 3.5) cuts its disk, its centre is free
+    new = with_map(scene, box_map(-1.5, -1.5, 15, 6, blocked=[(3, 9)]))
+    assert violating_agents(new, sim.t, sim.positions) == [2]
+    with pytest.raises(SceneError, match=r"agents \[2\]"):
+        sim.set_scene(new)
+
+
+def test_other_agents_are_refused() -> None:
+    scene = sc.Scene.from_dict(OPEN)
+    sim = sc.Simulator(scene, dt=0.01, seed=0)
+    other = sc.Scene.from_dict({**OPEN, "agents": {"positions": [[0.0, 0.0]], "radius": 0.2},
+                                "noise": {"sigma": 0.1}})
+    with pytest.raises(SceneError, match="keep the agents"):
+        sim.set_scene(other)
