@@ -93,3 +93,17 @@ def test_a_recording_without_its_map_records_diverges(tmp_path: Path) -> None:
     res = replay.replay(f)
     assert not res.identical and res.divergence is not None
     assert res.divergence.segment == 0 and res.divergence.step > 20
+
+
+def test_analyze_checks_the_walls_of_the_received_maps(tmp_path: Path) -> None:
+    """sweep analyze holds each frame against the walls in effect at its step: the crowd
+    pressed on the received map's east wall touches it, which the scene's own (no) walls
+    cannot show; the same positions without the map records touch less."""
+    from sweep_core.analysis.metrics import analyze
+
+    with_maps, without = tmp_path / "maps.mcap", tmp_path / "nomaps.mcap"
+    record(with_maps, SEGMENTS)
+    record(without, SEGMENTS, drop_maps=True)
+    a, b = analyze(with_maps), analyze(without)
+    assert a.summary["touching"]["max"] > b.summary["touching"]["max"]
+    assert a.summary["min_gap"]["min_m"] >= -1e-9

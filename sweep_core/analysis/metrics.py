@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from sweep_core.analysis.frames import Frame, FrameReader, progress_bar
-from sweep_core.analysis.run import NS, RunMeta, Schedule, load_run
+from sweep_core.analysis.run import NS, RunMeta, Schedule, load_run, scene_with_map
 from sweep_core.errors import RecordingError, SweepError
 from sweep_core.model.geometry import Geometry, gaps
 
@@ -226,6 +226,7 @@ class _Metrics:
         self.speed_sum, self.speed_count, self.speed_max = 0.0, 0, 0.0
         self.goal_seen = False
         self.radii_used: set[float] = set()
+        self._map_geometry: dict[int, Geometry] = {}
 
     def add(self, fr: Frame) -> None:
         meta, q = self.meta, fr.positions
@@ -242,7 +243,8 @@ class _Metrics:
         t = (fr.log_ns - self.t0) / NS
         seg = meta.segment_of(fr.log_ns)
         step = meta.step_of(fr.stamp_ns) if meta.dt is not None else -1
-        g = self._gaps(fr, step)
+        geometry = self._geometry_at(seg, step)
+        g = self._gaps(fr, step, geometry)
         react_total, sp_mean, sp_max = self._agents(fr.agents, step)
         if self.line is not None:
             self._flow(seg, q, t)
@@ -260,15 +262,27 @@ class _Metrics:
                 between = f"agents {g.worst_pair[0]} and {g.worst_pair[1]}"
             else:
                 a, kind, item, _ = g.worst_single
-                between = f"agent {a} and {self.geometry.describe(kind, item)}"
+                between = f"agent {a} and {geometry.describe(kind, item)}"
             self.worst = (g.min_gap, t, between)
 
-    def _gaps(self, fr: Frame, step: int) -> Any:
+    def _geometry_at(self, seg: int, step: int) -> Geometry:
+        """The walls a frame's state holds: the scene's, with the map the node received
+        (``map_NNNNNN`` records) in effect at that step instead of the scene's own."""
+        scene = self.meta.scene
+        packed = self.schedule.map_at(seg, step) if scene is not None and step >= 0 else None
+        if packed is None or scene is None:
+            return self.geometry
+        key = id(packed)
+        if key not in self._map_geometry:
+            self._map_geometry[key] = scene_with_map(scene, packed).geometry
+        return self._map_geometry[key]
+
+    def _gaps(self, fr: Frame, step: int, geometry: Geometry) -> Any:
         """True constraint values: float64 poses and float64 radii r_i(t) from the scene."""
         scene, dt = self.meta.scene, self.meta.dt
         if scene is not None:
             t_sim = step * dt if dt is not None else fr.stamp_ns / NS
-            return gaps(scene.geometry, t_sim, fr.positions, scene.radii(t_sim), CONTACT_TOL)
+            return gaps(geometry, t_sim, fr.positions, scene.radii(t_sim), CONTACT_TOL)
         # no scene in the metadata: disks only, with the float32 radii of /agents
         r = (fr.agents["radius"].astype(np.float64) if fr.agents is not None
              else np.zeros(len(fr.positions)))
