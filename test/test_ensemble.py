@@ -261,3 +261,41 @@ def test_bench_accuracy_crowd_paths_on_a_cluster_equal_the_local_ones() -> None:
     assert [(m.scheme, m.dt, m.tol) for m in local] == [(m.scheme, m.dt, m.tol) for m in remote]
     for a, b in zip(local, remote):
         assert np.array_equal(a.values, b.values) and a.error == b.error
+
+
+def test_resume_after_a_real_kill(tmp_path, scene):
+    """`sweep ensemble` killed with SIGKILL (its whole process group: the command and its local
+    workers) after some runs finished; the same command again runs only the rest, and the
+    table equals an uninterrupted ensemble's."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "sweep_core.cli", "ensemble", str(scene), "--runs", "12",
+           "--t-end", "0.6", "--workers", "1", "--out", str(out), "--quiet"]
+    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 240
+        while len(list((out / "runs").glob("*.parquet"))) < 3:
+            assert proc.poll() is None and time.monotonic() < deadline, "no runs finished"
+            time.sleep(0.05)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    done = {f.name: f.stat().st_mtime_ns for f in (out / "runs").glob("*.parquet")}
+    assert 3 <= len(done) < 12, "the kill came too late to test a resume"
+    assert not (out / "runs.parquet").exists()
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stdout + again.stderr
+    after = {f.name: f.stat().st_mtime_ns for f in (out / "runs").glob("*.parquet")}
+    assert len(after) == 12 and all(after[name] == t for name, t in done.items())
+    table = pd.read_parquet(out / "runs.parquet")
+    assert sorted(table["seed"]) == list(range(12)) and (table["status"] == "ok").all()
+    fresh = run(scene, runs=12, t_end=0.6, out=tmp_path / "fresh", workers=1)
+    cols = ["seed", "final_sha256"]
+    assert table.sort_values("seed")[cols].reset_index(drop=True).equals(
+        fresh.sort_values("seed")[cols].reset_index(drop=True))
