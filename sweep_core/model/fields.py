@@ -7,6 +7,7 @@ bounds |U| (m/s) and feeds the constraint cutoff.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -125,8 +126,8 @@ class Grid(Field):
     kind = "grid"
 
     def __call__(self, t: float, q: np.ndarray) -> np.ndarray:
-        fx, ix = _cell(self.x, q[:, 0])
-        fy, iy = _cell(self.y, q[:, 1])
+        fx, ix = grid_cell(self.x, q[:, 0])
+        fy, iy = grid_cell(self.y, q[:, 1])
         out = np.empty_like(q)
         for c, v in enumerate((self.vx, self.vy)):
             v00, v01 = v[iy, ix], v[iy, ix + 1]
@@ -139,7 +140,7 @@ class Grid(Field):
                 "vx": self.vx.tolist(), "vy": self.vy.tolist()}
 
 
-def _cell(nodes: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def grid_cell(nodes: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Cell index and fraction of coordinates s on sorted nodes, clamped to the grid."""
     if nodes.size == 1:
         return np.zeros_like(s), np.zeros(s.shape, dtype=np.intp)
@@ -191,15 +192,27 @@ _KEYS = {
     "grid": {"x", "y", "vx", "vy"},
 }
 _OPTIONAL = {"goal": {"slow_radius"}, "linear": {"offset"}}
-FIELD_KINDS = tuple(_KEYS)
+#: navigation fields, built against the scene's geometry (:mod:`sweep_core.model.geodesic`)
+NAVIGATION_KINDS = ("geodesic", "exits")
+FIELD_KINDS = tuple(_KEYS) + NAVIGATION_KINDS
 
 
-def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift") -> Field:
-    """Build a drift field from its scene dict (see the README's scene schema)."""
+def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift",
+                    geometry: Any = None, grid: Any = None,
+                    positions: np.ndarray | None = None) -> Field:
+    """Build a drift field from its scene dict (see the README's scene schema). The
+    navigation kinds (geodesic, exits) need the scene's geometry (a
+    :class:`~sweep_core.model.geometry.Geometry`), its map (an
+    :class:`~sweep_core.model.maps.OccupancyMap` or None) and the agents' positions (N, 2) m."""
     if spec is None:
         return NoDrift()
     checks.mapping(spec, field)
-    kind = checks.kind(spec, field, _KEYS, default="none")
+    kind = checks.kind(spec, field, FIELD_KINDS, default="none")
+    if kind in NAVIGATION_KINDS:
+        from sweep_core.model.geodesic import navigation_from_spec  # it builds on Field
+
+        return navigation_from_spec(spec, field, geometry, grid,
+                                    np.empty((0, 2)) if positions is None else positions)
     checks.mapping(spec, field, allowed={"kind"} | _KEYS[kind] | _OPTIONAL.get(kind, set()),
                    required=_KEYS[kind])
     if kind == "uniform":

@@ -222,7 +222,8 @@ def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
                              f"{positions[a, 1]:g}] is in a blocked (occupied or unknown) cell "
                              f"of the map{more}", "place agents in the map's free cells")
 
-    drift = field_from_spec(data.get("drift"), n)
+    drift = field_from_spec(data.get("drift"), n, geometry=geometry, grid=grid,
+                           positions=positions)
     spec["drift"] = drift.to_spec()
 
     noise = checks.mapping(data.get("noise") or {}, "noise", allowed={"sigma"})
