@@ -10,6 +10,7 @@ from sweep_core.cli import main
 from sweep_core.errors import SceneError
 from sweep_core.model import geodesic
 from sweep_core.model.geodesic import Exits, Geodesic
+from sweep_core.model.maps import OccupancyMap
 
 ROOM = [{"kind": "polyline", "closed": True, "points": [[0, 0], [20, 0], [20, 10], [0, 10]]}]
 
@@ -216,3 +217,34 @@ def test_the_field_is_lipschitz_on_the_grid_scale_and_bounded():
     assert np.all(np.linalg.norm(u0, axis=1) <= 1.5 + 1e-12)
     ratio = np.linalg.norm(u1 - u0, axis=1) / np.linalg.norm(dq, axis=1)
     assert ratio.max() <= 4 * 1.5 / 0.1 + 1.5 / 0.5
+
+
+def test_map_cells_are_walls_for_the_field():
+    """A map of 10 x 5 m (0.25 m cells) with a wall of cells across it but for a gap at the
+    top: the way from the lower left to the lower right goes through the gap."""
+    blocked = np.zeros((20, 40), dtype=bool)
+    blocked[[0, -1], :] = blocked[:, [0, -1]] = True
+    blocked[:14, 20] = True  # x in [5, 5.25], y < 3.5: open above y = 3.5 up to 4.75
+    packed = OccupancyMap(blocked, 0.25, (0.0, 0.0, 0.0), "test").to_spec()
+    drift = {"kind": "geodesic", "goal": [8.0, 1.0], "speed": 1.0}
+    s = sc.Scene.from_dict({"agents": {"positions": [[2.0, 1.0]], "radius": 0.2},
+                            "map": packed, "drift": drift})
+    f = s.drift
+    # round the gap's lower corners (5, 3.5), (5.25, 3.5) grown by 0.3 m: about 8.4 m (the
+    # square-cornered path below is a little longer: the grown corners are round)
+    exact = math.dist((2, 1), (4.7, 3.8)) + 0.85 + math.dist((5.55, 3.8), (8, 1))
+    t = float(f.travel_distance(np.array([[2.0, 1.0]]))[0])
+    assert exact - 0.1 <= t <= exact * (1 + geodesic.METRICATION) + 0.2
+    u = f(0.0, np.array([[2.0, 1.0]]))[0]
+    assert u[1] > 0.5  # up towards the gap, not straight at the goal
+    with pytest.raises(SceneError, match=r"^drift.goal: \[5.1, 1\] lies in or on a blocked"):
+        sc.Scene.from_dict({"agents": {"positions": [[2.0, 1.0]], "radius": 0.2},
+                            "map": packed, "drift": {**drift, "goal": [5.1, 1.0]}})
+
+
+def test_moving_obstacles_count_where_they_are_at_t0():
+    box = {"kind": "polygon", "points": [[9, 0], [11, 0], [11, 9], [9, 9]], "velocity": [0, 1]}
+    f = scene({"kind": "geodesic", "goal": [15, 5], "speed": 1.0}, obstacles=[box]).drift
+    q = np.array([[5.0, 5.0]])
+    assert float(f.travel_distance(q)[0]) > math.dist((5, 5), (8.7, 9.3)) + 2.6
+    assert f(0.0, q)[0, 1] > 0.5  # round the top of the box, as it stands at t = 0
