@@ -248,3 +248,49 @@ def test_moving_obstacles_count_where_they_are_at_t0():
     q = np.array([[5.0, 5.0]])
     assert float(f.travel_distance(q)[0]) > math.dist((5, 5), (8.7, 9.3)) + 2.6
     assert f(0.0, q)[0, 1] > 0.5  # round the top of the box, as it stands at t = 0
+
+
+CORRIDOR = [{"kind": "polyline", "closed": True, "points": [[0, 0], [20, 0], [20, 3], [0, 3]]}]
+
+
+def test_two_groups_crossing_in_a_corridor_both_arrive():
+    left = [(1.0 + 0.7 * k, 0.8) for k in range(4)]
+    right = [(19.0 - 0.7 * k, 2.2) for k in range(4)]
+    drift = {"kind": "groups", "groups": [
+        {"agents": {"range": [0, 4]}, "drift": {"kind": "geodesic", "goal": [19.5, 0.8],
+                                                "speed": 1.3}},
+        {"agents": [4, 5, 6, 7], "drift": {"kind": "goal", "goal": [0.5, 2.2], "speed": 1.0}}]}
+    s = scene(drift, walls=CORRIDOR, positions=left + right, radius=0.25, sigma=0.02)
+    assert s.spec["drift"]["groups"][0]["agents"] == {"range": [0, 4]}
+    assert sc.Scene.from_yaml_text(s.to_yaml()).spec == s.spec
+    sim = sc.Simulator(s, dt=0.05, seed=2)
+    while sim.t < 25.0:
+        sim.step()
+    q = sim.positions
+    assert np.all(q[:4, 0] > 15.0) and np.all(q[4:, 0] < 5.0)
+
+
+@pytest.mark.parametrize("drift, field, words", [
+    ({"kind": "groups", "groups": []}, "drift.groups", "non-empty"),
+    ({"kind": "groups", "groups": [{"agents": [0, 7], "drift": None}]}, "drift.groups[0].agents",
+     "agent 7"),
+    ({"kind": "groups", "groups": [{"agents": {"range": [1, 1]}, "drift": None}]},
+     "drift.groups[0].agents.range", "no agent"),
+    ({"kind": "groups", "groups": [{"agents": [0], "drift": None},
+                                   {"agents": [1, 0], "drift": None}]},
+     "drift.groups[1].agents", "second group"),
+    ({"kind": "groups", "groups": [{"agents": [0], "drift": {"kind": "groups", "groups": []}}]},
+     "drift.groups[0].drift.kind", "inside"),
+    ({"kind": "groups", "groups": [{"agents": [0, 1], "drift": {
+        "kind": "per_agent", "velocities": [[1, 0]]}}]}, "drift.groups[0].drift.velocities",
+     "2 agents"),
+    ({"kind": "groups", "groups": [{"agents": [1], "drift": {
+        "kind": "geodesic", "goal": [15, 5], "speed": 1}}]}, "drift.groups[0].drift.goal",
+     "obstacles[0]"),
+])
+def test_bad_groups_are_refused_naming_the_field(drift, field, words):
+    box = [{"kind": "polygon", "points": [[14, 4], [16, 4], [16, 6], [14, 6]]}]
+    with pytest.raises(SceneError) as err:
+        scene(drift, obstacles=box, positions=[(2, 5), (3, 5), (4, 5)])
+    text = str(err.value)
+    assert text.startswith(field) and words in text and "fix:" in text, text

@@ -14,7 +14,7 @@ metres and seconds. The keys are a public contract, documented in the README:
                         | {kind: polyline, points: [[x, y], ...], closed?}]
     obstacles          [{kind: circle, center, radius} | {kind: polygon, points: [[x, y], ...]}]
     map                {yaml: PATH} a map_server map whose blocked cells become walls (maps.py)
-    drift              see fields.FIELD_KINDS
+    drift              see fields.FIELD_KINDS (geodesic, exits: geodesic.py; groups: fields.Groups)
     noise              {sigma: scalar or per-agent list}
 """
 from __future__ import annotations
