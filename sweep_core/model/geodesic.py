@@ -29,10 +29,15 @@ direction by up to about 13 degrees in open space (progress towards the goal at 
 U(q) = speed * min(1, T(q) / slow_radius) * e(q), where e is minus the gradient of T (central
 differences between free nodes, one-sided beside a wall) normalised at each node, and both e
 and T are bilinear between nodes; at nodes that are not free (within wall_buffer of a wall)
-e and T are those of the nearest free node that T reaches. So |U| <= speed, U is Lipschitz
-with constant at most 4 speed / cell + speed / slow_radius (each component of e is bilinear in
-a cell with corner values in [-1, 1]), i.e. on the grid scale, and U slows down inside
-slow_radius of the goal as the ``goal`` drift does (it stops inside a goal region).
+e and T are those of the nearest free node that T reaches. So |U| <= speed, and U is
+Lipschitz on the grid scale: each component of e is bilinear in a cell with corner values in
+[-1, 1], so |grad e| <= 4 / cell, and |grad U| <= speed (4 / cell + |grad T| / slow_radius)
+with |grad T| about 1 (T grows at most one metre per metre along a grid step), except across a
+wall thinner than a cell within slow_radius of the goal, where the nodes on its two sides
+carry different T. U slows down inside slow_radius of the goal as the ``goal`` drift does (it
+stops inside a goal region). A grid cell straddling a thin wall mixes the directions of both
+sides, so agents' radii should exceed sqrt(2) cell (a centre that far from a wall has its
+cell's four nodes on its own side); with the default cell of 0.1 m, any radius above 0.15 m.
 
 With ``exits``, T_k is computed for each exit and every node follows the exit with the
 smallest weighted distance w_k T_k (a weight above 1 makes an exit look farther: a smaller
