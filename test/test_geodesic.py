@@ -294,3 +294,25 @@ def test_bad_groups_are_refused_naming_the_field(drift, field, words):
         scene(drift, obstacles=box, positions=[(2, 5), (3, 5), (4, 5)])
     text = str(err.value)
     assert text.startswith(field) and words in text and "fix:" in text, text
+
+
+def test_update_every_recomputes_the_field_as_an_obstacle_moves():
+    """A box across the room but for a gap at the top slides down at 1 m/s: at t = 0 the way
+    is over it; recomputed each second, the way is straight once it has gone below y = 4."""
+    box = {"kind": "polygon", "points": [[9, 0], [11, 0], [11, 9], [9, 9]], "velocity": [0, -1]}
+    drift = {"kind": "geodesic", "goal": [15, 5], "speed": 1.0, "update_every": 1.0}
+    f = scene(drift, obstacles=[box]).drift
+    q = np.array([[5.0, 5.0]])
+    assert f(0.0, q)[0, 1] > 0.5 and f(0.99, q)[0, 1] > 0.5
+    assert float(f.travel_distance(q, 0.0)[0]) > 11.0
+    np.testing.assert_allclose(f.travel_distance(q, 5.5), 10.0, rtol=0.01)
+    np.testing.assert_allclose(f(5.5, q), [[1.0, 0.0]], atol=0.02)
+    assert f(0.5, q)[0, 1] > 0.5  # back to t = 0 (a reset): the first field again
+    assert sc.Scene.from_dict(scene(drift, obstacles=[box]).spec).drift.update_every == 1.0
+    # a block rising at 1 m/s covers the goal from t = 3 to t = 5: no way to it, U = 0
+    up = {"kind": "polygon", "points": [[12, 0], [16, 0], [16, 2], [12, 2]], "velocity": [0, 1]}
+    g = scene(drift, obstacles=[up]).drift
+    assert np.allclose(g(4.5, q), 0.0)
+    assert g(6.5, q)[0, 0] > 0.9
+    with pytest.raises(SceneError, match=r"^drift.update_every: is 1 s but no obstacle moves"):
+        scene(drift)
