@@ -192,10 +192,14 @@ def test_spec_round_trips_and_rebuilds_the_same_field(tmp_path):
         assert np.array_equal(getattr(again.drift, name), getattr(s.drift, name))
 
 
-def test_sweep_run_of_a_geodesic_scene_replays_identically(tmp_path, capsys):
+@pytest.mark.parametrize("moving", [False, True])
+def test_sweep_run_of_a_geodesic_scene_replays_identically(tmp_path, moving):
     pillar = [{"kind": "circle", "center": [6, 5], "radius": 0.8}]
-    s = scene({"kind": "geodesic", "goal": [12, 5], "speed": 1.3, "cell": 0.2},
-              obstacles=pillar, positions=[(2, 5), (2, 6), (3, 4.5)], sigma=0.1)
+    drift = {"kind": "geodesic", "goal": [12, 5], "speed": 1.3, "cell": 0.2}
+    if moving:  # the pillar drifts and the field follows it every 0.2 s
+        pillar[0]["velocity"] = [-2.0, 0.5]
+        drift["update_every"] = 0.2
+    s = scene(drift, obstacles=pillar, positions=[(2, 5), (2, 6), (3, 4.5)], sigma=0.1)
     path = tmp_path / "s.yaml"
     path.write_text(s.to_yaml())
     out = tmp_path / "run.mcap"
