@@ -320,3 +320,14 @@ def test_update_every_recomputes_the_field_as_an_obstacle_moves():
     assert g(6.5, q)[0, 0] > 0.9
     with pytest.raises(SceneError, match=r"^drift.update_every: is 1 s but no obstacle moves"):
         scene(drift)
+
+
+def test_navigation_targets_name_each_exit_and_tell_arrivals():
+    spec = {"kind": "exits", "exits": [{"goal": [1, 5]}, {"region": {
+        "kind": "rectangle", "min": [18, 4], "max": [19, 6]}, "weight": 2}]}
+    named = geodesic.navigation_targets(spec)
+    assert [n for n, _ in named] == ["exits[0]", "exits[1]"]
+    q = np.array([[1.3, 5.0], [18.5, 5.0], [17.9, 5.0]])
+    assert named[0][1].arrived(q, 0.5).tolist() == [True, False, False]
+    assert named[1][1].arrived(q, 0.5).tolist() == [False, True, False]
+    assert geodesic.navigation_targets({"kind": "geodesic", "goal": [3, 4]})[0][0] == "goal"

@@ -106,6 +106,11 @@ class Target:
         inside = points_in_polygon(q, self.points)
         return np.where(inside, 0.0, d), np.where(inside[:, None], q, p)
 
+    def arrived(self, q: np.ndarray, radius: float) -> np.ndarray:
+        """(N,) bool: q (N, 2) is within radius m of the goal point, or inside the region."""
+        d, _ = self.nearest(q)
+        return d <= (0.0 if self.is_region else radius)
+
 
 @dataclass(frozen=True, eq=False)
 class Geodesic(Field):
@@ -179,6 +184,22 @@ class Exits(Geodesic):
     """Several exits: each agent heads for the one with the least weighted travel distance."""
 
     kind = "exits"
+
+
+def navigation_targets(spec: dict, field: str = "drift") -> list[tuple[str, Target]]:
+    """The goals of a ``geodesic`` or ``exits`` drift spec, named for reports: [("goal" or
+    "region", target)] or [("exits[k]", target), ...] (for arrivals per exit: see
+    :meth:`Target.arrived`)."""
+    if spec.get("kind") == "exits":
+        raw = spec.get("exits")
+        if not isinstance(raw, list):
+            raise SceneError(f"{field}.exits", f"must be a list, got {show(raw)}",
+                             f"write {field}.exits as a list of {{goal: [x, y]}} items")
+        return [(f"exits[{k}]", _target(checks.mapping(e, f"{field}.exits[{k}]"),
+                                        f"{field}.exits[{k}]", True))
+                for k, e in enumerate(raw)]
+    target = _target(spec, field, False)
+    return [("region" if target.is_region else "goal", target)]
 
 
 def _target(spec: dict, field: str, weighted: bool) -> Target:
