@@ -2,33 +2,38 @@
 
     drift: {kind: geodesic, goal: [x, y] | region: {kind: rectangle, min, max}
                                                    | {kind: polygon, points},
-            speed, cell: 0.1, wall_buffer: 0.3, slow_radius: 0.5, update_every: null}
+            speed, cell: 0.1, wall_buffer: 0.3, slow_radius: 0.5, update_every: null,
+            neighbours: 16}
     drift: {kind: exits, exits: [{goal | region, weight: 1}, ...], speed, cell, wall_buffer,
-            slow_radius, update_every}
+            slow_radius, update_every, neighbours}
 
 The travel distance T(q) (m) to the goal is computed once, when the scene is built, on a grid
 of ``cell`` m covering the scene (walls, obstacles, map, agents and goals, plus a margin), by
-Dijkstra's algorithm (:func:`scipy.sparse.csgraph.dijkstra`) on the 16-neighbour grid graph
-(steps (1, 0), (1, 1), (2, 1) and their rotations and reflections) over the *free* nodes: those
+Dijkstra's algorithm (:func:`scipy.sparse.csgraph.dijkstra`) on a grid graph (``neighbours``:
+16, the default, is the steps (1, 0), (1, 1), (2, 1) and their rotations and reflections; 8
+drops (2, 1); 32 adds (3, 1) and (3, 2)) over the *free* nodes: those
 at least ``wall_buffer`` m from every wall, obstacle and blocked map cell (the true constraint
 values of :mod:`sweep_core.geometry` with radius 0, at t = 0: a moving obstacle counts where it
 is at t = 0). With ``update_every: s`` (only when some obstacle moves) T is computed again
 for each period [k s, (k + 1) s) with the obstacles where they are at k s, the first time a
 step falls in it (so a run and its replay see the same fields; about 15 ms for a 20 x 10 m
 room at 0.1 m); a goal then covered by an obstacle gives U = 0 until it is free again. A
-moving half-plane counts where it is at t = 0, always. Requiring wall_buffer >= sqrt(5) / 2
-cell makes sure no grid edge between two free nodes crosses a wall, however thin (one end of
-such an edge would be within half its length of the wall). The goal's seeds are the free nodes
+moving half-plane counts where it is at t = 0, always. Requiring wall_buffer >= half the longest step
+(sqrt(5) / 2 cell with 16 neighbours, sqrt(13) / 2 with 32) makes sure no grid edge between two
+free nodes crosses a wall, however thin (one end of such an edge would be within half its
+length of the wall). The goal's seeds are the free nodes
 within wall_buffer + 2 cell of the goal (or of the region, or inside it) that see it in a
 straight line; they start at their exact distance to it.
 
 Metrication error: a path on the 16-neighbour graph is made of steps in 16 directions, so in
 open space T is the Euclidean distance times a factor between 1 and 1.0275 (the worst case,
-+2.75 %, is 13.3 degrees off a stencil direction; an 8-neighbour grid would give +8.2 %), plus
-up to about one cell where paths bend round corners. The direction of steepest descent of
-such a T is that of the faces of the stencil's 16-gon, so it is off the true geodesic
-direction by up to about 13 degrees in open space (progress towards the goal at cos 13 deg =
-97 % of the speed at worst); test/test_geodesic.py measures both.
++2.75 %, is 13.3 degrees off a stencil direction; 8 neighbours: +8.2 %, 32: +1.3 %:
+:data:`METRICATION`), plus up to about one cell where paths bend round corners. The direction
+of steepest descent of such a T is that of the faces of the stencil's polygon, so it is off
+the true geodesic direction by up to about 13 degrees in open space with 16 neighbours (21
+with 8, 9 with 32: :data:`DIRECTION_ERROR`; progress towards the goal at cos 13 deg = 97 % of
+the speed at worst); test/test_geodesic.py measures both. 32 neighbours cost about a third
+more time than 16.
 
 U(q) = speed * min(1, T(q) / slow_radius) * e(q), where e is minus the gradient of T (central
 differences between free nodes, one-sided beside a wall) normalised at each node, and both e
@@ -68,14 +73,26 @@ from sweep_core.model.outlines import chain_points, points_in_polygon
 #: most grid nodes a navigation field may have (building one takes about 1.2 s and 0.5 GB at
 #: this size)
 MAX_NODES = 1_000_000
-#: the steps of the grid graph, in cells (with their opposites: 16 neighbours)
-STENCIL = ((1, 0), (0, 1), (1, 1), (1, -1), (2, 1), (1, 2), (2, -1), (1, -2))
-#: worst relative excess of a stencil path over the straight distance (16 neighbours)
-METRICATION = 0.0275
-#: wall_buffer must be at least this many cells (half the longest step, sqrt(5) / 2)
-BUFFER_CELLS = math.sqrt(5.0) / 2.0
-#: defaults (m)
-CELL, WALL_BUFFER, SLOW_RADIUS = 0.1, 0.3, 0.5
+#: the steps of the grid graph for each choice of ``neighbours``, in cells (with their
+#: opposites)
+STENCILS = {
+    8: ((1, 0), (0, 1), (1, 1), (1, -1)),
+    16: ((1, 0), (0, 1), (1, 1), (1, -1), (2, 1), (1, 2), (2, -1), (1, -2)),
+    32: ((1, 0), (0, 1), (1, 1), (1, -1), (2, 1), (1, 2), (2, -1), (1, -2),
+         (3, 1), (1, 3), (3, -1), (1, -3), (3, 2), (2, 3), (3, -2), (2, -3)),
+}
+#: worst relative excess of a stencil path over the straight distance
+METRICATION = {8: 0.0824, 16: 0.0275, 32: 0.0131}
+#: worst angle (degrees) between the descent direction and the true one, in open space
+#: (measured: test/test_geodesic.py)
+DIRECTION_ERROR = {8: 21.0, 16: 13.0, 32: 9.0}
+#: defaults (m, m, m, neighbours)
+CELL, WALL_BUFFER, SLOW_RADIUS, NEIGHBOURS = 0.1, 0.3, 0.5, 16
+
+
+def buffer_cells(neighbours: int) -> float:
+    """wall_buffer must be at least this many cells: half the stencil's longest step."""
+    return max(math.hypot(*step) for step in STENCILS[neighbours]) / 2.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,7 +147,7 @@ class Geodesic(Field):
     spec: dict = field(default_factory=dict)
     #: recompute every this many seconds (moving obstacles), None: at t = 0 only
     update_every: float | None = None
-    #: what a recomputation needs: (geometry, map, targets, cell, wall_buffer)
+    #: what a recomputation needs: (geometry, map, targets, cell, wall_buffer, neighbours)
     source: tuple = ()
     #: the latest recomputation: {"epoch": k, "arrays": (direction, distance)}
     cache: dict = field(default_factory=dict, repr=False)
@@ -156,9 +173,10 @@ class Geodesic(Field):
         if epoch <= 0:
             return self.direction, self.distance
         if self.cache.get("epoch") != epoch:
-            geometry, grid, targets, cell, buffer = self.source
+            geometry, grid, targets, cell, buffer, neighbours = self.source
             sol = _solve(geometry.at(epoch * self.update_every), grid, targets,
-                         [""] * len(targets), self.x, self.y, cell, buffer, strict=False)
+                         [""] * len(targets), self.x, self.y, cell, buffer, neighbours,
+                         strict=False)
             self.cache.update(epoch=epoch, arrays=(sol[0], sol[1]))
         return self.cache["arrays"]
 
@@ -247,7 +265,7 @@ def navigation_from_spec(spec: dict, field: str, geometry: Geometry | None,
     if geometry is None:
         raise SceneError(f"{field}.kind", f"{kind} needs the scene's walls to be computed",
                          f"give the {kind} drift in the scene's drift, not as a command")
-    common = {"speed", "cell", "wall_buffer", "slow_radius", "update_every"}
+    common = {"speed", "cell", "wall_buffer", "slow_radius", "update_every", "neighbours"}
     if kind == "exits":
         checks.mapping(spec, field, allowed={"kind", "exits"} | common,
                        required={"exits", "speed"})
@@ -270,12 +288,19 @@ def navigation_from_spec(spec: dict, field: str, geometry: Geometry | None,
                            positive=True)
     slow = checks.number(spec.get("slow_radius", SLOW_RADIUS), f"{field}.slow_radius",
                          positive=True)
-    if buffer < BUFFER_CELLS * cell:
+    neighbours = spec.get("neighbours", NEIGHBOURS)
+    if isinstance(neighbours, bool) or neighbours not in STENCILS:
+        raise SceneError(f"{field}.neighbours", f"must be 8, 16 or 32, got {show(neighbours)}",
+                         f"set {field}.neighbours to 16 (the default) or 32 (finer "
+                         "directions, slower)")
+    neighbours = int(neighbours)
+    cells = buffer_cells(neighbours)
+    if buffer < cells * cell:
         raise SceneError(f"{field}.cell", f"{cell:g} m is too coarse for {field}.wall_buffer "
-                         f"{buffer:g} m: a grid step (up to {math.sqrt(5.0):g} cells) could "
+                         f"{buffer:g} m: a grid step (up to {2 * cells:.4g} cells) could "
                          "cross a thin wall unseen",
-                         f"set {field}.cell to at most {buffer / BUFFER_CELLS:.4g} m or "
-                         f"{field}.wall_buffer to at least {BUFFER_CELLS * cell:.4g} m")
+                         f"set {field}.cell to at most {buffer / cells:.4g} m or "
+                         f"{field}.wall_buffer to at least {cells * cell:.4g} m")
     every = None
     if spec.get("update_every") is not None:
         every = checks.number(spec["update_every"], f"{field}.update_every", positive=True)
@@ -287,32 +312,35 @@ def navigation_from_spec(spec: dict, field: str, geometry: Geometry | None,
     x, y = _nodes(geometry, grid, positions, targets, cell, buffer, field)
     for t, name in zip(targets, names):
         _check_target(geometry, grid, t, name)
-    direction, own, travel, free = _solve(geometry, grid, targets, names, x, y, cell, buffer)
+    direction, own, travel, free = _solve(geometry, grid, targets, names, x, y, cell, buffer,
+                                          neighbours)
     _check_agents(positions, x, y, free, travel, field, buffer)
     out: dict[str, Any] = {"kind": kind}
     if kind == "exits":
         out["exits"] = [t.spec for t in targets]
     else:
         out.update(targets[0].spec)
-    out.update(speed=speed, cell=cell, wall_buffer=buffer, slow_radius=slow)
+    out.update(speed=speed, cell=cell, wall_buffer=buffer, slow_radius=slow,
+               neighbours=neighbours)
     if every is not None:
         out["update_every"] = every
     cls = Exits if kind == "exits" else Geodesic
     return cls(x=x, y=y, direction=direction, distance=own, travel=travel, free=free,
                speed=speed, slow_radius=slow, spec=out, update_every=every,
-               source=(moving, grid, targets, cell, buffer) if every is not None else ())
+               source=(moving, grid, targets, cell, buffer, neighbours) if every is not None else ())
 
 
 def _solve(geometry: Geometry, grid: OccupancyMap | None, targets: list[Target],
            names: list[str], x: np.ndarray, y: np.ndarray, cell: float, buffer: float,
-           strict: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+           neighbours: int = NEIGHBOURS, strict: bool = True
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Direction (H, W, 2), the followed exit's distance (H, W) (both filled at nodes not
     reached), travel min_k w_k T_k (H, W) (inf where not reached) and free (H, W) for a
     static geometry. strict: refuse a target no free node sees (else that target is
     unreachable, and where no target is, the field is 0)."""
     nodes = np.stack(np.meshgrid(x, y), axis=-1).reshape(-1, 2)
     free = _free(geometry, grid, nodes, buffer).reshape(len(y), len(x))
-    graph, index = _graph(free, cell)
+    graph, index = _graph(free, cell, STENCILS[neighbours])
     dists = [_travel(geometry, t, name, nodes, free, graph, index, cell, buffer, strict)
              for t, name in zip(targets, names)]
     weighted = np.stack([t.weight * d for t, d in zip(targets, dists)])
@@ -389,15 +417,15 @@ def _check_target(geometry: Geometry, grid: OccupancyMap | None, target: Target,
                          f"move {name}.goal into the free space")
 
 
-def _graph(free: np.ndarray, cell: float) -> tuple[Any, np.ndarray]:
-    """The 16-neighbour graph over free nodes (CSR, one extra node last for the sources)
-    and the graph index of each grid node (-1: not free)."""
+def _graph(free: np.ndarray, cell: float, stencil: tuple) -> tuple[Any, np.ndarray]:
+    """The grid graph (steps ``stencil`` and their opposites) over free nodes (CSR, one extra
+    node last for the sources) and the graph index of each grid node (-1: not free)."""
     h, w = free.shape
     index = np.full(free.shape, -1, dtype=np.int32)
     m = int(free.sum())
     index[free] = np.arange(m, dtype=np.int32)
     rows, cols, wts = [], [], []
-    for dx, dy in STENCIL:
+    for dx, dy in stencil:
         ys0, ys1 = max(0, -dy), min(h, h - dy)
         xs0, xs1 = max(0, -dx), min(w, w - dx)
         a = index[ys0:ys1, xs0:xs1]
