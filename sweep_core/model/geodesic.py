@@ -9,21 +9,22 @@
 
 The travel distance T(q) (m) to the goal is computed once, when the scene is built, on a grid
 of ``cell`` m covering the scene (walls, obstacles, map, agents and goals, plus a margin), by
-Dijkstra's algorithm (:func:`scipy.sparse.csgraph.dijkstra`) on a grid graph (``neighbours``:
-16, the default, is the steps (1, 0), (1, 1), (2, 1) and their rotations and reflections; 8
-drops (2, 1); 32 adds (3, 1) and (3, 2)) over the *free* nodes: those
-at least ``wall_buffer`` m from every wall, obstacle and blocked map cell (the true constraint
-values of :mod:`sweep_core.geometry` with radius 0, at t = 0: a moving obstacle counts where it
-is at t = 0). With ``update_every: s`` (only when some obstacle moves) T is computed again
-for each period [k s, (k + 1) s) with the obstacles where they are at k s, the first time a
-step falls in it (so a run and its replay see the same fields; about 15 ms for a 20 x 10 m
-room at 0.1 m); a goal then covered by an obstacle gives U = 0 until it is free again. A
-moving half-plane counts where it is at t = 0, always. Requiring wall_buffer >= half the longest step
-(sqrt(5) / 2 cell with 16 neighbours, sqrt(13) / 2 with 32) makes sure no grid edge between two
-free nodes crosses a wall, however thin (one end of such an edge would be within half its
-length of the wall). The goal's seeds are the free nodes
-within wall_buffer + 2 cell of the goal (or of the region, or inside it) that see it in a
-straight line; they start at their exact distance to it.
+Dijkstra's algorithm (:func:`scipy.sparse.csgraph.dijkstra`) on a grid graph over the *free*
+nodes: those at least ``wall_buffer`` m from every wall, obstacle and blocked map cell (the
+true constraint values of :mod:`sweep_core.model.geometry` with radius 0, at t = 0). The
+graph's steps (``neighbours``): 16, the default, are (1, 0), (1, 1), (2, 1) cells and their
+rotations and reflections; 8 drops (2, 1); 32 adds (3, 1) and (3, 2). Requiring wall_buffer
+>= half the longest step (sqrt(5) / 2 cell with 16 neighbours, sqrt(13) / 2 with 32) makes
+sure no edge between two free nodes crosses a wall, however thin (one end of such an edge
+would be within half its length of the wall). The goal's seeds are the free nodes within
+wall_buffer + 2 cell of the goal (or of the region, or inside it) that see it in a straight
+line; they start at their exact distance to it.
+
+Moving obstacles count where they are at t = 0. With ``update_every: s`` (only when some
+obstacle moves) T is computed again for each period [k s, (k + 1) s) with the obstacles where
+they are at k s, the first time a step falls in it (so a run and its replay see the same
+fields; about 15 ms for a 20 x 10 m room at 0.1 m); a goal then covered by an obstacle gives
+U = 0 until it is free again. A moving half-plane counts where it is at t = 0, always.
 
 Metrication error: a path on the 16-neighbour graph is made of steps in 16 directions, so in
 open space T is the Euclidean distance times a factor between 1 and 1.0275 (the worst case,
