@@ -7,6 +7,7 @@ bounds |U| (m/s) and feeds the constraint cutoff.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -125,8 +126,8 @@ class Grid(Field):
     kind = "grid"
 
     def __call__(self, t: float, q: np.ndarray) -> np.ndarray:
-        fx, ix = _cell(self.x, q[:, 0])
-        fy, iy = _cell(self.y, q[:, 1])
+        fx, ix = grid_cell(self.x, q[:, 0])
+        fy, iy = grid_cell(self.y, q[:, 1])
         out = np.empty_like(q)
         for c, v in enumerate((self.vx, self.vy)):
             v00, v01 = v[iy, ix], v[iy, ix + 1]
@@ -139,7 +140,37 @@ class Grid(Field):
                 "vx": self.vx.tolist(), "vy": self.vy.tolist()}
 
 
-def _cell(nodes: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+@dataclass(frozen=True, eq=False)
+class Groups(Field):
+    """Groups of agents with their own drift: agents ``members[k]`` (indices) follow
+    ``fields[k]`` (evaluated at their positions only, so a per_agent field gives one velocity
+    per member); agents in no group follow ``rest``. Each member field is bounded and
+    Lipschitz, hence so is the whole (agent by agent)."""
+
+    members: tuple[np.ndarray, ...]
+    fields: tuple[Field, ...]
+    rest: Field
+    spec: dict
+    kind = "groups"
+
+    def __call__(self, t: float, q: np.ndarray) -> np.ndarray:
+        out = self.rest(t, q)
+        for idx, f in zip(self.members, self.fields):
+            out[idx] = f(t, q[idx])
+        return out
+
+    @property
+    def is_zero(self) -> bool:
+        return self.rest.is_zero and all(f.is_zero for f in self.fields)
+
+    def to_spec(self) -> dict:
+        return {"kind": self.kind, "groups": [
+            {"agents": g["agents"], "drift": f.to_spec()} for g, f in zip(self.spec["groups"],
+                                                                         self.fields)],
+                "rest": self.rest.to_spec()}
+
+
+def grid_cell(nodes: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Cell index and fraction of coordinates s on sorted nodes, clamped to the grid."""
     if nodes.size == 1:
         return np.zeros_like(s), np.zeros(s.shape, dtype=np.intp)
@@ -191,15 +222,29 @@ _KEYS = {
     "grid": {"x", "y", "vx", "vy"},
 }
 _OPTIONAL = {"goal": {"slow_radius"}, "linear": {"offset"}}
-FIELD_KINDS = tuple(_KEYS)
+#: navigation fields, built against the scene's geometry (:mod:`sweep_core.model.geodesic`)
+NAVIGATION_KINDS = ("geodesic", "exits")
+FIELD_KINDS = tuple(_KEYS) + NAVIGATION_KINDS + ("groups",)
 
 
-def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift") -> Field:
-    """Build a drift field from its scene dict (see the README's scene schema)."""
+def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift",
+                    geometry: Any = None, grid: Any = None,
+                    positions: np.ndarray | None = None) -> Field:
+    """Build a drift field from its scene dict (see the README's scene schema). The
+    navigation kinds (geodesic, exits) need the scene's geometry (a
+    :class:`~sweep_core.model.geometry.Geometry`), its map (an
+    :class:`~sweep_core.model.maps.OccupancyMap` or None) and the agents' positions (N, 2) m."""
     if spec is None:
         return NoDrift()
     checks.mapping(spec, field)
-    kind = checks.kind(spec, field, _KEYS, default="none")
+    kind = checks.kind(spec, field, FIELD_KINDS, default="none")
+    if kind == "groups":
+        return _groups(spec, n_agents, field, geometry, grid, positions)
+    if kind in NAVIGATION_KINDS:
+        from sweep_core.model.geodesic import navigation_from_spec  # it builds on Field
+
+        return navigation_from_spec(spec, field, geometry, grid,
+                                    np.empty((0, 2)) if positions is None else positions)
     checks.mapping(spec, field, allowed={"kind"} | _KEYS[kind] | _OPTIONAL.get(kind, set()),
                    required=_KEYS[kind])
     if kind == "uniform":
@@ -221,3 +266,73 @@ def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift") -> F
     if kind == "grid":
         return grid_field(spec["x"], spec["y"], spec["vx"], spec["vy"], field)
     return NoDrift()
+
+
+def _members(value: Any, n_agents: int, field: str, taken: dict[int, int], k: int
+             ) -> np.ndarray:
+    """A group's agents: a list of indices or {range: [start, stop]} (stop excluded)."""
+    fix = (f"write {field} as a list of agent indices [0, 1, ...] or as {{range: [start, "
+           f"stop]}} (agents start .. stop - 1), among the {n_agents} agents")
+    if isinstance(value, dict):
+        checks.mapping(value, field, allowed={"range"}, required={"range"})
+        r = value["range"]
+        if not isinstance(r, list) or len(r) != 2:
+            raise SceneError(f"{field}.range", f"must be [start, stop], got {show(r)}", fix)
+        a = checks.integer(r[0], f"{field}.range[0]", low=0, fix=fix)
+        b = checks.integer(r[1], f"{field}.range[1]", low=0, fix=fix)
+        if b <= a:
+            raise SceneError(f"{field}.range", f"{show([a, b])} holds no agent", fix)
+        idx = np.arange(a, b)
+    elif isinstance(value, list) and value:
+        idx = np.array([checks.integer(v, f"{field}[{j}]", low=0, fix=fix)
+                        for j, v in enumerate(value)], dtype=np.intp)
+    else:
+        raise SceneError(field, f"must be a non-empty list or a range, got {show(value)}", fix)
+    over = idx[idx >= n_agents]
+    if len(over):
+        raise SceneError(field, f"names agent {int(over[0])} but the scene has {n_agents} "
+                         "agents (indices from 0)", fix)
+    for i in idx.tolist():
+        if i in taken:
+            raise SceneError(field, f"puts agent {i} in a second group (it is in group "
+                             f"{taken[i]} already)", "put each agent in one group at most")
+        taken[i] = k
+    return idx
+
+
+def _groups(spec: dict, n_agents: int, field: str, geometry: Any, grid: Any,
+            positions: np.ndarray | None) -> Groups:
+    """``{kind: groups, groups: [{agents, drift}, ...], rest: drift}`` (see :class:`Groups`)."""
+    checks.mapping(spec, field, allowed={"kind", "groups", "rest"}, required={"groups"})
+    raw = spec["groups"]
+    if not isinstance(raw, list) or not raw:
+        raise SceneError(f"{field}.groups", f"must be a non-empty list, got {show(raw)}",
+                         f"write {field}.groups as a list of {{agents: [...], drift: {{...}}}}")
+    taken: dict[int, int] = {}
+    members, fields, given = [], [], []
+    for k, g in enumerate(raw):
+        gf = f"{field}.groups[{k}]"
+        checks.mapping(g, gf, allowed={"agents", "drift"}, required={"agents", "drift"})
+        idx = _members(g["agents"], n_agents, f"{gf}.agents", taken, k)
+        sub = g["drift"]
+        if isinstance(sub, dict) and sub.get("kind") == "groups":
+            raise SceneError(f"{gf}.drift.kind", "is groups inside a group",
+                             "give each group a plain drift (goal, geodesic, ...)")
+        pos = None if positions is None else positions[idx]
+        fields.append(field_from_spec(sub, len(idx), f"{gf}.drift", geometry, grid, pos))
+        members.append(idx)
+        agents = g["agents"]
+        given.append({"agents": {"range": [int(idx[0]), int(idx[-1]) + 1]}
+                      if isinstance(agents, dict) else idx.tolist()})
+    rest_spec = spec.get("rest")
+    if isinstance(rest_spec, dict) and rest_spec.get("kind") == "groups":
+        raise SceneError(f"{field}.rest.kind", "is groups inside groups",
+                         "give the rest a plain drift (goal, geodesic, ...)")
+    others = None
+    if positions is not None:  # the rest's agents (a navigation field checks their way)
+        alone = np.ones(len(positions), dtype=bool)
+        alone[list(taken)] = False
+        others = positions[alone]
+    rest = field_from_spec(rest_spec, n_agents, f"{field}.rest", geometry, grid, others)
+    return Groups(members=tuple(members), fields=tuple(fields), rest=rest,
+                  spec={"groups": given})

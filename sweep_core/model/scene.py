@@ -14,7 +14,7 @@ metres and seconds. The keys are a public contract, documented in the README:
                         | {kind: polyline, points: [[x, y], ...], closed?}]
     obstacles          [{kind: circle, center, radius} | {kind: polygon, points: [[x, y], ...]}]
     map                {yaml: PATH} a map_server map whose blocked cells become walls (maps.py)
-    drift              see fields.FIELD_KINDS
+    drift              see fields.FIELD_KINDS (geodesic, exits: geodesic.py; groups: fields.Groups)
     noise              {sigma: scalar or per-agent list}
 """
 from __future__ import annotations
@@ -222,7 +222,8 @@ def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
                              f"{positions[a, 1]:g}] is in a blocked (occupied or unknown) cell "
                              f"of the map{more}", "place agents in the map's free cells")
 
-    drift = field_from_spec(data.get("drift"), n)
+    drift = field_from_spec(data.get("drift"), n, geometry=geometry, grid=grid,
+                           positions=positions)
     spec["drift"] = drift.to_spec()
 
     noise = checks.mapping(data.get("noise") or {}, "noise", allowed={"sigma"})
