@@ -88,3 +88,33 @@ def test_other_agents_are_refused() -> None:
                                 "noise": {"sigma": 0.1}})
     with pytest.raises(SceneError, match="keep the agents"):
         sim.set_scene(other)
+
+
+def test_a_navigation_field_follows_the_new_walls() -> None:
+    """set_scene takes the new scene's own drift (its geodesic field computed round the new
+    walls) unless a command replaced the drift."""
+    import sweep_core as sc
+    from sweep_core.analysis.run import scene_with_map
+    from sweep_core.model.maps import OccupancyMap
+
+    def room(wall: bool) -> dict:
+        cells = np.zeros((20, 40), dtype=np.int8)
+        cells[0, :] = cells[-1, :] = cells[:, 0] = cells[:, -1] = 100
+        if wall:
+            cells[:16, 20] = 100  # a wall from the south with a gap in the north
+        return OccupancyMap.from_occupancy_grid(cells.ravel(), 40, 20, 0.25, (0.0, 0.0, 0.0),
+                                                source="/map").to_spec()
+
+    scene = sc.Scene.from_dict({"map": room(True),
+                                "agents": {"positions": [[2.0, 1.5]], "radius": 0.2},
+                                "drift": {"kind": "geodesic", "goal": [8.0, 1.5], "speed": 1.0}})
+    sim = sc.Simulator(scene, dt=0.01, seed=0)
+    before = sim.drift(0.0, sim.positions)[0]
+    assert before[1] > 0.5  # round the wall: north first
+    sim.set_scene(scene_with_map(scene, room(False)))
+    after = sim.drift(0.0, sim.positions)[0]
+    assert after[0] > 0.99  # no wall: straight east
+    command = sc.field_from_spec({"kind": "uniform", "velocity": [0.0, -1.0]}, 1)
+    sim.set_drift(command)
+    sim.set_scene(scene_with_map(scene, room(True)))
+    assert sim.drift is command

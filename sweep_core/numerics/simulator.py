@@ -171,10 +171,12 @@ class Simulator:
     # -- geometry ------------------------------------------------------------------------
     def set_scene(self, scene: Scene) -> None:
         """Replace the scene (its walls, obstacles and map) from the next step on, keeping the
-        time, the positions, the drift, the noise and the Brownian path; a later reset returns
-        to ``scene``'s initial positions. ``scene`` must have the same agents (count and radius
-        law). The warm start of the projection is dropped (its rows belong to the old walls),
-        so a replay that replaces the scene at the same step gets the same floats.
+        time, the positions, the noise and the Brownian path, and the drift (a command's; the
+        scene's own is taken from ``scene``, so a navigation field follows the new walls); a
+        later reset returns to ``scene``'s initial positions. ``scene`` must have the same
+        agents (count and radius law). The warm start of the projection is dropped (its rows
+        belong to the old walls), so a replay that replaces the scene at the same step gets
+        the same floats.
 
         Raises:
             SceneError: other agents, or some agent at the current positions would violate a
@@ -199,6 +201,10 @@ class Simulator:
                              f"inside the new walls, obstacles or blocked map cells (agent {bad[0]} "
                              f"at [{first[0]:g}, {first[1]:g}])",
                              "keep those agents' positions free in the new geometry")
+        if self._drift is old.drift:
+            # the scene's own drift is in effect (no command replaced it): take the new scene's,
+            # whose navigation field (geodesic, exits) was computed round the new walls
+            self._drift = scene.drift
         self.scene = scene
         self.scheme.scene = scene
         self.scheme.reset()
