@@ -26,6 +26,10 @@ they are at k s, the first time a step falls in it (so a run and its replay see 
 fields; about 15 ms for a 20 x 10 m room at 0.1 m); a goal then covered by an obstacle gives
 U = 0 until it is free again. A moving half-plane counts where it is at t = 0, always.
 
+Longer than 400 lines because it is one model: the field classes, the validation of their
+specs and the grid solve they share (free nodes, the graph, Dijkstra from the goal's seeds,
+the descent direction, the agents' reachability); the solve's helpers are private to it.
+
 Metrication error: a path on the 16-neighbour graph is made of steps in 16 directions, so in
 open space T is the Euclidean distance times a factor between 1 and 1.0275 (the worst case,
 +2.75 %, is 13.3 degrees off a stencil direction; 8 neighbours: +8.2 %, 32: +1.3 %:
