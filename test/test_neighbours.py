@@ -90,6 +90,10 @@ def test_indexed_rows_equal_dense_rows() -> None:
     g = scene.geometry
     r = scene.radii(0.0)
     assert len(pos) * len(g.segment_a) > geometry.DENSE_SEGMENTS
+    # and one centre inside the polygon (an infeasible state): its rows with every edge of
+    # the polygon, negative, once each, as the dense evaluation has them
+    pos = np.vstack([pos, [10.8, 1.3]])
+    r = np.append(r, 0.1)
     for reach in (0.05, 0.4):
         fast = geometry.single_rows(g, 0.0, pos, r, reach)[geometry.SEGMENT]
         dense = [v for v in geometry.single_values(g, 0.0, pos, r)[geometry.SEGMENT]]

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from sweep_core.model.neighbours import pairs_within, segments_within
+from sweep_core.model.outlines import points_in_polygon
 from sweep_core.model.user import constraint_name, evaluate
 
 # codes of single-row kinds, in the order of scene.geometry
@@ -183,21 +184,15 @@ def single_values(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray
 
 def inside_polygons(q: np.ndarray, geom: Geometry) -> np.ndarray:
     """(N, S) bool: agent n's centre lies inside the solid polygon that segment k bounds
-    (False for segments that bound none). Even-odd rule on a ray towards +x: a centre on an
-    edge counts as outside (its distance, 0, already makes the row infeasible)."""
-    a, b, poly = geom.segment_a, geom.segment_b, geom.segment_polygon
-    ya, yb = a[:, 1][None], b[:, 1][None]
-    y = q[:, 1:2]
-    straddle = (ya > y) != (yb > y)
-    dy = np.where(yb != ya, yb - ya, 1.0)
-    x_cross = a[:, 0][None] + (y - ya) * (b[:, 0] - a[:, 0])[None] / dy
-    hit = straddle & (x_cross > q[:, 0:1]) & (poly >= 0)[None]
-    count = int(poly.max(initial=-1)) + 1
-    crossings = np.zeros((len(q), max(count, 1)), dtype=np.int64)
-    for p in range(count):
-        crossings[:, p] = np.count_nonzero(hit[:, poly == p], axis=1)
-    odd = (crossings % 2) == 1
-    return np.where(poly[None] >= 0, odd[:, np.maximum(poly, 0)], False)
+    (False for segments that bound none). Even-odd rule (:func:`points_in_polygon`) on each
+    polygon's vertices, its edges' start points in order: a centre on an edge counts as
+    outside (its distance, 0, already makes the row infeasible)."""
+    poly = geom.segment_polygon
+    out = np.zeros((len(q), len(poly)), dtype=bool)
+    for p in np.unique(poly[poly >= 0]):
+        edges = poly == p
+        out[:, edges] = points_in_polygon(q, geom.segment_a[edges])[:, None]
+    return out
 
 
 #: agent x segment products up to which segments are evaluated densely, without the index
@@ -224,41 +219,34 @@ def single_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: f
                     segment_kind=(), segment_motion=empty)
     out = single_rows(plain, t, q, r, reach)
     a, k = segments_within(q, geom.segment_a, geom.segment_b, reach + float(r.max()))
-    ab = geom.segment_b[k] - geom.segment_a[k]
-    rel = q[a] - geom.segment_a[k]
-    s = np.clip(np.einsum("mc,mc->m", rel, ab) / np.einsum("mc,mc->m", ab, ab), 0.0, 1.0)
-    foot = geom.segment_a[k] + s[:, None] * ab
-    d = q[a] - foot
-    dist = np.sqrt(np.einsum("mc,mc->m", d, d))
-    e = d / np.maximum(dist, 1e-300)[:, None]
-    g = dist - r[a]
+    inside = None
     if np.any(geom.segment_polygon >= 0):
-        # an agent inside a polygon is near none of its edges perhaps, but never feasible:
-        # the dense test over polygon edges only (few) finds it
-        edges = geom.segment_polygon >= 0
-        inside = inside_polygons(q, geom)[:, edges]
-        who, which = np.nonzero(inside)
-        item = np.flatnonzero(edges)[which]
-        a, k = np.concatenate([a, who]), np.concatenate([k, item])
-        extra = _segment_values(geom, q, r, who, item)
-        g = np.concatenate([g, -extra[0]])
-        e = np.concatenate([e, extra[1]])
-        foot = np.concatenate([foot, extra[2]])
+        # an agent inside a polygon may be near none of its edges, but is never feasible:
+        # its pairs with every edge of that polygon are added (once) from the inside test
+        inside = inside_polygons(q, geom)
+        who, item = np.nonzero(inside)
+        extra = ~np.isin(who * n_seg + item, a * n_seg + k)
+        a, k = np.concatenate([a, who[extra]]), np.concatenate([k, item[extra]])
+    dist, e, foot = _segment_values(geom, q, a, k)
+    g = dist - r[a]
+    if inside is not None:
+        g = np.where(inside[a, k], -dist - r[a], g)  # as single_values has it
     keep = g <= reach
     out[SEGMENT] = (a[keep], k[keep], g[keep], e[keep], np.einsum("mc,mc->m", e, foot)[keep])
     return out
 
 
-def _segment_values(geom: Geometry, q: np.ndarray, r: np.ndarray, a: np.ndarray,
-                    k: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """dist + r (m), the unit vector from the nearest point, and that point, of the pairs."""
+def _segment_values(geom: Geometry, q: np.ndarray, a: np.ndarray, k: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Distance (m) from centre a to segment k, the unit vector from the segment's nearest
+    point to the centre, and that point, for each pair (a, k)."""
     ab = geom.segment_b[k] - geom.segment_a[k]
     rel = q[a] - geom.segment_a[k]
     s = np.clip(np.einsum("mc,mc->m", rel, ab) / np.einsum("mc,mc->m", ab, ab), 0.0, 1.0)
     foot = geom.segment_a[k] + s[:, None] * ab
     d = q[a] - foot
     dist = np.sqrt(np.einsum("mc,mc->m", d, d))
-    return dist + r[a], d / np.maximum(dist, 1e-300)[:, None], foot
+    return dist, d / np.maximum(dist, 1e-300)[:, None], foot
 
 
 @dataclass(frozen=True)

@@ -68,5 +68,5 @@ def points_in_polygon(q: np.ndarray, points: np.ndarray) -> np.ndarray:
     y = q[:, 1:2]
     straddle = (a[:, 1][None] > y) != (b[:, 1][None] > y)
     dy = np.where(b[:, 1] != a[:, 1], b[:, 1] - a[:, 1], 1.0)
-    x_cross = a[:, 0][None] + (y - a[:, 1][None]) * ((b[:, 0] - a[:, 0]) / dy)[None]
+    x_cross = a[:, 0][None] + (y - a[:, 1][None]) * (b[:, 0] - a[:, 0])[None] / dy
     return (np.count_nonzero(straddle & (x_cross > q[:, 0:1]), axis=1) % 2) == 1
