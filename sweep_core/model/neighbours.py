@@ -81,10 +81,11 @@ def _pairs_grid(q: np.ndarray, reach: float, x0: float, y0: float, nx: int, ny: 
 
 
 @numba.njit(cache=True, nogil=True)
-def _pairs_sorted(q: np.ndarray, reach: float, x0: float, y0: float, ny: int,
-                  out_i: np.ndarray, out_j: np.ndarray) -> int:
-    """Sparse crowds: agents sorted by cell key, neighbour cells found by binary search
-    (O(N log N + pairs), no grid allocated)."""
+def _sorted_cells(q: np.ndarray, reach: float, x0: float, y0: float, ny: int
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The agents sorted by cell key (cells of side reach, key (column + 1) ny + row + 1):
+    their order, the sorted keys, the first position of each occupied cell in that order
+    (cells + 1 entries, the last n) and the count of occupied cells."""
     n = q.shape[0]
     key = np.empty(n, dtype=np.int64)
     for a in range(n):
@@ -98,6 +99,15 @@ def _pairs_sorted(q: np.ndarray, reach: float, x0: float, y0: float, ny: int,
             starts[cells] = k
             cells += 1
     starts[cells] = n
+    return order, sk, starts, cells
+
+
+@numba.njit(cache=True, nogil=True)
+def _pairs_sorted(q: np.ndarray, reach: float, x0: float, y0: float, ny: int,
+                  out_i: np.ndarray, out_j: np.ndarray) -> int:
+    """Sparse crowds: agents sorted by cell key, neighbour cells found by binary search
+    (O(N log N + pairs), no grid allocated)."""
+    order, sk, starts, cells = _sorted_cells(q, reach, x0, y0, ny)
     r2 = reach * reach
     found = 0
     for c in range(cells):
@@ -151,19 +161,7 @@ def _segments_sorted(q: np.ndarray, a: np.ndarray, b: np.ndarray, reach: float, 
                      y0: float, ny: int, out_a: np.ndarray, out_s: np.ndarray) -> int:
     """Agents sorted by cell key (cells of side reach); each segment visits the cells its
     bounding box, grown by reach, covers, and keeps the agents within reach of it."""
-    n = q.shape[0]
-    key = np.empty(n, dtype=np.int64)
-    for u in range(n):
-        key[u] = (int((q[u, 0] - x0) / reach) + 1) * ny + int((q[u, 1] - y0) / reach) + 1
-    order = np.argsort(key, kind="mergesort")
-    sk = key[order]
-    starts = np.empty(n + 1, dtype=np.int64)
-    cells = 0
-    for k in range(n):
-        if k == 0 or sk[k] != sk[k - 1]:
-            starts[cells] = k
-            cells += 1
-    starts[cells] = n
+    order, sk, starts, cells = _sorted_cells(q, reach, x0, y0, ny)
     r2 = reach * reach
     cap = out_a.shape[0]
     found = 0
