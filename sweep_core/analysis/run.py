@@ -151,6 +151,24 @@ def _json(text: str | None, what: str, problems: list[str]) -> Any:
         return None
 
 
+def _stepped(metadata: dict[str, dict[str, str]], prefix: str, key: str, problems: list[str]
+             ) -> list[tuple[int, str, int, int, dict]]:
+    """The node's records ``PREFIX_NNNNNN`` that apply a JSON spec (in ``key``) from a step:
+    (index, topic, step, log_time_ns, spec) each, in index order; a record without a valid
+    step, log time or spec is reported in ``problems`` and left out."""
+    out = []
+    for k, rec in _indexed(metadata, prefix):
+        spec = _json(rec.get(key), f"{prefix}_{k:06d}.{key}", problems)
+        try:
+            step, log_ns = int(rec["step"]), int(rec["log_time_ns"])
+        except (KeyError, ValueError):
+            problems.append(f"metadata {prefix}_{k:06d} has no valid step / log_time_ns")
+            continue
+        if isinstance(spec, dict):
+            out.append((k, rec.get("topic", ""), step, log_ns, spec))
+    return out
+
+
 def _indexed(metadata: dict[str, dict[str, str]], prefix: str) -> list[tuple[int, dict]]:
     pat = re.compile(rf"^{prefix}_(\d+)$")
     out = [(int(m.group(1)), rec) for name, rec in metadata.items() if (m := pat.match(name))]
@@ -216,16 +234,9 @@ def load_run(path: str | Path) -> RunMeta:
         frames=info.channels[poses].message_count if poses in info.channels else 0,
         truncated=info.truncated, error=info.error, problems=problems,
         status=describe_status(info.metadata, info.truncated))
-    for k, rec in _indexed(info.metadata, "command"):
-        spec = _json(rec.get("field"), f"command_{k:06d}.field", problems)
-        try:
-            step, log_ns = int(rec["step"]), int(rec["log_time_ns"])
-        except (KeyError, ValueError):
-            problems.append(f"metadata command_{k:06d} has no valid step / log_time_ns")
-            continue
-        if isinstance(spec, dict):
-            meta.commands.append(Command(k, rec.get("topic", ""), step, log_ns, spec,
-                                         meta.segment_of(log_ns)))
+    meta.commands = [Command(k, topic, step, log_ns, spec, meta.segment_of(log_ns))
+                     for k, topic, step, log_ns, spec
+                     in _stepped(info.metadata, "command", "field", problems)]
     for k, rec in _indexed(info.metadata, "parameter"):
         try:
             change = ParameterChange(k, rec["name"], json.loads(rec["value"]), int(rec["step"]),
@@ -237,16 +248,8 @@ def load_run(path: str | Path) -> RunMeta:
         meta.parameter_changes.append(ParameterChange(
             change.index, change.name, change.value, change.step, change.log_time_ns,
             meta.segment_of(change.log_time_ns)))
-    for k, rec in _indexed(info.metadata, "map"):
-        spec = _json(rec.get("map"), f"map_{k:06d}.map", problems)
-        try:
-            step, log_ns = int(rec["step"]), int(rec["log_time_ns"])
-        except (KeyError, ValueError):
-            problems.append(f"metadata map_{k:06d} has no valid step / log_time_ns")
-            continue
-        if isinstance(spec, dict):
-            meta.maps.append(MapChange(k, rec.get("topic", ""), step, log_ns, spec,
-                                       meta.segment_of(log_ns)))
+    meta.maps = [MapChange(k, topic, step, log_ns, spec, meta.segment_of(log_ns))
+                 for k, topic, step, log_ns, spec in _stepped(info.metadata, "map", "map", problems)]
     return meta
 
 
