@@ -3,6 +3,16 @@ from __future__ import annotations
 
 import numpy as np
 
+#: a valid scene with one item of each kind, for tests that break it one key at a time
+GOOD = {
+    "agents": {"positions": [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], "radius": 0.2},
+    "walls": [{"kind": "halfplane", "normal": [0, 1], "offset": -1.0},
+              {"kind": "segment", "a": [-2, 3], "b": [2, 3]}],
+    "obstacles": [{"kind": "circle", "center": [3, 3], "radius": 0.5}],
+    "drift": {"kind": "goal", "goal": [5, 5], "speed": 1.0},
+    "noise": {"sigma": 0.1},
+}
+
 
 def hex_jam(rows: int, cols: int, radius: float = 0.24, spacing: float = 0.5,
             sigma: float = 0.1) -> dict:

@@ -6,18 +6,10 @@ import re
 
 import numpy as np
 import pytest
+from scenes import GOOD
 
 import sweep_core as sc
 from sweep_core.model import radii
-
-GOOD = {
-    "agents": {"positions": [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], "radius": 0.2},
-    "walls": [{"kind": "halfplane", "normal": [0, 1], "offset": -1.0},
-              {"kind": "segment", "a": [-2, 3], "b": [2, 3]}],
-    "obstacles": [{"kind": "circle", "center": [3, 3], "radius": 0.5}],
-    "drift": {"kind": "goal", "goal": [5, 5], "speed": 1.0},
-    "noise": {"sigma": 0.1},
-}
 
 
 def variant(path: str, value) -> dict:
