@@ -21,6 +21,7 @@ from sweep_core.analysis.run import load_run  # noqa: E402
 from sweep_core.cli import main  # noqa: E402
 from sweep_core.ensemble import cluster, run, store  # noqa: E402
 from sweep_core.ensemble.task import Task, digest, flatten, simulate  # noqa: E402
+from sweep_core.io.recording import read_metadata
 
 SCENE = """
 name: small
@@ -78,6 +79,8 @@ def test_run_k_is_sweep_run_with_seed0_plus_k(tmp_path, scene, client, capsys):
         ens_mcap = row["recording"]
         assert ens_mcap.startswith(str(out / "mcap"))
         assert np.array_equal(last_positions(ens_mcap), q)  # the ensemble's own recording
+        # recorded by the same code as sweep run's: with its status record
+        assert read_metadata(ens_mcap)["sweep_status"]["status"] == "completed"
         assert row["final_sha256"] == digest(q)  # and the row: the same final positions
         metrics = flatten(analyze(mcap, line=parse_line(LINE)).summary)
         assert metrics["flow.net"] >= 0 and "arrivals.t_first_s" in metrics

@@ -12,15 +12,13 @@ import math
 import signal
 import sys
 import threading
-import time
 from pathlib import Path
 from typing import Any
 
 from sweep_core import checks
-from sweep_core.errors import RecordingError, SweepError
-from sweep_core.io import limits, topics
-from sweep_core.io.metadata import STATUS_RECORD, run_metadata, status_metadata
-from sweep_core.io.recording import BackgroundRecorder
+from sweep_core.io import limits
+from sweep_core.io.metadata import run_metadata
+from sweep_core.io.recording.runs import record_run
 from sweep_core.model.scene import Scene, load_scene
 from sweep_core.numerics import paths
 from sweep_core.numerics.projection import SolverOptions
@@ -94,51 +92,22 @@ def _run(args: argparse.Namespace) -> int:
 
     meta = run_metadata(scene, sim, t_end, args.record_every)
     meta["path_dt"] = repr(args.path_dt) if args.path_dt else ""
-    status, error = "completed", ""
-    failure: BaseException | None = None
-    wall = 0.0
-    # compression and disk writes happen on the recorder's own thread; a backlog of 64 messages
-    # (32 recorded steps) at most, so a writer that falls behind slows the run instead of
-    # filling the memory
-    with StopOnSignal() as stop, BackgroundRecorder(out, metadata=meta, max_backlog=64) as rec:
-        for name, msgtype in topics.TYPES.items():
-            rec.add_channel("/" + name, msgtype)
 
-        def record(s: Simulator) -> None:
-            state = s.state
-            if state.step % args.record_every == 0:
-                topics.record_state(rec.write, state, args.frame_id)
-                if rec.error:
-                    raise RecordingError(rec.error)
-            if state.step:
-                stats["steps"] += 1
-                stats["min_gap"] = min(stats["min_gap"], state.min_gap)
-                stats["active_rows_max"] = max(stats["active_rows_max"], state.contacts)
-                stats["active_rows_sum"] += state.contacts
-                stats["backend_agents_max"] = max(stats["backend_agents_max"], s.backend_agents)
-                stats["bound_max_m"] = max(stats["bound_max_m"], s.bound)
-            stop.check()
+    def tally(s: Simulator) -> None:
+        if s.state.step:
+            stats["steps"] += 1
+            stats["min_gap"] = min(stats["min_gap"], s.state.min_gap)
+            stats["active_rows_max"] = max(stats["active_rows_max"], s.state.contacts)
+            stats["active_rows_sum"] += s.state.contacts
+            stats["backend_agents_max"] = max(stats["backend_agents_max"], s.backend_agents)
+            stats["bound_max_m"] = max(stats["bound_max_m"], s.bound)
+        stop.check()
 
-        start = time.perf_counter()
-        try:
-            record(sim)
-            if args.path_dt:
-                paths.run(sim, t_end, args.path_dt, progress=not args.quiet, callback=record)
-            else:
-                sim.run(t_end, progress=not args.quiet, callback=record)
-        except Interrupted as err:
-            status, error, failure = "interrupted", str(err), err
-        except KeyboardInterrupt as err:  # SIGINT outside the main thread's handler
-            status, error, failure = "interrupted", "SIGINT", err
-        except Exception as err:  # noqa: BLE001 - recorded as the run's status, then re-raised
-            status, failure = "failed", err
-            error = str(err) if isinstance(err, SweepError) else f"{type(err).__name__}: {err}"
-        wall = time.perf_counter() - start
-        rec.metadata(STATUS_RECORD, status_metadata(status, steps=stats["steps"], t=sim.t,
-                                                    error=error))
-    if rec.error and status == "completed":
-        status, error = "failed", rec.error
-        failure = RecordingError(rec.error)
+    with StopOnSignal() as stop:
+        run = record_run(sim, t_end, out, meta, record_every=args.record_every,
+                         frame_id=args.frame_id, path_dt=args.path_dt or None,
+                         progress=not args.quiet, on_state=tally)
+    status, error, failure, wall = run.status, run.error, run.failure, run.wall_s
     summary_path = _write_summary(args, out, scene, sim, solver, stats, wall, status, error)
     if isinstance(failure, Interrupted):
         print(f"sweep: interrupted by {error} at t = {sim.t:g} s (step {stats['steps']}); "

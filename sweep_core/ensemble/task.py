@@ -28,10 +28,9 @@ import numpy as np
 
 from sweep_core.analysis.metrics import analyze
 from sweep_core.analysis.report import jsonable
-from sweep_core.errors import RecordingError, SweepError
-from sweep_core.io import topics
+from sweep_core.errors import SweepError
 from sweep_core.io.metadata import run_metadata
-from sweep_core.io.recording import BackgroundRecorder
+from sweep_core.io.recording import runs
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.projection import SolverOptions
 from sweep_core.numerics.simulator import Simulator
@@ -86,22 +85,13 @@ def flatten(summary: dict, prefix: str = "") -> dict[str, float]:
 
 def record_run(sim: Simulator, scene: Scene, t_end: float, out: Path) -> None:
     """Steps ``sim`` to ``t_end`` s recording every step to ``out`` as ``sweep run`` does
-    (record_every 1, frame ``map``, the same metadata record)."""
+    (record_every 1, frame ``map``, the same metadata and status records); raises what
+    ended the run if it did not complete."""
     meta = run_metadata(scene, sim, t_end, 1)
     meta["path_dt"] = ""
-    with BackgroundRecorder(out, metadata=meta, max_backlog=64) as rec:
-        for name, msgtype in topics.TYPES.items():
-            rec.add_channel("/" + name, msgtype)
-
-        def record(s: Simulator) -> None:
-            topics.record_state(rec.write, s.state, "map")
-            if rec.error:
-                raise RecordingError(rec.error)
-
-        record(sim)
-        sim.run(t_end, callback=record)
-    if rec.error:
-        raise RecordingError(rec.error)
+    run = runs.record_run(sim, t_end, out, meta)
+    if run.failure is not None:
+        raise run.failure
 
 
 def digest(q: np.ndarray) -> str:

@@ -1,0 +1,79 @@
+"""A simulator run recorded to MCAP as ``sweep run`` records it, shared by the CLI and the
+ensemble's workers: the ``/poses`` and ``/agents`` channels, every ``record_every``-th state
+(the first included), and a final ``sweep_status`` record however the run ends."""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from sweep_core.errors import RecordingError, SweepError
+from sweep_core.io import topics
+from sweep_core.io.metadata import STATUS_RECORD, status_metadata
+from sweep_core.io.recording.background import BackgroundRecorder
+from sweep_core.numerics import paths
+from sweep_core.numerics.simulator import Simulator
+
+
+@dataclass
+class RecordedRun:
+    """How a recorded run ended: ``status`` (completed, interrupted, failed), ``error`` (the
+    signal or the error message; empty when completed), ``failure`` (the exception that ended
+    it, for the caller to raise or report), ``steps`` taken and ``wall_s`` (s) stepping."""
+
+    status: str
+    error: str
+    failure: BaseException | None
+    steps: int
+    wall_s: float
+
+
+def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str], *,
+               record_every: int = 1, frame_id: str = "map", path_dt: float | None = None,
+               progress: bool = False,
+               on_state: Callable[[Simulator], None] | None = None) -> RecordedRun:
+    """Steps ``sim`` to ``t_end`` (s), on a Brownian path drawn at ``path_dt`` when given,
+    recording to ``out`` (a writer thread compresses and writes; at most 64 messages wait, so
+    a writer that falls behind slows the run instead of filling the memory). ``on_state(sim)``
+    is called after each state is recorded, the first included; a KeyboardInterrupt (or
+    subclass, e.g. a signal turned into one) it raises ends the run as ``interrupted``. The
+    run never raises: the outcome, written as the ``sweep_status`` record too, is returned."""
+    status, error = "completed", ""
+    failure: BaseException | None = None
+    steps = 0
+    wall = 0.0
+    with BackgroundRecorder(out, metadata=metadata, max_backlog=64) as rec:
+        for name, msgtype in topics.TYPES.items():
+            rec.add_channel("/" + name, msgtype)
+
+        def record(s: Simulator) -> None:
+            nonlocal steps
+            state = s.state
+            if state.step % record_every == 0:
+                topics.record_state(rec.write, state, frame_id)
+                if rec.error:
+                    raise RecordingError(rec.error)
+            if state.step:
+                steps += 1
+            if on_state is not None:
+                on_state(s)
+
+        start = time.perf_counter()
+        try:
+            record(sim)
+            if path_dt:
+                paths.run(sim, t_end, path_dt, progress=progress, callback=record)
+            else:
+                sim.run(t_end, progress=progress, callback=record)
+        except KeyboardInterrupt as err:  # SIGINT, or a signal the caller turned into one
+            status, error, failure = "interrupted", str(err) or "SIGINT", err
+        except Exception as err:  # noqa: BLE001 - recorded as the run's status, returned
+            status, failure = "failed", err
+            error = str(err) if isinstance(err, SweepError) else f"{type(err).__name__}: {err}"
+        wall = time.perf_counter() - start
+        rec.metadata(STATUS_RECORD, status_metadata(status, steps=steps, t=sim.t, error=error))
+    if rec.error and status == "completed":
+        status, error = "failed", rec.error
+        failure = RecordingError(rec.error)
+    return RecordedRun(status, error, failure, steps, wall)
