@@ -13,9 +13,9 @@ from sweep_core.model.yaml_files import dump_yaml
 __all__ = ["register"]
 
 
-def describe(grid: OccupancyMap) -> list[tuple[str, str]]:
-    """Key/value lines about the map and its walls."""
-    a, b = grid.segments()
+def describe(grid: OccupancyMap, walls: tuple[np.ndarray, np.ndarray]) -> list[tuple[str, str]]:
+    """Key/value lines about the map and its walls (``grid.segments()``)."""
+    a, b = walls
     h, w = grid.shape
     free = ~grid.blocked
     corners = grid.to_world(np.array([[0.0, 0.0], [w, h]]) * grid.resolution)
@@ -43,14 +43,14 @@ def starter_scene(grid: OccupancyMap, yaml_path: str, count: int, radius: float)
             "noise": {"sigma": 0.05}}
 
 
-def plot(grid: OccupancyMap, out: str) -> None:
+def plot(grid: OccupancyMap, walls: tuple[np.ndarray, np.ndarray], out: str) -> None:
     """The blocked cells in grey and the walls in red, world coordinates."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    a, b = grid.segments()
+    a, b = walls
     h, w = grid.shape
     fig, ax = plt.subplots(figsize=(8, 8 * h / max(w, 1) + 0.5))
     x0, y0, yaw = grid.origin
@@ -68,11 +68,13 @@ def plot(grid: OccupancyMap, out: str) -> None:
 
 def _map(args: argparse.Namespace) -> int:
     grid = read_map_yaml(Path(args.map), "map")
-    width = max(len(k) for k, _ in describe(grid)) + 2
-    for key, value in describe(grid):
+    walls = grid.segments()  # the map's one costly computation, done once
+    lines = describe(grid, walls)
+    width = max(len(k) for k, _ in lines) + 2
+    for key, value in lines:
         print(f"{key:<{width}}{value}")
     if args.png:
-        plot(grid, args.png)
+        plot(grid, walls, args.png)
         print(f"{'png':<{width}}{args.png}")
     if args.scene:
         rel = Path(args.map).resolve()
