@@ -24,8 +24,11 @@ dominates (tens of thousands of agents in one deep jam at tol = 1e-6) the bound 
 the honest, larger one.
 
 Per step: start from the previous step's multipliers (:mod:`.warm`); repeat rounds of
-``SWEEPS`` projected Gauss-Seidel sweeps and one face step (conjugate gradients on the rows
-with lam > 0, at most ``CG_ITERS`` iterations); after each round certify every cluster. Stop
+``SWEEPS`` projected Gauss-Seidel sweeps and one face step; after each round certify every
+cluster. The face step is conjugate gradients on the rows with lam > 0 (at most ``CG_ITERS``
+iterations, ``PASSES`` passes) while the face is still changing, and the factored Newton step
+of :mod:`.factored` once the sweeps leave it as the previous round did (the active rows are
+found; what remains is a linear system that plain conjugate gradients solve slowly). Stop
 when all are done, after ``max_rounds`` rounds, or when ``STALL`` rounds in a row have not
 lowered the largest gap; the clusters not done go to the caller's exact or interior-point
 solvers.
@@ -36,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sweep_core.numerics.projection import dual
+from sweep_core.numerics.projection import dual, factored
 
 #: projected Gauss-Seidel sweeps per round (they find the active rows)
 SWEEPS = 10
@@ -115,6 +118,7 @@ def solve(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.n
     rounds = stall = 0
     best = np.inf
     skin = floor
+    settled: np.ndarray | None = None  # the face after the previous round
     while True:
         gap, budget, done, low = certify(x, ri, rj, re, h, lam, label, clusters, tol, floor)
         if done.all() or rounds >= max_rounds:
@@ -133,7 +137,11 @@ def solve(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.n
         skin = max(floor, min(1e-8 * tol, tol * tol / (16.0 * max(float(lam.sum()), 1e-300))))
         tight = h + skin
         dual.pgs(x, ri, rj, re, tight, lam, SWEEPS)
-        dual.face_step(x, d, ri, rj, re, tight, lam, CG_ITERS, PASSES)
+        face = lam > 0.0
+        if not (settled is not None and np.array_equal(face, settled)
+                and factored.face_step(x, d, ri, rj, re, tight, lam)):
+            dual.face_step(x, d, ri, rj, re, tight, lam, CG_ITERS, PASSES)
+        settled = lam > 0.0
         x = dual.apply_multipliers(d, ri, rj, re, lam)
         rounds += 1
     return Certified(x, lam, label, gap, budget, done, rounds, skin)

@@ -165,28 +165,15 @@ def face_pass(x: np.ndarray, d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: 
 
     S = rows with lam_k > 0. Conjugate gradients minimise phi over lam_S (the other
     multipliers held at 0): (A_S A_S^T) p = -(A_S x - h_S), at most ``cg_iters`` iterations.
-    Then lam <- lam + alpha p with alpha = 1 where that keeps every multiplier >= 0, else the
-    longest step that does (phi decreases along p up to the full step, CG's minimiser on the
-    face); failing that, lam <- max(0, lam + alpha p) for the first alpha in 1/2, 1/4, ...
-    that does not increase phi. Returns the CG iterations run (0 when S is empty or no step
-    decreased phi) and the longest step keeping lam >= 0 (>= 1: the full step)."""
+    Then the projected search along p (:func:`search`). Returns the CG iterations run (0 when
+    S is empty or no step decreased phi) and the longest step keeping lam >= 0 (>= 1: the
+    full step)."""
     n = x.shape[0]
-    count = 0
-    for k in range(lam.shape[0]):
-        if lam[k] > 0.0:
-            count += 1
+    rows = face_rows(lam)
+    count = rows.shape[0]
     if count == 0:
         return 0, 1.0
-    rows = np.empty(count, dtype=np.int64)
-    u = 0
-    for k in range(lam.shape[0]):
-        if lam[k] > 0.0:
-            rows[u] = k
-            u += 1
-    # residual of the face system: r = -(A_S x - h_S)
-    r = _gather(x, rows, ri, rj, re)
-    for u in range(count):
-        r[u] = rh[rows[u]] - r[u]
+    r = face_residual(x, ri, rj, re, rh, rows)  # -(A_S x - h_S)
     p = np.zeros(count)
     dirn = r.copy()
     rr = 0.0
@@ -214,18 +201,43 @@ def face_pass(x: np.ndarray, d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: 
         its += 1
     if its == 0:
         return 0, 1.0
-    # the longest step along p keeping every multiplier >= 0 (capped at the full step)
+    moved, reach = search(x, d, ri, rj, re, rh, lam, rows, p)
+    return (its if moved else 0), reach
+
+
+@numba.njit(cache=True, nogil=True)
+def search(x: np.ndarray, d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray,
+           rh: np.ndarray, lam: np.ndarray, rows: np.ndarray, p: np.ndarray
+           ) -> tuple[bool, float]:
+    """Projected search along a face direction p (S,) on the rows ``rows`` (S,), in place on
+    lam and x (= d + A^T lam on return): lam <- max(0, lam + alpha p) for the first alpha that
+    does not increase phi, tried in the order 1, 1/2, 1/4, ... down to the longest step
+    keeping every multiplier >= 0 (the reach), then the reach, then halvings of the reach.
+    Steps longer than the reach drop every row whose multiplier crosses 0 at once (Moré and
+    Toraldo's projected search; stopping at the reach drops one row a pass, which in a deep
+    jam takes tens of rounds). Up to the reach phi is convex along p and decreasing to the
+    face minimiser, so the reach is always accepted when p is a descent direction. Returns
+    whether lam moved and the reach (>= 1: the full step keeps lam >= 0)."""
+    count = rows.shape[0]
     phi0 = _phi(x, rh, lam)
     old = lam.copy()
     reach = 1.0
     for u in range(count):
         if p[u] < 0.0 and -old[rows[u]] / p[u] < reach:
             reach = -old[rows[u]] / p[u]
-    trials = np.empty(12)
-    trials[0] = min(reach, 1.0)
-    for t in range(1, 12):
-        trials[t] = 0.5 ** t
-    for t in range(12):
+    trials = np.empty(24)
+    nt = 0
+    step = 1.0
+    while step > reach and nt < 12:  # projected steps beyond the reach
+        trials[nt] = step
+        nt += 1
+        step *= 0.5
+    trials[nt] = reach
+    nt += 1
+    while nt < 24:
+        trials[nt] = 0.5 * trials[nt - 1]
+        nt += 1
+    for t in range(nt):
         step = trials[t]
         if step <= 0.0:
             continue
@@ -236,9 +248,25 @@ def face_pass(x: np.ndarray, d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: 
         trial = apply_multipliers(d, ri, rj, re, lam)
         if _phi(trial, rh, lam) <= phi0 + 1e-15 * abs(phi0):
             x[:, :] = trial
-            return its, reach
+            return True, reach
     lam[:] = old
-    return 0, reach
+    return False, reach
+
+
+@numba.njit(cache=True, nogil=True)
+def face_rows(lam: np.ndarray) -> np.ndarray:
+    """Indices of the rows with lam_k > 0 (the face), ascending."""
+    return np.flatnonzero(lam > 0.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def face_residual(x: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray,
+                  rh: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """h_S - A_S x (S,) m: minus the face rows' slacks."""
+    w = _gather(x, rows, ri, rj, re)
+    for u in range(rows.shape[0]):
+        w[u] = rh[rows[u]] - w[u]
+    return w
 
 
 @numba.njit(cache=True, nogil=True)
