@@ -194,9 +194,10 @@ def test_an_uncertified_answer_keeps_a_finite_cutoff(monkeypatch):
 
 
 def test_bundled_door_scene_is_certified_every_step_without_fallback() -> None:
-    # the default scene's crowd at the door has slow phases of several rounds that then
-    # converge: giving up after fewer stalled rounds (5 instead of 10) sent its 200-agent
-    # cluster to Clarabel with a bound of 1.4e-4 m; every step must finish certified to tol
+    # the default scene's crowd at the door had slow phases of several rounds that then
+    # converged: before the projected search, giving up after 5 stalled rounds instead of 10
+    # sent its 200-agent cluster to Clarabel with a bound of 1.4e-4 m; every step must finish
+    # certified to tol
     from sweep_core.model.scene import load_scene
 
     sim = sc.Simulator(load_scene(""), dt=0.01, seed=0)

@@ -47,8 +47,11 @@ SWEEPS = 10
 CG_ITERS = 50
 #: face passes of a round (each drops the rows whose multipliers reach 0)
 PASSES = 4
-#: rounds without progress of the largest gap after which the rounds stop
-STALL = 10
+#: rounds without progress of the largest gap after which the rounds stop (with the projected
+#: search and the factored face step a non-degenerate jam certifies in 4 to 10 rounds, the
+#: bundled door scene in at most 5; a degenerate hexagonal lattice never does, and every
+#: stalled round is time lost before the cluster solvers: docs/jam_solvers.md)
+STALL = 4
 
 
 @dataclass

@@ -27,6 +27,8 @@ from sweep_core.numerics.projection import dual
 SHIFT = 1e-10
 #: preconditioned conjugate-gradient iterations at most
 PCG_ITERS = 10
+#: largest squared residual, relative to the start, of a direction that is taken
+CONSISTENT = 1e-12
 
 
 def face_matrix(n: int, rows: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray
@@ -47,7 +49,8 @@ def face_matrix(n: int, rows: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np
 def newton_direction(n: int, rows: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray,
                      residual: np.ndarray) -> np.ndarray | None:
     """p (S,) m solving (A_S A_S^T) p = residual to about 1e-14 relative, or None when the
-    factorisation fails."""
+    factorisation fails or the residual does not fall below 1e-6 of its start (the system
+    has no solution: the face is not the solution's)."""
     a = face_matrix(n, rows, ri, rj, re)
     m = (a @ a.T).tocsc()
     try:
@@ -61,7 +64,7 @@ def newton_direction(n: int, rows: np.ndarray, ri: np.ndarray, rj: np.ndarray, r
     z = lu.solve(r)
     dirn = z.copy()
     rz = float(r @ z)
-    stop = 1e-28 * float(r @ r)
+    start = float(r @ r)
     for _ in range(PCG_ITERS):
         w = m @ dirn
         dw = float(dirn @ w)
@@ -70,13 +73,17 @@ def newton_direction(n: int, rows: np.ndarray, ri: np.ndarray, rj: np.ndarray, r
         alpha = rz / dw
         p += alpha * dirn
         r -= alpha * w
-        if float(r @ r) <= stop:
+        if float(r @ r) <= 1e-28 * start:
             break
         z = lu.solve(r)
         rz_new = float(r @ z)
         dirn = z + (rz_new / rz) * dirn
         rz = rz_new
-    return p if np.all(np.isfinite(p)) else None
+    # an inconsistent face system (dependent rows, some of them not active at the solution:
+    # degenerate lattices) has no solution; conjugate gradients then wander off
+    if not np.all(np.isfinite(p)) or float(r @ r) > CONSISTENT * start:
+        return None
+    return p
 
 
 def face_step(x: np.ndarray, d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray,
