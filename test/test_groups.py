@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import sweep_core as sc
-from sweep_core.analysis import replay
+from sweep_core.analysis import metrics, plots, replay, report
+from sweep_core.cli import main
 from sweep_core.errors import SceneError
 from sweep_core.io import topics
 from sweep_core.io.metadata import run_metadata
@@ -236,3 +238,86 @@ def test_the_groups_drift_kind_refuses_bad_names_too():
         2)
     assert f.speeds == (1.0,) and f.fields[0].speed == 1.5
     assert isinstance(f.rest, sc.Field) and not isinstance(f.rest, Uniform)
+
+
+# ---------------------------------------------------------------------------------------------
+# sweep analyze: per exit and per group
+# ---------------------------------------------------------------------------------------------
+
+ROOM = [{"kind": "polyline", "closed": True, "points": [[0, 0], [20, 0], [20, 10], [0, 10]]}]
+#: the recording interval: an arrival is seen at the first frame past it
+DT = 0.05
+
+
+def recorded(tmp_path, data: dict, t_end: float) -> Path:
+    """A deterministic `sweep run` of the scene ``data`` recorded every step."""
+    s = sc.Scene.from_dict(data)
+    (tmp_path / "s.yaml").write_text(s.to_yaml())
+    out = tmp_path / "run.mcap"
+    assert main(["run", str(tmp_path / "s.yaml"), "--t-end", str(t_end), "--dt", str(DT),
+                 "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+def near(value, expected):
+    """An arrival time seen at a recorded frame: within one frame (plus rounding) after the
+    exact time."""
+    return value is not None and expected - 1e-9 <= value <= expected + DT + 1e-9
+
+
+def test_analyze_reports_which_exit_each_agent_took_and_when(tmp_path, capsys):
+    """Four agents on the line y = 5 between exits at x = 1 and x = 19, speed 1 m/s, no
+    noise; arrived = within 1 m (--arrive-radius), so at full speed: x = 4 -> exit 0 at 2 s,
+    x = 7 -> exit 0 at 5 s, x = 15 -> exit 1 at 3 s, x = 11.5 -> exit 1 (7.5 m against 10.5)
+    at 6.5 s, after the run's 6 s."""
+    out = recorded(tmp_path, {
+        "agents": {"positions": [[4, 5], [7, 5], [15, 5], [11.5, 5]], "radius": 0.2},
+        "walls": ROOM, "drift": {"kind": "exits", "exits": [{"goal": [1, 5]}, {"goal": [19, 5]}],
+                                 "speed": 1.0}}, 6.0)
+    an = metrics.analyze(out, arrive_radius=1.0)
+    assert an.arrival_exit == ["exits[0]", "exits[0]", "exits[1]", None]
+    e = an.summary["per_exit"]
+    assert list(e) == ["exits[0]", "exits[1]"]
+    assert (e["exits[0]"]["agents"], e["exits[0]"]["arrived"]) == (2, 2)
+    assert (e["exits[1]"]["agents"], e["exits[1]"]["arrived"]) == (2, 1)
+    assert near(e["exits[0]"]["t_first_s"], 2.0) and near(e["exits[0]"]["t_50_s"], 2.0)
+    assert near(e["exits[0]"]["t_90_s"], 5.0) and near(e["exits[0]"]["t_last_s"], 5.0)
+    assert near(e["exits[1]"]["t_first_s"], 3.0) and near(e["exits[1]"]["t_last_s"], 3.0)
+    # agent 3 is still on its way: no exit is evacuated
+    assert e["exits[0]"]["evacuation_s"] is None and e["exits[1]"]["evacuation_s"] is None
+    a = an.summary["arrivals"]
+    assert a["arrived"] == 3 and a["t_all_s"] is None and a["radius_m"] == 1.0
+    assert near(a["t_50_s"], 3.0)
+    assert an.summary["per_group"] is None
+    assert main(["analyze", str(out), "--arrive-radius", "1", "--no-plots", "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "per_exit.exits[1].evacuation_s  not all arrived" in text
+    assert "per_exit.exits[0].agents" in text
+
+
+def test_analyze_reports_arrivals_and_evacuation_per_group(tmp_path):
+    """Group west (agents 0, 1 at x = 4 and 7) by a geodesic field to [1, 5] at 1 m/s, group
+    east (agents 2, 3 at x = 15 and 11) by a goal drift to [19, 5] at 0.5 m/s, both speeds
+    the groups' own; arrived = within 1 m: west at 2 and 5 s (evacuated at 5 s), east at
+    6 s and 14 s, after the run's 8 s."""
+    out = recorded(tmp_path, {
+        "agents": {"positions": [[4, 5], [7, 5], [15, 5], [11, 5]], "radius": 0.2, "groups": [
+            {"name": "west", "agents": [0, 1], "speed": 1.0,
+             "drift": {"kind": "geodesic", "goal": [1, 5]}},
+            {"name": "east", "agents": {"range": [2, 4]}, "speed": 0.5,
+             "drift": {"kind": "goal", "goal": [19, 5]}}]},
+        "walls": ROOM}, 8.0)
+    an = metrics.analyze(out, arrive_radius=1.0)
+    g = an.summary["per_group"]
+    assert list(g) == ["west", "east"]
+    w, e = g["west"], g["east"]
+    assert (w["agents"], w["arrived"], e["agents"], e["arrived"]) == (2, 2, 2, 1)
+    assert near(w["t_first_s"], 2.0) and near(w["t_50_s"], 2.0) and near(w["t_90_s"], 5.0)
+    assert near(w["t_last_s"], 5.0) and near(w["evacuation_s"], 5.0)
+    assert near(e["t_first_s"], 6.0) and near(e["t_50_s"], 6.0) and e["t_90_s"] is None
+    assert near(e["t_last_s"], 6.0) and e["evacuation_s"] is None
+    assert an.summary["arrivals"]["arrived"] == 3 and an.summary["per_exit"] is None
+    # the plot draws the west group's travel-time field under the density
+    report.write_outputs(an)
+    assert out.with_name("run.analysis.png").stat().st_size > 0
+    assert [name for name, _ in plots.navigation_fields(an.meta.scene.drift)] == ["west"]
