@@ -190,6 +190,11 @@ def test_a_groups_command_replays_bit_for_bit(tmp_path):
             publish()
     res = replay.replay(path)
     assert res.identical and res.commands_applied == 1, replay.format_replay(res)
+    # analyze follows the command: westbound now heads for [10, 1.5] (within its 0.5 m
+    # slow_radius), eastbound still for its geodesic goal; neither is reached in 0.8 s
+    an = metrics.analyze(path)
+    assert list(an.summary["per_group"]) == ["eastbound", "westbound"]
+    assert an.summary["arrivals"]["radius_m"] == 0.5 and an.summary["arrivals"]["arrived"] == 0
 
 
 @pytest.mark.parametrize("groups, drift, field, words", [
@@ -266,13 +271,14 @@ def near(value, expected):
 
 
 def test_analyze_reports_which_exit_each_agent_took_and_when(tmp_path, capsys):
-    """Four agents on the line y = 5 between exits at x = 1 and x = 19, speed 1 m/s, no
-    noise; arrived = within 1 m (--arrive-radius), so at full speed: x = 4 -> exit 0 at 2 s,
-    x = 7 -> exit 0 at 5 s, x = 15 -> exit 1 at 3 s, x = 11.5 -> exit 1 (7.5 m against 10.5)
-    at 6.5 s, after the run's 6 s."""
+    """Four agents on the line y = 5 between an exit point at x = 1 and an exit region from
+    x = 19, speed 1 m/s, no noise; arrived = within 1 m (--arrive-radius), so at full speed:
+    x = 4 -> exit 0 at 2 s, x = 7 -> exit 0 at 5 s, x = 15 -> exit 1 at 3 s, x = 11.5 ->
+    exit 1 (7.5 m against 10.5) at 6.5 s, after the run's 6 s."""
+    door = {"kind": "rectangle", "min": [19, 4], "max": [20, 6]}
     out = recorded(tmp_path, {
         "agents": {"positions": [[4, 5], [7, 5], [15, 5], [11.5, 5]], "radius": 0.2},
-        "walls": ROOM, "drift": {"kind": "exits", "exits": [{"goal": [1, 5]}, {"goal": [19, 5]}],
+        "walls": ROOM, "drift": {"kind": "exits", "exits": [{"goal": [1, 5]}, {"region": door}],
                                  "speed": 1.0}}, 6.0)
     an = metrics.analyze(out, arrive_radius=1.0)
     assert an.arrival_exit == ["exits[0]", "exits[0]", "exits[1]", None]
@@ -321,3 +327,11 @@ def test_analyze_reports_arrivals_and_evacuation_per_group(tmp_path):
     report.write_outputs(an)
     assert out.with_name("run.analysis.png").stat().st_size > 0
     assert [name for name, _ in plots.navigation_fields(an.meta.scene.drift)] == ["west"]
+    plt = plots.pyplot()
+    fig, ax = plt.subplots()
+    assert plots.draw_travel_time(ax, an.meta.scene) == " and travel time"
+    drawn = [c for c in ax.get_children() if type(c).__name__ in ("QuadContourSet",
+                                                                  "ContourSet")]
+    assert len(drawn) == 1 and len(drawn[0].levels) == plots.CONTOURS
+    assert ax.get_legend().get_texts()[0].get_text().startswith("west: every")
+    plt.close(fig)

@@ -4,10 +4,11 @@ which exit it reached, and the figures per exit and per group.
 An agent heads for the targets of its own drift: the scene's (or a command's) ``goal``,
 ``geodesic`` or ``exits`` drift, or in a ``groups`` drift (``agents.groups`` or ``{kind:
 groups}``) its group's drift (the rest: ``rest``). It has arrived at the first recorded frame
-in which its centre is within the arrival radius of a goal point (``--arrive-radius``,
-default the drift's ``slow_radius``) or inside a goal region; for ``exits``, at the first exit
-(in the spec's order) that holds then. Exits are labelled as in the spec, ``exits[k]``, and
-with the group's name in a group, ``NAME/exits[k]``.
+in which its centre is within the arrival radius (``--arrive-radius``, default the drift's
+``slow_radius``, where it starts to slow down) of a goal point or of a goal region (a
+geodesic field halts agents at a region's edge, so they may never be strictly inside it);
+for ``exits``, at the first exit (in the spec's order) that holds then. Exits are labelled as
+in the spec, ``exits[k]``, and with the group's name in a group, ``NAME/exits[k]``.
 
 Per exit (when an ``exits`` drift was in effect): ``agents`` heading there at t = 0 (the exit
 the scene's travel-time field sends each agent's start to; None for an exits drift given by a
@@ -131,7 +132,6 @@ class ArrivalTracker:
         self.exit_followers = np.zeros(n_agents, dtype=bool)
         self.groups: dict[str, np.ndarray] = {}
         self.radii: set[float] = set()
-        self.regions = False
         self.seen = False
         self._plans: dict[int, tuple[dict, list[Heading]]] = {}
 
@@ -158,13 +158,12 @@ class ArrivalTracker:
                 self.labels += [lb for lb, _, _ in h.targets if lb not in self.labels]
             todo = idx[np.isnan(self.arrival[idx])]
             for label, target, radius in h.targets:
-                if target.is_region:
-                    self.regions = True
-                else:
-                    self.radii.add(radius)
+                self.radii.add(radius)
                 if not len(todo):
                     break
-                hit = target.arrived(q[todo], radius)
+                # within radius of a region too: the field slows agents to a halt at its
+                # edge (within a grid cell), so "inside" may take for ever
+                hit = target.nearest(q[todo])[0] <= radius
                 now = todo[hit]
                 self.arrival[now] = t
                 if h.exits:

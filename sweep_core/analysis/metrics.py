@@ -406,7 +406,7 @@ class _Metrics:
         if self.goal_seen:
             radii = sorted(self.tracker.radii)
             summary["arrivals"] = {
-                "radius_m": radii[0] if len(radii) == 1 else (radii or None),
+                "radius_m": radii[0] if len(radii) == 1 else radii,
                 "arrived": int(np.count_nonzero(np.isfinite(self.arrival))),
                 "t_first_s": stats(self.arrival, np.min),
                 "t_mean_s": stats(self.arrival, np.mean),
@@ -414,8 +414,8 @@ class _Metrics:
                 "t_90_s": time_for(self.arrival, n, 0.9),
                 "t_all_s": time_for(self.arrival, n, 1.0),
                 "precision": "float64 (/poses); first recorded frame within the radius of the "
-                             "goal in effect (default radius: the goal's slow_radius) or "
-                             "inside its region",
+                             "goal (point or region) in effect (default radius: the goal's "
+                             "slow_radius)",
             }
             summary["per_exit"] = self.tracker.per_exit()
             summary["per_group"] = self.tracker.per_group()
