@@ -28,12 +28,13 @@ grid bound) are what the README's table cites.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from sweep_core.analysis.arrivals import ArrivalTracker, start_exits, stats, time_for
 from sweep_core.analysis.frames import Frame, FrameReader, progress_bar
 from sweep_core.analysis.run import NS, RunMeta, Schedule, load_run, scene_with_map
 from sweep_core.errors import RecordingError, SweepError
@@ -174,6 +175,9 @@ class Analysis:
     speed_hist: np.ndarray
     arrival: np.ndarray
     evacuation: np.ndarray
+    #: the exit each agent reached (its label, see :mod:`sweep_core.analysis.arrivals`), or
+    #: None (not arrived, or not under an exits drift)
+    arrival_exit: list[str | None] = field(default_factory=list)
 
 
 def _quantile(hist: np.ndarray, p: float) -> float | None:
@@ -184,13 +188,6 @@ def _quantile(hist: np.ndarray, p: float) -> float | None:
     return (i + 0.5) * SPEED_BIN
 
 
-def _time_for(times: np.ndarray, n_agents: int, fraction: float) -> float | None:
-    """Time at which ceil(fraction N) agents have a finite time (None if never)."""
-    need = max(1, math.ceil(fraction * n_agents - 1e-9))
-    done = np.sort(times[np.isfinite(times)])
-    return float(done[need - 1]) if len(done) >= need else None
-
-
 def _finite(x: float | None) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
 
@@ -198,12 +195,6 @@ def _finite(x: float | None) -> float | None:
 def _empty_geometry() -> Geometry:
     e2, e1, ei = np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=np.intp)
     return Geometry(e2, e1, e1, e2, e2, e2, e1, ei, ei, ei)
-
-
-def _stats(values: np.ndarray, how: Any) -> float | None:
-    """how(values) over the finite values, or None if there are none."""
-    ok = values[np.isfinite(values)]
-    return float(how(ok)) if len(ok) else None
 
 
 class _Metrics:
@@ -225,18 +216,21 @@ class _Metrics:
         self.arrival = self.evacuation = np.zeros(0)
         self.speed_sum, self.speed_count, self.speed_max = 0.0, 0, 0.0
         self.goal_seen = False
-        self.radii_used: set[float] = set()
+        self.tracker = ArrivalTracker(0, arrive_radius)
         self._map_geometry: dict[int, Geometry] = {}
 
     def add(self, fr: Frame) -> None:
         meta, q = self.meta, fr.positions
         if self.n is None:
             self.n, self.t0 = len(q), fr.log_ns
-            self.arrival = np.full(self.n, np.nan)
             self.evacuation = np.full(self.n, np.nan)
             if meta.scene is not None and meta.scene.n_agents != self.n:
                 raise RecordingError(f"{meta.path}: {self.n} poses but the recorded scene has "
                                      f"{meta.scene.n_agents} agents")
+            start = (start_exits(meta.scene.drift, meta.scene.positions)
+                     if meta.scene is not None else {})
+            self.tracker = ArrivalTracker(self.n, self.arrive_radius, start)
+            self.arrival = self.tracker.arrival
         elif len(q) != self.n:
             raise RecordingError(f"{meta.path}: frame at t = {fr.log_ns / NS:g} s has "
                                  f"{len(q)} poses, the first had {self.n}")
@@ -318,16 +312,10 @@ class _Metrics:
         self.prev = (seg, q)
 
     def _arrivals(self, seg: int, step: int, q: np.ndarray, t: float) -> bool:
-        """Marks agents within the arrival radius of the goal in effect; False if no goal."""
-        spec = self.schedule.spec_at(seg, step)
-        if spec.get("kind") != "goal":
-            return False
-        radius = (self.arrive_radius if self.arrive_radius is not None
-                  else float(spec.get("slow_radius", 0.5)))
-        self.radii_used.add(radius)
-        d = np.hypot(*(q - np.asarray(spec["goal"], dtype=np.float64)).T)
-        self.arrival[(d <= radius) & np.isnan(self.arrival)] = t
-        return True
+        """Marks agents that reached the goal of their drift in effect (goal, geodesic,
+        exits, or their group's: :mod:`sweep_core.analysis.arrivals`); False if none has
+        one."""
+        return self.tracker.add(self.schedule.spec_at(seg, step), q, t)
 
     def result(self, reader: FrameReader) -> Analysis:
         self.density.check()
@@ -374,9 +362,9 @@ class _Metrics:
             # says what they are (sweep run's active_rows counts something else)
             "contacts": dict(touching),
             "reaction": {
-                "total_mean_m": _stats(table[:, 4], np.mean),
-                "total_max_m": _stats(table[:, 4], np.max),
-                "pressure_mean_m_per_s": _stats(table[:, 5], np.mean),
+                "total_mean_m": stats(table[:, 4], np.mean),
+                "total_max_m": stats(table[:, 4], np.max),
+                "pressure_mean_m_per_s": stats(table[:, 5], np.mean),
                 "precision": "float32 (/agents): sum over agents of |prediction - result|; "
                              "pressure = that / dt",
             },
@@ -392,6 +380,8 @@ class _Metrics:
             },
             "flow": None,
             "arrivals": None,
+            "per_exit": None,
+            "per_group": None,
             "density": {
                 "cell_m": cell,
                 "max_per_m2": float(dens.max()) if dens.size else 0.0,
@@ -406,28 +396,33 @@ class _Metrics:
                 "net": self.net, "positive": self.positive, "negative": self.negative,
                 "per_s": self.net / duration if duration > 0 else None,
                 "evacuated": int(np.count_nonzero(np.isfinite(self.evacuation))),
-                "t_first_s": _stats(self.evacuation, np.min),
-                "t_50_s": _time_for(self.evacuation, n, 0.5),
-                "t_90_s": _time_for(self.evacuation, n, 0.9),
-                "t_all_s": _time_for(self.evacuation, n, 1.0),
+                "t_first_s": stats(self.evacuation, np.min),
+                "t_50_s": time_for(self.evacuation, n, 0.5),
+                "t_90_s": time_for(self.evacuation, n, 0.9),
+                "t_all_s": time_for(self.evacuation, n, 1.0),
                 "precision": "float64 (/poses); crossings between recorded frames, positive "
                              "along (y1 - y0, x0 - x1)",
             }
         if self.goal_seen:
-            radii = sorted(self.radii_used)
+            radii = sorted(self.tracker.radii)
             summary["arrivals"] = {
                 "radius_m": radii[0] if len(radii) == 1 else radii,
                 "arrived": int(np.count_nonzero(np.isfinite(self.arrival))),
-                "t_first_s": _stats(self.arrival, np.min),
-                "t_mean_s": _stats(self.arrival, np.mean),
-                "t_50_s": _time_for(self.arrival, n, 0.5),
-                "t_90_s": _time_for(self.arrival, n, 0.9),
-                "t_all_s": _time_for(self.arrival, n, 1.0),
+                "t_first_s": stats(self.arrival, np.min),
+                "t_mean_s": stats(self.arrival, np.mean),
+                "t_50_s": time_for(self.arrival, n, 0.5),
+                "t_90_s": time_for(self.arrival, n, 0.9),
+                "t_all_s": time_for(self.arrival, n, 1.0),
                 "precision": "float64 (/poses); first recorded frame within the radius of the "
-                             "goal in effect (default radius: the goal's slow_radius)",
+                             "goal (point or region) in effect (default radius: the goal's "
+                             "slow_radius)",
             }
+            summary["per_exit"] = self.tracker.per_exit()
+            summary["per_group"] = self.tracker.per_group()
+        labels = self.tracker.labels
         return Analysis(meta, summary, table, dens, origin, cell, self.hist, self.arrival,
-                        self.evacuation)
+                        self.evacuation, [labels[k] if k >= 0 else None
+                                          for k in self.tracker.exit.tolist()])
 
 
 def analyze(path: str | Path, line: tuple[float, float, float, float] | None = None,

@@ -9,7 +9,12 @@ import numpy as np
 
 from sweep_core.analysis.metrics import SPEED_BIN, Analysis
 from sweep_core.errors import SweepError
+from sweep_core.model.fields import Field, Groups
+from sweep_core.model.geodesic import Geodesic
 from sweep_core.model.scene import Scene
+
+#: travel-time contours drawn per navigation field
+CONTOURS = 12
 
 
 def pyplot() -> Any:
@@ -33,6 +38,41 @@ def draw_scene(ax: Any, scene: Scene | None) -> None:
         ax.plot([a[0], b[0]], [a[1], b[1]], color="k", lw=1.5)
     for c, r in zip(g.circle_center, g.circle_radius):
         ax.add_patch(Circle(c, r, fill=False, color="k", lw=1.0))
+
+
+def navigation_fields(drift: Field) -> list[tuple[str, Geodesic]]:
+    """The geodesic / exits fields of a drift, named for a legend ("travel time", or the
+    group's name)."""
+    if isinstance(drift, Geodesic):
+        return [("travel time", drift)]
+    if isinstance(drift, Groups):
+        named = [(name, f) for name, f in zip(drift.names, drift.fields)]
+        named.append(("others", drift.rest))
+        return [(name, f) for name, f in named if isinstance(f, Geodesic)]
+    return []
+
+
+def draw_travel_time(ax: Any, scene: Scene | None) -> str:
+    """Contours of the travel time T / speed (s) at t = 0 of the scene's navigation fields
+    (one colour each) on a matplotlib axis; the title suffix saying so ("" if none)."""
+    fields = navigation_fields(scene.drift) if scene is not None else []
+    from matplotlib.lines import Line2D
+    handles = []
+    for k, (name, f) in enumerate(fields):
+        seconds = f.travel / f.speed if f.speed > 0 else f.travel
+        finite = seconds[np.isfinite(seconds)]
+        if finite.size < 4 or float(finite.max()) <= 0:
+            continue
+        levels = np.linspace(0.0, float(finite.max()), CONTOURS + 1)[1:]
+        colour = "0.45" if len(fields) == 1 else f"C{k + 1}"
+        ax.contour(f.x, f.y, np.ma.masked_invalid(seconds), levels=levels, colors=colour,
+                   linewidths=0.7, alpha=0.8)
+        step = float(levels[1] - levels[0]) if len(levels) > 1 else float(levels[0])
+        handles.append(Line2D([], [], color=colour, lw=0.7, label=f"{name}: every {step:.2g} s"))
+    if not handles:
+        return ""
+    ax.legend(handles=handles, loc="upper right", fontsize=7, framealpha=0.7)
+    return " and travel time"
 
 
 def plot_analysis(an: Analysis, png: Path) -> None:
@@ -100,12 +140,13 @@ def plot_analysis(an: Analysis, png: Path) -> None:
                    interpolation="nearest",
                    extent=(x0, x0 + d.shape[1] * an.cell, y0, y0 + d.shape[0] * an.cell))
     draw_scene(ax, an.meta.scene)
+    travel = draw_travel_time(ax, an.meta.scene)
     if s["flow"] is not None:
         x_0, y_0, x_1, y_1 = s["flow"]["line"]
         ax.plot([x_0, x_1], [y_0, y_1], color="r", lw=1.5)
     fig.colorbar(im, ax=ax, label="agents / m²")
     ax.set_aspect("equal")
-    ax.set_title("density (time average)")
+    ax.set_title(("density" if travel else "density (time average)") + travel)
     fig.tight_layout()
     fig.savefig(png)
     plt.close(fig)

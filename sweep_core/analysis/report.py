@@ -65,6 +65,10 @@ def jsonable(obj: Any) -> Any:
     return obj
 
 
+#: how the printed summary shows a missing value of these keys (else "-")
+NONE_TEXT = {"evacuation_s": "not all arrived"}
+
+
 def format_summary(summary: dict, skip: tuple[str, ...] = ("precision",)) -> str:
     """The summary as aligned ``key  value`` lines (nested keys joined with '.')."""
     flat: list[tuple[str, str]] = []
@@ -75,7 +79,7 @@ def format_summary(summary: dict, skip: tuple[str, ...] = ("precision",)) -> str
                 if k not in skip:
                     walk(f"{prefix}.{k}" if prefix else k, v)
         elif obj is None:
-            flat.append((prefix, "-"))
+            flat.append((prefix, NONE_TEXT.get(prefix.rsplit(".", 1)[-1], "-")))
         elif isinstance(obj, float):
             flat.append((prefix, f"{obj:.6g}"))
         elif isinstance(obj, list):

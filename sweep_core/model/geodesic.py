@@ -156,6 +156,8 @@ class Geodesic(Field):
     source: tuple = ()
     #: the latest recomputation: {"epoch": k, "arrays": (direction, distance)}
     cache: dict = field(default_factory=dict, repr=False)
+    #: (H, W) int: the target (exit) each node follows at t = 0, as listed in the spec
+    choice: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=np.intp))
     kind = "geodesic"
 
     def __call__(self, t: float, q: np.ndarray) -> np.ndarray:
@@ -167,6 +169,16 @@ class Geodesic(Field):
         """(N,) m: the followed exit's travel distance T at q (N, 2) at time t (s), bilinear
         between nodes (travel time = T / speed)."""
         return self._at(self.arrays(t)[1], q)
+
+    def target_of(self, q: np.ndarray) -> np.ndarray:
+        """(N,) int: the target (exit, in the spec's order) that positions q (N, 2) head for
+        at t = 0: that of the nearest grid node (0 for a single goal)."""
+        if self.choice.size == 0:
+            return np.zeros(len(q), dtype=np.intp)
+        cell = float(self.x[1] - self.x[0])
+        ix = np.clip(np.rint((q[:, 0] - self.x[0]) / cell).astype(np.intp), 0, len(self.x) - 1)
+        iy = np.clip(np.rint((q[:, 1] - self.y[0]) / cell).astype(np.intp), 0, len(self.y) - 1)
+        return self.choice[iy, ix]
 
     def arrays(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The direction (H, W, 2) and distance (H, W) in effect at t (s): those of t = 0, or
@@ -317,8 +329,8 @@ def navigation_from_spec(spec: dict, field: str, geometry: Geometry | None,
     x, y = _nodes(geometry, grid, positions, targets, cell, buffer, field)
     for t, name in zip(targets, names):
         _check_target(geometry, grid, t, name)
-    direction, own, travel, free = _solve(geometry, grid, targets, names, x, y, cell, buffer,
-                                          neighbours)
+    direction, own, travel, free, choice = _solve(geometry, grid, targets, names, x, y, cell,
+                                                  buffer, neighbours)
     _check_agents(positions, x, y, free, travel, field, buffer)
     out: dict[str, Any] = {"kind": kind}
     if kind == "exits":
@@ -332,17 +344,19 @@ def navigation_from_spec(spec: dict, field: str, geometry: Geometry | None,
     cls = Exits if kind == "exits" else Geodesic
     return cls(x=x, y=y, direction=direction, distance=own, travel=travel, free=free,
                speed=speed, slow_radius=slow, spec=out, update_every=every,
-               source=(moving, grid, targets, cell, buffer, neighbours) if every is not None else ())
+               source=(moving, grid, targets, cell, buffer, neighbours) if every is not None
+               else (), choice=choice)
 
 
 def _solve(geometry: Geometry, grid: OccupancyMap | None, targets: list[Target],
            names: list[str], x: np.ndarray, y: np.ndarray, cell: float, buffer: float,
            neighbours: int = NEIGHBOURS, strict: bool = True
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Direction (H, W, 2), the followed exit's distance (H, W) (both filled at nodes not
-    reached), travel min_k w_k T_k (H, W) (inf where not reached) and free (H, W) for a
-    static geometry. strict: refuse a target no free node sees (else that target is
-    unreachable, and where no target is, the field is 0)."""
+    reached), travel min_k w_k T_k (H, W) (inf where not reached), free (H, W) and the
+    followed exit's index (H, W) (filled too) for a static geometry. strict: refuse a target
+    no free node sees (else that target is unreachable, and where no target is, the field is
+    0)."""
     nodes = np.stack(np.meshgrid(x, y), axis=-1).reshape(-1, 2)
     free = _free(geometry, grid, nodes, buffer).reshape(len(y), len(x))
     graph, index = _graph(free, cell, STENCILS[neighbours])
@@ -355,12 +369,13 @@ def _solve(geometry: Geometry, grid: OccupancyMap | None, targets: list[Target],
     direction = _descent(travel, cell)
     reached = np.isfinite(travel)
     if not np.any(reached):
-        return direction, np.zeros_like(own), travel, free
-    if np.any(~reached):  # nearest reached node's direction and distance
+        return direction, np.zeros_like(own), travel, free, which
+    if np.any(~reached):  # nearest reached node's direction, distance and exit
         _, (iy, ix) = ndimage.distance_transform_edt(~reached, return_indices=True)
         direction = direction[iy, ix]
         own = own[iy, ix]
-    return direction, own, travel, free
+        which = which[iy, ix]
+    return direction, own, travel, free, which
 
 
 def _nodes(geometry: Geometry, grid: OccupancyMap | None, positions: np.ndarray,
