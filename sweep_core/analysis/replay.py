@@ -27,7 +27,6 @@ from sweep_core.analysis.report import jsonable
 from sweep_core.analysis.run import MapChange, RunMeta, load_run, require_replayable, scene_with_map
 from sweep_core.errors import InfeasibleError, RecordingError, SweepError
 from sweep_core.io.versions import versions
-from sweep_core.model.fields import field_from_spec
 from sweep_core.numerics import paths
 from sweep_core.numerics.simulator import Simulator
 
@@ -164,7 +163,7 @@ class _Replayer:
             while self.events and self.events[0][0] <= k:
                 _, _, kind, what = self.events.pop(0)
                 if kind == "command":
-                    self.sim.set_drift(field_from_spec(what, self.meta.scene.n_agents))
+                    self.sim.set_drift(self.sim.scene.drift_from_spec(what))
                     self.applied += 1
                 elif kind == "map":
                     self._map(what)

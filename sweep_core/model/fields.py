@@ -6,7 +6,8 @@ bounds |U| (m/s) and feeds the constraint cutoff.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import copy
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -145,12 +146,18 @@ class Groups(Field):
     """Groups of agents with their own drift: agents ``members[k]`` (indices) follow
     ``fields[k]`` (evaluated at their positions only, so a per_agent field gives one velocity
     per member); agents in no group follow ``rest``. Each member field is bounded and
-    Lipschitz, hence so is the whole (agent by agent)."""
+    Lipschitz, hence so is the whole (agent by agent).
+
+    ``names[k]``: the group's name (a ROS topic name token, [A-Za-z][A-Za-z0-9_]*, unique);
+    ``speeds[k]``: its preferred speed (m/s), the speed a goal command for the group uses;
+    ``given[k]``: its agents as the spec gave them (a list of indices or {range: [a, b]})."""
 
     members: tuple[np.ndarray, ...]
     fields: tuple[Field, ...]
     rest: Field
-    spec: dict
+    names: tuple[str, ...]
+    speeds: tuple[float, ...]
+    given: tuple[Any, ...]
     kind = "groups"
 
     def __call__(self, t: float, q: np.ndarray) -> np.ndarray:
@@ -163,11 +170,40 @@ class Groups(Field):
     def is_zero(self) -> bool:
         return self.rest.is_zero and all(f.is_zero for f in self.fields)
 
+    def index(self, name: str) -> int:
+        """The index of the group called ``name`` (SceneError naming the groups if none)."""
+        if name in self.names:
+            return self.names.index(name)
+        raise SceneError("group", f"{show(name)} is not a group of the scene (its groups: "
+                         f"{', '.join(self.names)})", "name one of the scene's groups")
+
+    def with_member_drift(self, k: int, field: Field) -> Groups:
+        """A copy in which group k (0-based) follows ``field`` (any field but groups, built
+        for its members: a per_agent field has one row per member); the names, members,
+        speeds and the rest are kept, and :meth:`to_spec` records the new drift (so a
+        recording of it replays)."""
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not (
+                0 <= k < len(self.fields)):
+            raise SceneError("group", f"{show(k)} is not a group index (the scene has "
+                             f"{len(self.fields)} groups: {', '.join(self.names)})",
+                             f"give a group index from 0 to {len(self.fields) - 1}")
+        if not isinstance(field, Field) or isinstance(field, Groups):
+            what = field.kind if isinstance(field, Field) else type(field).__name__
+            raise SceneError(f"groups[{int(k)}].drift", f"must be a plain sweep_core Field, "
+                             f"got {what}", "give the group a goal, geodesic, uniform, ... field")
+        fields = list(self.fields)
+        fields[int(k)] = field
+        return replace(self, fields=tuple(fields))
+
+    def group_specs(self) -> list[dict]:
+        """The groups as normalised scene dicts: [{name, agents, drift, speed}, ...]."""
+        return [{"name": name, "agents": copy.deepcopy(given), "drift": f.to_spec(),
+                 "speed": speed}
+                for name, given, f, speed in zip(self.names, self.given, self.fields,
+                                                  self.speeds)]
+
     def to_spec(self) -> dict:
-        return {"kind": self.kind, "groups": [
-            {"agents": g["agents"], "drift": f.to_spec()} for g, f in zip(self.spec["groups"],
-                                                                         self.fields)],
-                "rest": self.rest.to_spec()}
+        return {"kind": self.kind, "groups": self.group_specs(), "rest": self.rest.to_spec()}
 
 
 def grid_cell(nodes: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -225,21 +261,31 @@ _OPTIONAL = {"goal": {"slow_radius"}, "linear": {"offset"}}
 #: navigation fields, built against the scene's geometry (:mod:`sweep_core.model.geodesic`)
 NAVIGATION_KINDS = ("geodesic", "exits")
 FIELD_KINDS = tuple(_KEYS) + NAVIGATION_KINDS + ("groups",)
+#: the kinds that take a speed: a group's speed fills it in when the group's drift omits it
+SPEED_KINDS = ("goal",) + NAVIGATION_KINDS
+#: preferred speed (m/s) of agents and groups when the scene gives none
+DEFAULT_SPEED = 1.3
 
 
 def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift",
                     geometry: Any = None, grid: Any = None,
-                    positions: np.ndarray | None = None) -> Field:
+                    positions: np.ndarray | None = None,
+                    speed: float = DEFAULT_SPEED) -> Field:
     """Build a drift field from its scene dict (see the README's scene schema). The
     navigation kinds (geodesic, exits) need the scene's geometry (a
     :class:`~sweep_core.model.geometry.Geometry`), its map (an
-    :class:`~sweep_core.model.maps.OccupancyMap` or None) and the agents' positions (N, 2) m."""
+    :class:`~sweep_core.model.maps.OccupancyMap` or None) and the agents' positions (N, 2) m.
+    speed: the preferred speed (m/s) of a group that gives none (the scene's agents.speed)."""
     if spec is None:
         return NoDrift()
     checks.mapping(spec, field)
     kind = checks.kind(spec, field, FIELD_KINDS, default="none")
     if kind == "groups":
-        return _groups(spec, n_agents, field, geometry, grid, positions)
+        checks.mapping(spec, field, allowed={"kind", "groups", "rest"}, required={"groups"})
+        from sweep_core.model.groups import groups_from_spec  # it builds on Groups
+
+        return groups_from_spec(spec["groups"], spec.get("rest"), n_agents, f"{field}.groups",
+                                f"{field}.rest", geometry, grid, positions, speed)
     if kind in NAVIGATION_KINDS:
         from sweep_core.model.geodesic import navigation_from_spec  # it builds on Field
 
@@ -266,73 +312,3 @@ def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift",
     if kind == "grid":
         return grid_field(spec["x"], spec["y"], spec["vx"], spec["vy"], field)
     return NoDrift()
-
-
-def _members(value: Any, n_agents: int, field: str, taken: dict[int, int], k: int
-             ) -> np.ndarray:
-    """A group's agents: a list of indices or {range: [start, stop]} (stop excluded)."""
-    fix = (f"write {field} as a list of agent indices [0, 1, ...] or as {{range: [start, "
-           f"stop]}} (agents start .. stop - 1), among the {n_agents} agents")
-    if isinstance(value, dict):
-        checks.mapping(value, field, allowed={"range"}, required={"range"})
-        r = value["range"]
-        if not isinstance(r, list) or len(r) != 2:
-            raise SceneError(f"{field}.range", f"must be [start, stop], got {show(r)}", fix)
-        a = checks.integer(r[0], f"{field}.range[0]", low=0, fix=fix)
-        b = checks.integer(r[1], f"{field}.range[1]", low=0, fix=fix)
-        if b <= a:
-            raise SceneError(f"{field}.range", f"{show([a, b])} holds no agent", fix)
-        idx = np.arange(a, b)
-    elif isinstance(value, list) and value:
-        idx = np.array([checks.integer(v, f"{field}[{j}]", low=0, fix=fix)
-                        for j, v in enumerate(value)], dtype=np.intp)
-    else:
-        raise SceneError(field, f"must be a non-empty list or a range, got {show(value)}", fix)
-    over = idx[idx >= n_agents]
-    if len(over):
-        raise SceneError(field, f"names agent {int(over[0])} but the scene has {n_agents} "
-                         "agents (indices from 0)", fix)
-    for i in idx.tolist():
-        if i in taken:
-            raise SceneError(field, f"puts agent {i} in a second group (it is in group "
-                             f"{taken[i]} already)", "put each agent in one group at most")
-        taken[i] = k
-    return idx
-
-
-def _groups(spec: dict, n_agents: int, field: str, geometry: Any, grid: Any,
-            positions: np.ndarray | None) -> Groups:
-    """``{kind: groups, groups: [{agents, drift}, ...], rest: drift}`` (see :class:`Groups`)."""
-    checks.mapping(spec, field, allowed={"kind", "groups", "rest"}, required={"groups"})
-    raw = spec["groups"]
-    if not isinstance(raw, list) or not raw:
-        raise SceneError(f"{field}.groups", f"must be a non-empty list, got {show(raw)}",
-                         f"write {field}.groups as a list of {{agents: [...], drift: {{...}}}}")
-    taken: dict[int, int] = {}
-    members, fields, given = [], [], []
-    for k, g in enumerate(raw):
-        gf = f"{field}.groups[{k}]"
-        checks.mapping(g, gf, allowed={"agents", "drift"}, required={"agents", "drift"})
-        idx = _members(g["agents"], n_agents, f"{gf}.agents", taken, k)
-        sub = g["drift"]
-        if isinstance(sub, dict) and sub.get("kind") == "groups":
-            raise SceneError(f"{gf}.drift.kind", "is groups inside a group",
-                             "give each group a plain drift (goal, geodesic, ...)")
-        pos = None if positions is None else positions[idx]
-        fields.append(field_from_spec(sub, len(idx), f"{gf}.drift", geometry, grid, pos))
-        members.append(idx)
-        agents = g["agents"]
-        given.append({"agents": {"range": [int(idx[0]), int(idx[-1]) + 1]}
-                      if isinstance(agents, dict) else idx.tolist()})
-    rest_spec = spec.get("rest")
-    if isinstance(rest_spec, dict) and rest_spec.get("kind") == "groups":
-        raise SceneError(f"{field}.rest.kind", "is groups inside groups",
-                         "give the rest a plain drift (goal, geodesic, ...)")
-    others = None
-    if positions is not None:  # the rest's agents (a navigation field checks their way)
-        alone = np.ones(len(positions), dtype=bool)
-        alone[list(taken)] = False
-        others = positions[alone]
-    rest = field_from_spec(rest_spec, n_agents, f"{field}.rest", geometry, grid, others)
-    return Groups(members=tuple(members), fields=tuple(fields), rest=rest,
-                  spec={"groups": given})

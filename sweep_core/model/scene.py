@@ -10,12 +10,19 @@ metres and seconds. The keys are a public contract, documented in the README:
     agents.radius      scalar or list      base radii (> 0)
     agents.radius_law  {kind: constant | linear (rate) | sine (amplitude, period)}
     agents.speed       preferred speed (m/s) used when a goal command arrives (default 1.3)
+    agents.groups      [{name, agents: [i, ...] | {range: [a, b]}, drift, speed}]: groups with
+                       their own drift and preferred speed (groups.py); the
+                       others follow ``drift``
     walls              [{kind: halfplane, normal, offset, velocity?} | {kind: segment, a, b}
                         | {kind: polyline, points: [[x, y], ...], closed?}]
     obstacles          [{kind: circle, center, radius} | {kind: polygon, points: [[x, y], ...]}]
     map                {yaml: PATH} a map_server map whose blocked cells become walls (maps.py)
     drift              see fields.FIELD_KINDS (geodesic, exits: geodesic.py; groups: fields.Groups)
     noise              {sigma: scalar or per-agent list}
+
+Longer than 420 lines because it is the one validation of the whole schema (agents, walls,
+obstacles, map, drift, noise, the initial configuration), each key checked beside the
+normalised form it takes in ``spec``.
 """
 from __future__ import annotations
 
@@ -29,8 +36,9 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
-from sweep_core.model.fields import Field, field_from_spec
+from sweep_core.model.fields import DEFAULT_SPEED, Field, field_from_spec
 from sweep_core.model.geometry import Geometry, gaps
+from sweep_core.model.groups import scene_drift
 from sweep_core.model.maps import OccupancyMap, map_from_spec
 from sweep_core.model.outlines import chain_points
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
@@ -121,6 +129,13 @@ class Scene:
         _check_initial(scene)
         return scene
 
+    def drift_from_spec(self, spec: dict | None, field: str = "drift") -> Field:
+        """A drift spec (a command's, a recording's) built as the scene's own drift is (its
+        walls, map, initial positions, agents.speed): a navigation field gets the same floats."""
+        grid = map_from_spec(self.spec["map"], "map", None) if self.spec.get("map") else None
+        return field_from_spec(spec, self.n_agents, field, geometry=self.geometry, grid=grid,
+                               positions=self.positions, speed=self.speed)
+
     def to_yaml(self) -> str:
         """The normalised scene as YAML text (libyaml's dumper when present)."""
         return dump_yaml(self.spec)
@@ -192,7 +207,8 @@ def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
     geometry, walls_spec, obstacles_spec = _geometry(data, grid)
     spec["walls"], spec["obstacles"] = walls_spec, obstacles_spec
     agents = checks.mapping(data["agents"], "agents",
-                            allowed={"positions", "radius", "radius_law", "speed", "spawn"})
+                            allowed={"positions", "radius", "radius_law", "speed", "spawn",
+                                     "groups"})
     if "spawn" in agents:
         if "positions" in agents or "radius" in agents:
             raise SceneError("agents.spawn", "is given with agents.positions or agents.radius",
@@ -208,7 +224,7 @@ def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
     n = len(positions)
     radius = checks.per_agent(agents["radius"], n, "agents.radius", positive=True)
     law = radius_law_from_spec(agents.get("radius_law"))
-    speed = checks.number(agents.get("speed", 1.3), "agents.speed", nonnegative=True)
+    speed = checks.number(agents.get("speed", DEFAULT_SPEED), "agents.speed", nonnegative=True)
     spec["agents"] = {"positions": positions.tolist(), "radius": _compact(radius, agents["radius"]),
                       "radius_law": law.to_spec(), "speed": speed}
 
@@ -222,9 +238,10 @@ def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
                              f"{positions[a, 1]:g}] is in a blocked (occupied or unknown) cell "
                              f"of the map{more}", "place agents in the map's free cells")
 
-    drift = field_from_spec(data.get("drift"), n, geometry=geometry, grid=grid,
-                           positions=positions)
-    spec["drift"] = drift.to_spec()
+    drift, spec["drift"], groups = scene_drift(data.get("drift"), agents.get("groups"), n,
+                                               geometry, grid, positions, speed)
+    if groups is not None:
+        spec["agents"]["groups"] = groups
 
     noise = checks.mapping(data.get("noise") or {}, "noise", allowed={"sigma"})
     sigma = checks.per_agent(noise.get("sigma", 0.0), n, "noise.sigma", nonnegative=True)
