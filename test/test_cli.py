@@ -183,3 +183,29 @@ def test_run_records_the_navigation_field(tmp_path):
                      .iter_decoded_messages(topics=["/navigation_field"])]
     assert decoded.row_step == decoded.point_step * decoded.width
     assert main(["replay", str(out)]) == 0
+
+
+def test_run_records_the_navigation_field_again_each_update_period(tmp_path):
+    """A pillar that moves and update_every 0.1 s: /navigation_field is recorded with the first
+    state of each period (t = 0, 0.1, 0.2, 0.3 s), each time the field of that period."""
+    from sweep_core.io import cdr
+    from sweep_core.io.recording import read_recording
+
+    scene = tmp_path / "moving.yaml"
+    scene.write_text(GAP_SCENE.replace(
+        "drift: {kind: geodesic, goal: [8.0, 1.0], speed: 1.3}",
+        "obstacles: [{kind: circle, center: [7.0, 2.5], radius: 0.5, velocity: [0.0, 2.0]}]\n"
+        "drift: {kind: geodesic, goal: [8.0, 1.0], speed: 1.3, update_every: 0.1}"))
+    out = tmp_path / "moving.mcap"
+    assert main(["run", str(scene), "--t-end", "0.35", "--dt", "0.01", "--out", str(out),
+                 "--quiet"]) == 0
+    msgs = read_recording(out, ["/navigation_field"])
+    assert [m.log_time_ns for m in msgs] == [topics.stamp_ns(t) for t in (0.0, 0.1, 0.2, 0.3)]
+    drift = sc.Scene.from_yaml(scene).drift
+    nodes = np.stack(np.meshgrid(drift.x, drift.y), axis=-1).reshape(-1, 2)
+    previous = None
+    for m, t in zip(msgs, (0.0, 0.1, 0.2, 0.3)):
+        got = cdr.decode_point_cloud2(m.data).fields["T"]
+        np.testing.assert_allclose(got, drift.travel_distance(nodes, t), rtol=1e-6, atol=1e-5)
+        assert previous is None or np.max(np.abs(got - previous)) > 0.1  # the pillar moved
+        previous = got
