@@ -1011,8 +1011,10 @@ def test_group_goals_replace_only_their_group(installed, probe, tmp_path):
     from sweep_core.model.scene import Scene
 
     clouds = navigation_probe(probe)
+    # group a in front (x = 2), group b behind it (x = 1): a's way to the gap passes clear of b
+    start = np.array([[2.0, 1.0], [2.0, 2.0], [2.0, 3.0], [1.0, 1.0], [1.0, 2.0], [1.0, 3.0]])
     scene_dict = {**GAP_SCENE, "name": "test_gap_groups",
-                  "agents": {**GAP_SCENE["agents"], "groups": [
+                  "agents": {**GAP_SCENE["agents"], "positions": start.tolist(), "groups": [
                       {"name": "a", "agents": [0, 1, 2], "drift": {"kind": "none"},
                        "speed": 1.0},
                       {"name": "b", "agents": {"range": [3, 6]}, "drift": {"kind": "none"},
@@ -1037,7 +1039,6 @@ def test_group_goals_replace_only_their_group(installed, probe, tmp_path):
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
     goal_b = probe.node.create_publisher(PointStamped, "/goal/b", qos)
     scene = Scene.from_dict(scene_dict)
-    start = np.array(GAP_AGENTS)
     try:
         probe.connect(node)
         probe.spin_until(lambda: goal_b.get_subscription_count() > 0, DISCOVERY_S,
@@ -1096,7 +1097,7 @@ def test_group_goals_replace_only_their_group(installed, probe, tmp_path):
         code = node.stop(signal.SIGINT)
     assert code == 0, node.log
     assert "Traceback" not in node.log
-    assert "/goal/b: the geodesic field refused: agent 3 at [2, 1] has no way to the goal" \
+    assert "/goal/b: the geodesic field refused: agent 3 at [1, 1] has no way to the goal" \
         in node.log
 
     counts, meta = _read_standard(record)  # rosbags deserialises every message
