@@ -1114,3 +1114,28 @@ def test_group_goals_replace_only_their_group(installed, probe, tmp_path):
     assert last["groups"][0]["drift"]["goal"] == [2.0, 5.0]
     assert last["groups"][1]["drift"] == last["rest"] == specs[2]
     assert sweep_main(["replay", str(record)]) == 0
+
+
+def test_goal_stays_straight_without_walls(installed, probe, tmp_path):
+    """No wall, obstacle or map: a goal command is the straight goal field at the scene's
+    speed, and no navigation_field is published."""
+    clouds = navigation_probe(probe)
+    scene_path = tmp_path / "open.yaml"
+    scene_path.write_text(yaml.safe_dump({"name": "test_open", "agents": {
+        "positions": GAP_AGENTS, "radius": 0.2, "speed": 0.9}}))
+    node = Running(installed, tmp_path, {"scene": str(scene_path), "dt": DT, "rate_hz": 50.0,
+                                         "publish_markers": False})
+    try:
+        probe.connect(node)
+        g = PointStamped()
+        g.point.x, g.point.y = 100.0, 2.0
+        probe.goal.publish(g)
+        t0 = stamp(probe.agents[-1])
+        probe.spin_until(heading_is(probe, [1, 0], 0.9, t0), 10.0, "motion towards the goal",
+                         node)
+        probe.spin_until(lambda: diag_value(probe, "commands_applied") == "1", 5.0,
+                         "the goal applied", node)
+        assert diag_value(probe, "drift") == "goal" and clouds == []
+    finally:
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
