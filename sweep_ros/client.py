@@ -6,6 +6,7 @@
     python -m sweep_ros.client reset
     python -m sweep_ros.client cmd-vel VX VY    # uniform field, m/s
     python -m sweep_ros.client goal X Y         # goal-directed field towards (X, Y), m
+    python -m sweep_ros.client goal X Y --group NAME   # the same for the scene's group NAME only
     python -m sweep_ros.client status           # the next diagnostics message
 
 Options: ``--namespace NS`` (the node's namespace, default none), ``--timeout S`` (discovery
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 import time
 from collections.abc import Callable
@@ -50,6 +52,14 @@ def _finite(name: str, unit: str) -> Callable[[str], float]:
     return parse
 
 
+def _group_name(text: str) -> str:
+    if re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", text) is None:
+        raise argparse.ArgumentTypeError(
+            f"NAME = {text!r} is not a group name (fix: give the name of one of the scene's "
+            "agents.groups: a letter, then letters, digits or underscores)")
+    return text
+
+
 def _positive_int(text: str) -> int:
     if not text.isdigit() or int(text) < 1:
         raise argparse.ArgumentTypeError(
@@ -77,6 +87,9 @@ def build_parser() -> argparse.ArgumentParser:
     goal.add_argument("y", type=_finite("Y", "m"), metavar="Y")
     goal.add_argument("--frame", default="",
                       help="header.frame_id (default empty: the node's frame_id)")
+    goal.add_argument("--group", type=_group_name, default=None, metavar="NAME",
+                      help="only the scene's group NAME heads there (topic goal/NAME); the "
+                           "others keep their drift")
     sub.add_parser("status", help="print the node's next diagnostics message")
     return ap
 
@@ -109,17 +122,46 @@ class Client:
         self._spin_until(future.done, f"service {full}")
         return future.result()
 
-    def publish(self, msg_type: Any, name: str, msg: Any) -> str:
+    def publish(self, msg_type: Any, name: str, msg: Any,
+                group: str | None = None) -> str:
         """Publishes one message once the node subscribes and waits until it is acknowledged;
-        returns the topic's full name."""
+        returns the topic's full name. With ``group`` (the topic is ``goal/<group>``): a node
+        that takes goals for other groups only (seen for 1 s) is reported at once, naming
+        them."""
         pub = self.node.create_publisher(msg_type, name, self.reliable)
-        self._spin_until(lambda: pub.get_subscription_count() > 0,
-                         f"a subscriber of {pub.topic_name}")
+        since: list[float] = []
+
+        def ready() -> bool:
+            if pub.get_subscription_count() > 0:
+                return True
+            if group is not None and self.group_goal_topics():
+                since.append(time.monotonic())
+                if since[-1] - since[0] >= 1.0:
+                    self._no_group(group)
+            return False
+        try:
+            self._spin_until(ready, f"a subscriber of {pub.topic_name}")
+        except ClientError:
+            if group is not None and self.group_goal_topics():
+                self._no_group(group)
+            raise
         pub.publish(msg)
         if not pub.wait_for_all_acked(Duration(seconds=self.timeout)):
             raise ClientError(f"{pub.topic_name}: the message was not acknowledged within "
                               f"{self.timeout:g} s (fix: raise --timeout)")
         return pub.topic_name
+
+    def group_goal_topics(self) -> list[str]:
+        """The ``goal/<group>`` topics the node subscribes to, as the graph shows them now."""
+        prefix = self.node.resolve_topic_name("goal") + "/"
+        return sorted(name for name, _ in self.node.get_topic_names_and_types()
+                      if name.startswith(prefix)
+                      and self.node.get_subscriptions_info_by_topic(name))
+
+    def _no_group(self, group: str) -> None:
+        groups = ", ".join(t.rsplit("/", 1)[1] for t in self.group_goal_topics())
+        raise ClientError(f"no group {group!r}: the node takes goals for the groups {groups} "
+                          "(fix: --group one of them)")
 
     def diagnostics(self) -> DiagnosticArray:
         """The next diagnostics message the node publishes (1 Hz)."""
@@ -154,9 +196,14 @@ def run(args: argparse.Namespace, client: Client) -> int:
         point = PointStamped()
         point.header.frame_id = args.frame
         point.point.x, point.point.y = args.x, args.y
-        topic = client.publish(PointStamped, "goal", point)
-        print(f"published goal ({args.x:g}, {args.y:g}) m on {topic}: it replaces the drift "
-              "from the next step")
+        if args.group is None:
+            topic = client.publish(PointStamped, "goal", point)
+            print(f"published goal ({args.x:g}, {args.y:g}) m on {topic}: it replaces the drift "
+                  "from the next step")
+            return 0
+        topic = client.publish(PointStamped, f"goal/{args.group}", point, args.group)
+        print(f"published goal ({args.x:g}, {args.y:g}) m on {topic}: group {args.group} "
+              "heads there from the next step, the others keep their drift")
         return 0
     status = client.diagnostics().status[0]
     level = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}.get(status.level[0], "?")

@@ -1,11 +1,14 @@
 """The node's velocity-field commands between arrival and use (:class:`CommandInbox`).
 
-Semantics, chosen on purpose: every command replaces the whole drift field, so only the newest
-one matters. A valid command waits in a single slot until the next step starts; a newer command
-arriving before then replaces it (the older one is *superseded*), and so does a reset. Every
-message taken from the subscription queues is counted once:
+Semantics, chosen on purpose: a command replaces the whole drift field, so only the newest
+one matters. A valid command waits until the next step starts; a newer command arriving before
+then replaces it (the older one is *superseded*), and so does a reset. A group's command
+(``group`` k: a goal for the scene's group k only) replaces only that group's drift, so it
+supersedes only an older command for the same group: commands for other groups, and a whole
+command before them, wait with it and are applied in their order of arrival at that step.
+Every message taken from the subscription queues is counted once:
 
-    received = applied + superseded + refused + pending (0 or 1)
+    received = applied + superseded + refused + pending
 
 Where the middleware reports publication sequence numbers (Fast DDS does), the highest one seen
 per publisher is that publisher's count of messages sent, so ``published - received`` counts
@@ -25,13 +28,17 @@ from sweep_core.model.fields import Field
 
 @dataclass(frozen=True)
 class Command:
-    """A valid command waiting for a step: ``field`` replaces the drift; ``raw`` is the CDR
-    message as received (recorded when applied); ``arrival`` is time.monotonic() (s)."""
+    """A valid command waiting for a step: ``field`` replaces the drift (or, with ``group``
+    k, the drift of the scene's group k); ``raw`` is the CDR message as received (recorded
+    when applied); ``arrival`` is time.monotonic() (s); ``built_for``: the scene a navigation
+    field was computed for (None when the field does not depend on the walls)."""
 
     topic: str
     field: Field
     raw: bytes
     arrival: float
+    group: int | None = None
+    built_for: Any = None
 
 
 @dataclass(frozen=True)
@@ -50,7 +57,7 @@ class CommandInbox:
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._pending: Command | None = None
+        self._pending: list[Command] = []
         self._superseded_since_applied = 0
         self.received = 0
         self.applied = 0
@@ -81,22 +88,27 @@ class CommandInbox:
         with self._lock:
             self.refused += 1
 
-    def offer(self, topic: str, field: Field, raw: bytes, arrival: float) -> None:
-        """A valid command: it replaces any command still waiting for a step."""
+    def offer(self, topic: str, field: Field, raw: bytes, arrival: float,
+              group: int | None = None, built_for: Any = None) -> None:
+        """A valid command: it replaces any command still waiting for a step (with ``group``:
+        any for the same group)."""
+        cmd = Command(topic, field, raw, arrival, group, built_for)
         with self._lock:
-            if self._pending is not None:
-                self.superseded += 1
-                self._superseded_since_applied += 1
-            self._pending = Command(topic, field, raw, arrival)
+            keep = [c for c in self._pending if group is not None and c.group != group]
+            dropped = len(self._pending) - len(keep)
+            self.superseded += dropped
+            self._superseded_since_applied += dropped
+            self._pending = keep + [cmd]
 
     # -- the stepping side -------------------------------------------------------------------
     def take(self) -> Applied | None:
-        """The newest waiting command, now applied by the step about to start, or None."""
+        """The oldest waiting command, now applied by the step about to start, or None (call
+        it until None: the commands for different groups wait together)."""
         now = time.monotonic()
         with self._lock:
-            cmd, self._pending = self._pending, None
-            if cmd is None:
+            if not self._pending:
                 return None
+            cmd = self._pending.pop(0)
             self.applied += 1
             latency = max(now - cmd.arrival, 0.0)
             self.latency_last_s = latency
@@ -105,14 +117,21 @@ class CommandInbox:
         return Applied(cmd, latency, superseded)
 
     def discard(self) -> int:
-        """Drops a waiting command (a reset replaces it); returns how many were dropped."""
+        """Drops the waiting commands (a reset replaces them); returns how many were dropped."""
         with self._lock:
-            if self._pending is None:
-                return 0
-            self._pending = None
-            self.superseded += 1
+            dropped = len(self._pending)
+            self._pending = []
+            self.superseded += dropped
             self._superseded_since_applied = 0
-            return 1
+            return dropped
+
+    def refuse_taken(self) -> None:
+        """The command the last :meth:`take` returned was refused after all (its field could
+        not be built again for walls changed since it arrived): counted refused, not
+        applied."""
+        with self._lock:
+            self.applied -= 1
+            self.refused += 1
 
     # -- reporting ---------------------------------------------------------------------------
     def counters(self) -> dict[str, Any]:
@@ -120,7 +139,7 @@ class CommandInbox:
         ms; ``commands_published`` and ``commands_lost`` are "unknown" where the middleware
         gave no publication sequence numbers."""
         with self._lock:
-            pending = int(self._pending is not None)
+            pending = len(self._pending)
             published: Any = sum(self._sequence.values()) if self._sequence_known else "unknown"
             lost: Any = (max(published - self.received, 0) if self._sequence_known
                          else "unknown")

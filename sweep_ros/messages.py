@@ -17,6 +17,7 @@ most of the growth.
 from __future__ import annotations
 
 import math
+import re
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -97,11 +98,9 @@ def uniform_from_twist(msg: Any, max_speed: float, topic: str = "cmd_vel") -> Un
     return Uniform(velocity=v)
 
 
-def goal_from_point(msg: Any, speed: float, slow_radius: float, frame_id: str,
-                    topic: str = "goal") -> Goal:
-    """geometry_msgs/PointStamped -> goal-directed field at ``speed`` (the scene's).
-
-    The header's frame must be empty or ``frame_id`` (there is no TF lookup)."""
+def goal_point(msg: Any, frame_id: str, topic: str = "goal") -> np.ndarray:
+    """geometry_msgs/PointStamped -> the goal (2,) m, checked: finite, within MAX_COORDINATE of
+    the origin; the header's frame must be empty or ``frame_id`` (there is no TF lookup)."""
     frame = msg.header.frame_id
     if frame not in ("", frame_id):
         raise CommandError(topic, f"frame {frame!r} is not the simulation frame {frame_id!r} "
@@ -113,8 +112,38 @@ def goal_from_point(msg: Any, speed: float, slow_radius: float, frame_id: str,
         raise CommandError(topic, f"goal {show(p[:2])} is more than {MAX_COORDINATE:g} m away "
                                   f"(fix: send a goal within {MAX_COORDINATE:g} m of the origin "
                                   f"of {frame_id!r})")
-    return Goal(goal=np.array([float(p[0]), float(p[1])]), speed=float(speed),
+    return np.array([float(p[0]), float(p[1])])
+
+
+def goal_from_point(msg: Any, speed: float, slow_radius: float, frame_id: str,
+                    topic: str = "goal") -> Goal:
+    """geometry_msgs/PointStamped -> straight goal-directed field at ``speed`` (see
+    :func:`goal_point`)."""
+    return Goal(goal=goal_point(msg, frame_id, topic), speed=float(speed),
                 slow_radius=float(slow_radius))
+
+
+#: the fields of a geodesic drift spec and the node's parameters that set them
+_GOAL_PARAMETERS = {"cell": "parameter goal_cell", "wall_buffer": "parameter goal_wall_buffer",
+                    "goal": "the goal", "speed": "the speed"}
+
+
+def navigation_refusal(topic: str, err: SceneError, field: str = "goal",
+                       members: np.ndarray | None = None) -> CommandError:
+    """A geodesic field's SceneError (its ``field.key`` names) as a command refusal naming
+    the node's parameters instead (``goal.cell`` -> ``parameter goal_cell``); ``members``: the
+    scene's indices of the agents the field was built for (a group's), so that an agent the
+    error names by its place among them is named by its index in the scene."""
+    problem, fix = err.problem, err.fix
+    if members is not None:
+        problem = re.sub(r"\bagent (\d+) at",
+                         lambda m: f"agent {int(members[int(m.group(1))])} at", problem)
+    for key, name in _GOAL_PARAMETERS.items():
+        problem = problem.replace(f"{field}.{key}", name)
+        fix = fix.replace(f"{field}.{key}", name)
+    where = err.field.removeprefix(field).lstrip(".")
+    what = _GOAL_PARAMETERS.get(where, "the geodesic field")
+    return CommandError(topic, f"{what} refused: {problem}" + (f" (fix: {fix})" if fix else ""))
 
 
 #: largest |roll| or |pitch| quaternion component of a map's origin taken as planar

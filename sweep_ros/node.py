@@ -31,12 +31,23 @@ and stays over resets. A map is refused, the old walls kept, when an agent at it
 position, or at its initial position (where a reset returns), would be in a blocked cell or
 cut by a wall: the error names the agents, diagnostics count it (``map_refused``).
 
+Goals and navigation fields: in a scene with walls, obstacles or a map (:func:`has_geometry`)
+a ``goal`` builds a geodesic field round them (parameters ``goal_cell``, ``goal_wall_buffer``,
+``goal_update_every``), else a straight one; ``goal/<name>`` does the same for one of the
+scene's groups (``agents.groups``) at its speed, the others keeping their drift. The field is
+computed on the executor's thread for the scene's initial positions (so a replay of the
+recorded spec computes the same floats: :meth:`Scene.drift_from_spec`); a goal in a wall or out
+of an agent's reach is refused like a malformed command. The ``navigation_field`` topic
+(latched) carries the grid of the navigation fields of the drift in effect whenever it changes
+(:func:`sweep_core.io.topics.encode_navigation`).
+
 Longer than 400 lines because it is one Node subclass (the ros2/demos layout): its
 constructor, callbacks, services and shutdown read together; the message building, parameter
 checks and timing it uses live in :mod:`.messages`, :mod:`.params` and :mod:`.timing`.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -46,6 +57,7 @@ import traceback
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseArray, Twist
 from nav_msgs.msg import OccupancyGrid
@@ -61,8 +73,9 @@ from visualization_msgs.msg import MarkerArray
 from sweep_core import InfeasibleError, SceneError, Simulator, SweepError
 from sweep_core.io import cdr, topics
 from sweep_core.io.metadata import STATUS_RECORD, run_metadata, status_metadata
-from sweep_core.io.recording import DEFAULT_QOS_PROFILES, BackgroundRecorder
-from sweep_core.model.maps import replace_map
+from sweep_core.io.recording import BackgroundRecorder, qos_profiles
+from sweep_core.model.fields import Field, Goal, Groups, field_from_spec
+from sweep_core.model.maps import OccupancyMap, map_from_spec, replace_map
 from sweep_core.model.scene import Scene, load_scene
 from sweep_ros import messages, msgdefs, params
 from sweep_ros.errors import StartError
@@ -81,12 +94,16 @@ COMMAND_QUEUE_DEPTH = 100
 _RCLPY_PARAMS = ("use_sim_time", "start_type_description_service", "qos_overrides.")
 
 
-def qos_yaml(depth: int, transient_local: bool = False) -> str:
-    """rosbag2's offered_qos_profiles YAML for a reliable keep-last publisher."""
-    text = DEFAULT_QOS_PROFILES.replace("depth: 10", f"depth: {depth}")
-    if transient_local:
-        text = text.replace("durability: volatile", "durability: transient_local")
-    return text
+def has_geometry(scene: Scene) -> bool:
+    """Whether a goal command builds a geodesic field in this scene: it has walls, obstacles
+    or a map (else the goal field is straight)."""
+    return not scene.geometry.is_empty
+
+
+def scene_map(scene: Scene) -> OccupancyMap | None:
+    """The scene's map (its blocked cells), or None."""
+    packed = scene.spec.get("map")
+    return None if packed is None else map_from_spec(packed, "map", None)
 
 
 
@@ -127,6 +144,8 @@ class SweepNode(Node):
         self._maps_applied = 0
         self._maps_refused = 0
         self._map_problem: str | None = None  # the last refusal, for the next diagnostics
+        #: the navigation_field last published: (its key, the drift it was of)
+        self._navigation: tuple[tuple, Field | None] = ((), None)
         # moving walls and obstacles are republished with the markers, at their pose then
         self._moving_walls = bool(self.scene.geometry.is_moving or (
             len(self.scene.geometry.halfplane_velocity)
@@ -149,12 +168,21 @@ class SweepNode(Node):
         self.pub_markers = self.create_publisher(MarkerArray, "markers", reliable)
         self.pub_walls = self.create_publisher(MarkerArray, "walls", latched)
         self.pub_diag = self.create_publisher(DiagnosticArray, "diagnostics", reliable)
+        self.pub_navigation = self.create_publisher(PointCloud2, topics.NAVIGATION, latched)
         self.pub_clock = (self.create_publisher(Clock, "clock", reliable)
                           if self._p["publish_clock"] else None)
         self.sub_cmd_vel = self.create_subscription(
             Twist, "cmd_vel", self._on_cmd_vel, inbound, raw=True)
         self.sub_goal = self.create_subscription(
             PointStamped, "goal", self._on_goal, inbound, raw=True)
+        #: the scene's groups (agents.groups), whose goals come on goal/<name>
+        self.groups: Groups | None = (self.scene.drift if isinstance(self.scene.drift, Groups)
+                                      else None)
+        self.sub_group_goals = [
+            self.create_subscription(PointStamped, f"goal/{name}",
+                                     lambda raw, info, k=k: self._on_group_goal(k, raw, info),
+                                     inbound, raw=True)
+            for k, name in enumerate(self.groups.names if self.groups is not None else ())]
         self.sub_field = self.create_subscription(
             PointCloud2, "velocity_field", self._on_velocity_field, inbound, raw=True)
         self.sub_map = None
@@ -217,15 +245,18 @@ class SweepNode(Node):
             self.pub_markers.topic_name: msgdefs.msgtype_of(MarkerArray),
             self.pub_walls.topic_name: msgdefs.msgtype_of(MarkerArray),
             self.pub_diag.topic_name: msgdefs.msgtype_of(DiagnosticArray),
+            self.pub_navigation.topic_name: cdr.POINT_CLOUD2,
             self.sub_cmd_vel.topic_name: msgdefs.msgtype_of(Twist),
             self.sub_goal.topic_name: msgdefs.msgtype_of(PointStamped),
+            **{sub.topic_name: msgdefs.msgtype_of(PointStamped)
+               for sub in self.sub_group_goals},
             self.sub_field.topic_name: cdr.POINT_CLOUD2,
         }
         if self.pub_clock is not None:
             names[self.pub_clock.topic_name] = cdr.CLOCK
         if self.sub_map is not None:
             names[self.sub_map.topic_name] = msgdefs.msgtype_of(OccupancyGrid)
-        latched = {self.pub_walls.topic_name} | (
+        latched = {self.pub_walls.topic_name, self.pub_navigation.topic_name} | (
             {self.sub_map.topic_name} if self.sub_map is not None else set())
         meta.update({
             "node": self.get_fully_qualified_name(),
@@ -241,7 +272,7 @@ class SweepNode(Node):
                 flush_interval_s=self._p["record_flush_interval_s"])
             for topic, msgtype in names.items():
                 definition = None if msgtype in cdr.SCHEMAS else msgdefs.definition(msgtype)
-                qos = qos_yaml(1, True) if topic in latched else qos_yaml(10)
+                qos = qos_profiles(1, True) if topic in latched else qos_profiles(10)
                 self.recorder.add_channel(topic, msgtype, definition, offered_qos_profiles=qos)
         except (SweepError, msgdefs.MsgDefError) as err:
             if self.recorder is not None:
@@ -284,6 +315,20 @@ class SweepNode(Node):
                           self._agent_markers.encode(ns, state.positions, state.radii), log_ns)
             if self._moving_walls:
                 self._publish_walls()
+        self._publish_navigation()
+
+    def _publish_navigation(self) -> None:
+        """The navigation_field of the drift in effect, when it differs from the one last
+        published (another drift, or a field recomputed for moving obstacles); an empty cloud
+        once the drift has none any more. The caller holds the gate."""
+        drift, t = self.sim.drift, self.sim.t
+        key = topics.navigation_key(drift, t)
+        if key == self._navigation[0]:
+            return
+        self._navigation = (key, drift)  # the drift kept alive: its fields' ids stay its own
+        ns = topics.stamp_ns(t)
+        self._publish(self.pub_navigation,
+                      topics.encode_navigation(ns, self.frame_id, drift, t), self._log_ns(t))
 
     def _publish_walls(self, clear: bool = False) -> None:
         """The walls markers at the current time; clear: first delete every marker (a new map
@@ -375,8 +420,7 @@ class SweepNode(Node):
         """Take one step, after applying the newest waiting command; on an infeasible step
         pause and report (the state stays at the last accepted step, which is published).
         The caller holds the gate. Returns whether the step was taken."""
-        applied = self._inbox.take()
-        if applied is not None:
+        while (applied := self._inbox.take()) is not None:
             self._apply_command(applied)
         start = time.perf_counter()
         try:
@@ -444,9 +488,11 @@ class SweepNode(Node):
 
     # -- commands ------------------------------------------------------------------------------
     def _command(self, sub: Any, msg_class: type, raw: bytes, info: Any,
-                 parse: Callable[[Any], Any]) -> None:
+                 parse: Callable[[Any], Any], group: int | None = None,
+                 built_for: Scene | None = None) -> None:
         """A command message: counted, parsed and validated here (command thread), then left
-        in the inbox for the next step (latest wins)."""
+        in the inbox for the next step (latest wins; a group's command replaces that group's
+        drift only). ``built_for``: the scene a navigation field is computed for by parse."""
         arrival = time.monotonic()
         topic = sub.topic_name
         self._inbox.arrived(topic, info)
@@ -460,24 +506,36 @@ class SweepNode(Node):
             self._inbox.refuse()
             self.get_logger().warning(f"command refused, {err}", throttle_duration_sec=2.0)
             return
-        self._inbox.offer(topic, field, bytes(raw), arrival)
+        self._inbox.offer(topic, field, bytes(raw), arrival, group,
+                          built_for if topics.navigation_fields(field) else None)
 
     def _apply_command(self, applied: Applied) -> None:
         """Makes a command the drift from the step about to start; records it (the message on
         its topic and a ``command_NNNNNN`` metadata record) at that step's log time. The
         caller holds the gate."""
         cmd = applied.command
-        self.sim.set_drift(cmd.field)
+        field = cmd.field
+        try:
+            if cmd.built_for is not None and cmd.built_for is not self.scene:
+                # a map arrived after the command's field was computed: again, round its walls
+                field = self._navigation_field(field.to_spec(), cmd.group, cmd.topic,
+                                               self.scene)
+            drift = field if cmd.group is None else self._with_group(cmd.group, field)
+        except (messages.CommandError, SceneError) as err:
+            self._inbox.refuse_taken()
+            self.get_logger().warning(f"command refused, {err}")
+            return
+        self.sim.set_drift(drift)
         k = self._inbox.applied
         log_ns = self._log_ns(self.sim.t)
         self._record(cmd.topic, log_ns, cmd.raw)
         if self.recorder is not None:
             self.recorder.metadata(f"command_{k:06d}", {
                 "topic": cmd.topic, "step": str(self.sim.n_steps), "t": repr(self.sim.t),
-                "log_time_ns": str(log_ns), "field": json.dumps(cmd.field.to_spec()),
+                "log_time_ns": str(log_ns), "field": json.dumps(drift.to_spec()),
                 "latency_ms": f"{1e3 * applied.latency_s:g}",
                 "superseded_before": str(applied.superseded)})
-        self.get_logger().info(f"{cmd.topic}: {cmd.field.kind} field from step "
+        self.get_logger().info(f"{cmd.topic}: {field.kind} field from step "
                                f"{self.sim.n_steps}", throttle_duration_sec=1.0)
 
     def _on_cmd_vel(self, raw: bytes, info: Any) -> None:
@@ -486,11 +544,71 @@ class SweepNode(Node):
                                                             self.sub_cmd_vel.topic_name))
 
     def _on_goal(self, raw: bytes, info: Any) -> None:
-        self._command(self.sub_goal, PointStamped, raw, info,
-                      lambda m: messages.goal_from_point(m, self.scene.speed,
-                                                         self._p["goal_slow_radius"],
-                                                         self.frame_id,
-                                                         self.sub_goal.topic_name))
+        self._goal_command(self.sub_goal, None, raw, info)
+
+    def _on_group_goal(self, k: int, raw: bytes, info: Any) -> None:
+        self._goal_command(self.sub_group_goals[k], k, raw, info)
+
+    def _group_members(self, k: int) -> np.ndarray:
+        """The agents (indices) of the scene's group k."""
+        assert self.groups is not None  # group topics exist only for a scene with groups
+        return self.groups.members[k]
+
+    def _group_speed(self, k: int) -> float:
+        """The preferred speed (m/s) of the scene's group k."""
+        assert self.groups is not None
+        return float(self.groups.speeds[k])
+
+    def _with_group(self, k: int, field: Field) -> Field:
+        """The drift in effect with group k following ``field``: a groups drift of the
+        scene's groups is copied with that group's drift replaced; any other drift (a whole
+        command in effect) goes on for the other groups and the rest, as a groups drift (built
+        again for each group's agents when it holds a navigation field, as a replay of its
+        spec builds it). The caller holds the gate."""
+        assert self.groups is not None
+        drift = self.sim.drift
+        if isinstance(drift, Groups) and drift.names == self.groups.names:
+            return drift.with_member_drift(k, field)
+        base = dataclasses.replace(self.groups, fields=(drift,) * len(self.groups.fields),
+                                   rest=drift).with_member_drift(k, field)
+        if not topics.navigation_fields(drift):
+            return base
+        return self.scene.drift_from_spec(base.to_spec())
+
+    def _goal_command(self, sub: Any, group: int | None, raw: bytes, info: Any) -> None:
+        """A goal for every agent (group None) or for the scene's group k: a geodesic field
+        round the walls when the scene has any (computed here, on the executor's thread), a
+        straight one otherwise, at the scene's speed or the group's."""
+        scene, topic = self.scene, sub.topic_name
+
+        def parse(msg: Any) -> Field:
+            goal = messages.goal_point(msg, self.frame_id, topic)
+            speed = self.scene.speed if group is None else self._group_speed(group)
+            if not has_geometry(scene):
+                return Goal(goal=goal, speed=float(speed),
+                            slow_radius=float(self._p["goal_slow_radius"]))
+            spec: dict[str, Any] = {
+                "kind": "geodesic", "goal": goal.tolist(), "speed": float(speed),
+                "slow_radius": self._p["goal_slow_radius"], "cell": self._p["goal_cell"],
+                "wall_buffer": self._p["goal_wall_buffer"]}
+            if self._p["goal_update_every"] > 0 and scene.geometry.is_moving:
+                spec["update_every"] = self._p["goal_update_every"]
+            return self._navigation_field(spec, group, topic, scene)
+
+        self._command(sub, PointStamped, raw, info, parse, group, scene)
+
+    def _navigation_field(self, spec: dict, group: int | None, topic: str, scene: Scene
+                          ) -> Field:
+        """A geodesic field of ``spec`` for the scene's walls, obstacles and map, checked
+        against the initial positions of the agents that follow it (all, or group k's: the
+        grid covers them, so a replay builds the same field)."""
+        members = None if group is None else self._group_members(group)
+        positions = scene.positions if members is None else scene.positions[members]
+        try:
+            return field_from_spec(spec, len(positions), "goal", scene.geometry,
+                                   scene_map(scene), positions)
+        except SceneError as err:
+            raise messages.navigation_refusal(topic, err, members=members) from None
 
     def _on_velocity_field(self, raw: bytes, info: Any) -> None:
         self._command(self.sub_field, PointCloud2, raw, info,
@@ -539,6 +657,7 @@ class SweepNode(Node):
                     "topic": topic, "step": str(self.sim.n_steps), "t": repr(self.sim.t),
                     "log_time_ns": str(log_ns), "map": json.dumps(spec)})
             self._publish_walls(clear=True)
+            self._publish_navigation()
             h, w = grid.shape
             self.get_logger().info(
                 f"{topic}: map of {w} x {h} cells of {grid.resolution:g} m, "

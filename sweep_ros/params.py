@@ -30,6 +30,7 @@ from rclpy.validate_topic_name import validate_topic_name
 from sweep_core import SceneError, SolverOptions
 from sweep_core.errors import show
 from sweep_core.io.limits import DT_MAX, DT_MIN
+from sweep_core.model import geodesic
 from sweep_core.model.yaml_files import SAFE_LOADER, YAMLError, yaml_problem
 
 _INT64_MAX = 2**63 - 1
@@ -93,6 +94,18 @@ SPECS: tuple[ParamSpec, ...] = (
               True, 1e-3, 1000.0),
     ParamSpec("goal_slow_radius", 0.5, "Radius (m) inside which a goal field slows down "
               "linearly, for the next goal command.", True, 0.01, 100.0),
+    ParamSpec("goal_cell", geodesic.CELL, "Grid cell (m) of the geodesic field a goal command "
+              "builds in a scene with walls, obstacles or a map (finer: more exact, slower to "
+              "build).", True, 0.001, 100.0,
+              f"goal_wall_buffer >= {geodesic.buffer_cells(geodesic.NEIGHBOURS):.4g} x goal_cell"),
+    ParamSpec("goal_wall_buffer", geodesic.WALL_BUFFER, "Distance (m) the geodesic field of a "
+              "goal command keeps from walls, obstacles and blocked map cells (a passage "
+              "narrower than twice it is closed to it).", True, 0.001, 100.0,
+              f">= {geodesic.buffer_cells(geodesic.NEIGHBOURS):.4g} x goal_cell"),
+    ParamSpec("goal_update_every", 0.0, "With moving obstacles: the geodesic field of a goal "
+              "command is computed again for the obstacles' positions every this many seconds "
+              "of simulated time; 0 = never (they count where they are at t = 0).",
+              True, 0.0, 1e6),
     ParamSpec("solver_eps_abs", _DEFAULT_SOLVER.eps_abs, "QP tolerance of the projection, m.",
               False, 1e-15, 1e-9),
     ParamSpec("solver_max_iter", _DEFAULT_SOLVER.max_iter, "QP iterations before the exact "
@@ -191,6 +204,18 @@ def solver_options(values: Mapping[str, Any]) -> SolverOptions:
                                      max_rounds=values["solver_max_rounds"])
 
 
+def check_goal_grid(values: Mapping[str, Any]) -> str | None:
+    """The problem of goal_cell with goal_wall_buffer (a grid step of the geodesic field must
+    not cross a thin wall unseen: wall_buffer >= half the longest step), or None."""
+    cell, buffer = values["goal_cell"], values["goal_wall_buffer"]
+    cells = geodesic.buffer_cells(geodesic.NEIGHBOURS)
+    if buffer < cells * cell:
+        return (f"goal_cell: {cell:g} m is too coarse for goal_wall_buffer {buffer:g} m (a grid "
+                f"step could cross a thin wall unseen) (fix: set goal_cell to at most "
+                f"{buffer / cells:.4g} m or goal_wall_buffer to at least {cells * cell:.4g} m)")
+    return None
+
+
 def check_start(values: Mapping[str, Any]) -> list[str]:
     """Problems of a complete start-up parameter set (empty when it is valid)."""
     problems = [p for p in (check_value(k, v) for k, v in values.items()) if p]
@@ -199,12 +224,15 @@ def check_start(values: Mapping[str, Any]) -> list[str]:
             solver_options(values)
         except SceneError as err:
             problems.append(str(err).replace("solver.", "solver_"))  # parameter names
+    if not any(p.startswith("goal_") for p in problems):
+        problems += [p for p in (check_goal_grid(values),) if p]
     return problems
 
 
 def check_live(changes: Iterable[tuple[str, Any]], current: Mapping[str, Any]
                ) -> SetParametersResult:
     """Accept a set-parameters request only if every change is live-safe and valid."""
+    changes = list(changes)
     reasons = []
     for name, value in changes:
         spec = BY_NAME.get(name)
@@ -215,6 +243,11 @@ def check_live(changes: Iterable[tuple[str, Any]], current: Mapping[str, Any]
                            f"the new value)")
             continue
         problem = check_value(name, value)
+        if problem:
+            reasons.append(problem)
+    changed = dict(changes)
+    if not reasons and {"goal_cell", "goal_wall_buffer"} & set(changed):
+        problem = check_goal_grid({**current, **changed})
         if problem:
             reasons.append(problem)
     return SetParametersResult(successful=not reasons, reason="; ".join(reasons))

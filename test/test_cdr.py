@@ -509,6 +509,27 @@ def test_bad_yaw_and_frame():
         cdr.encode_point_cloud2(0, "a\x00b", {"x": [1.0]})
 
 
+@pytest.mark.parametrize("height", [2, 5])
+def test_organised_point_cloud2_matches_rosbags(typestore, height):
+    """height > 1: an organised cloud (the navigation_field grid), rows of width points."""
+    ts = typestore
+    field_t = ts.types["sensor_msgs/msg/PointField"]
+    names = ["x", "y", "T"]
+    n = 10 * height
+    fields = _cloud_fields(names, n, seed=3)
+    data = np.stack([fields[k] for k in names], axis=1).tobytes()
+    msg = ts.types[cdr.POINT_CLOUD2](
+        header=_rb_header(ts, STAMP, "map"), height=height, width=n // height,
+        fields=[field_t(name=k, offset=4 * i, datatype=7, count=1) for i, k in enumerate(names)],
+        is_bigendian=False, point_step=12, row_step=12 * (n // height),
+        data=np.frombuffer(data, dtype=np.uint8), is_dense=True)
+    ours = cdr.encode_point_cloud2(STAMP, "map", fields, height=height)
+    assert ours == bytes(ts.serialize_cdr(msg, cdr.POINT_CLOUD2))
+    back = cdr.decode_point_cloud2(ours)
+    assert (back.height, back.width) == (height, n // height)
+    np.testing.assert_array_equal(back.fields["T"], fields["T"])
+
+
 def test_bad_cloud_fields():
     with pytest.raises(ValueError, match="fields: must be a non-empty mapping"):
         cdr.encode_point_cloud2(0, "m", {})
@@ -520,6 +541,8 @@ def test_bad_cloud_fields():
         cdr.encode_point_cloud2(0, "m", {"x": ["a", "b"]})
     with pytest.raises(ValueError, match="field names must be non-empty"):
         cdr.encode_point_cloud2(0, "m", {"": [1.0]})
+    with pytest.raises(ValueError, match="height: 2 does not divide the 3 points into rows"):
+        cdr.encode_point_cloud2(0, "m", {"x": [1.0, 2.0, 3.0]}, height=2)
 
 
 def test_decoders_refuse_bad_buffers():

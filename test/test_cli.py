@@ -124,3 +124,88 @@ def test_bench_recording_writes_finite_numbers(tmp_path):
     for key in recording_bench.COLUMNS[2:]:
         assert np.isfinite(float(rows[0][key])), key
     assert float(rows[0]["record_ms"]) > 0 and float(rows[0]["kB_per_step"]) > 0
+
+
+GAP_SCENE = """
+agents: {positions: [[1.0, 1.0], [1.0, 2.0], [2.0, 1.5]], radius: 0.2}
+walls:
+  - {kind: polyline, closed: true, points: [[0, 0], [10, 0], [10, 6], [0, 6]]}
+  - {kind: segment, a: [5, 0], b: [5, 4.5]}
+drift: {kind: geodesic, goal: [8.0, 1.0], speed: 1.3}
+"""
+
+
+def test_run_records_the_navigation_field(tmp_path):
+    """A geodesic drift: sweep run records /navigation_field once (latched, as the node
+    publishes it): an organised grid whose T is the drift's travel distance at the nodes and
+    whose (vx, vy) is the drift there; rosbags and mcap_ros2 read it; replay is identical."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    from sweep_core.io import cdr
+    from sweep_core.io.recording import read_recording, scan_recording
+
+    scene = tmp_path / "gap.yaml"
+    scene.write_text(GAP_SCENE)
+    out = tmp_path / "gap.mcap"
+    assert main(["run", str(scene), "--t-end", "0.2", "--dt", "0.01", "--out", str(out),
+                 "--quiet"]) == 0
+    info = scan_recording(out)
+    assert info.channels["/navigation_field"].message_count == 1
+    assert "transient_local" in info.channels["/navigation_field"].metadata[
+        "offered_qos_profiles"]
+    [msg] = read_recording(out, ["/navigation_field"])
+    assert msg.log_time_ns == 0
+    cloud = cdr.decode_point_cloud2(msg.data)
+    assert list(cloud.fields) == list(topics.NAVIGATION_FIELDS)
+    drift = sc.Scene.from_yaml(scene).drift
+    assert (cloud.height, cloud.width) == (len(drift.y), len(drift.x))
+    nodes = np.stack(np.meshgrid(drift.x, drift.y), axis=-1).reshape(-1, 2)
+    np.testing.assert_allclose(cloud.fields["x"], nodes[:, 0], rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(cloud.fields["T"], drift.travel_distance(nodes), rtol=1e-6,
+                               atol=1e-5)
+    v = drift(0.0, nodes)
+    np.testing.assert_allclose(cloud.fields["vx"], v[:, 0], atol=1e-6)
+    assert set(cloud.fields["group"].tolist()) == {-1.0}
+    # round the wall: just left of it, below the gap, the field heads up (+y), not at the goal
+    k = int(np.argmin(np.hypot(nodes[:, 0] - 4.5, nodes[:, 1] - 1.0)))
+    assert cloud.fields["vy"][k] > 0.9 * 1.3 and abs(cloud.fields["vx"][k]) < 0.3
+
+    rosbags = pytest.importorskip("rosbags.highlevel")
+    with rosbags.AnyReader([out]) as reader:
+        conn = next(c for c in reader.connections if c.topic == "/navigation_field")
+        [(_, _, raw)] = list(reader.messages(connections=[conn]))
+        back = reader.deserialize(raw, conn.msgtype)
+        assert (back.height, back.width) == (cloud.height, cloud.width)
+        assert [f.name for f in back.fields] == list(topics.NAVIGATION_FIELDS)
+    with open(out, "rb") as f:
+        [decoded] = [m for _, _, _, m in make_reader(f, decoder_factories=[DecoderFactory()])
+                     .iter_decoded_messages(topics=["/navigation_field"])]
+    assert decoded.row_step == decoded.point_step * decoded.width
+    assert main(["replay", str(out)]) == 0
+
+
+def test_run_records_the_navigation_field_again_each_update_period(tmp_path):
+    """A pillar that moves and update_every 0.1 s: /navigation_field is recorded with the first
+    state of each period (t = 0, 0.1, 0.2, 0.3 s), each time the field of that period."""
+    from sweep_core.io import cdr
+    from sweep_core.io.recording import read_recording
+
+    scene = tmp_path / "moving.yaml"
+    scene.write_text(GAP_SCENE.replace(
+        "drift: {kind: geodesic, goal: [8.0, 1.0], speed: 1.3}",
+        "obstacles: [{kind: circle, center: [7.0, 2.5], radius: 0.5, velocity: [0.0, 2.0]}]\n"
+        "drift: {kind: geodesic, goal: [8.0, 1.0], speed: 1.3, update_every: 0.1}"))
+    out = tmp_path / "moving.mcap"
+    assert main(["run", str(scene), "--t-end", "0.35", "--dt", "0.01", "--out", str(out),
+                 "--quiet"]) == 0
+    msgs = read_recording(out, ["/navigation_field"])
+    assert [m.log_time_ns for m in msgs] == [topics.stamp_ns(t) for t in (0.0, 0.1, 0.2, 0.3)]
+    drift = sc.Scene.from_yaml(scene).drift
+    nodes = np.stack(np.meshgrid(drift.x, drift.y), axis=-1).reshape(-1, 2)
+    previous = None
+    for m, t in zip(msgs, (0.0, 0.1, 0.2, 0.3)):
+        got = cdr.decode_point_cloud2(m.data).fields["T"]
+        np.testing.assert_allclose(got, drift.travel_distance(nodes, t), rtol=1e-6, atol=1e-5)
+        assert previous is None or np.max(np.abs(got - previous)) > 0.1  # the pillar moved
+        previous = got

@@ -99,3 +99,36 @@ def test_control_goes_first_at_the_next_step_boundary():
         for t in threads:
             t.join(timeout=10)
         assert order == ["step 1", "control", "step 2"]
+
+
+def test_group_commands_wait_together_and_supersede_their_own_group():
+    """A group's command supersedes only an older one for the same group; a whole command
+    supersedes everything before it; the waiting ones come out in order of arrival."""
+    inbox = CommandInbox()
+    t0 = time.monotonic()
+    sent = [("/goal", None, 1.0), ("/goal/a", 0, 2.0), ("/goal/b", 1, 3.0),
+            ("/goal/a", 0, 4.0)]
+    for k, (topic, group, vx) in enumerate(sent, 1):
+        inbox.arrived(topic, _info(k, topic.encode()))
+        inbox.offer(topic, _field(vx), b"", t0, group)
+    c = inbox.counters()
+    assert c["commands_pending"] == 3 and c["commands_superseded"] == 1 and _balanced(c)
+    got = []
+    while (applied := inbox.take()) is not None:
+        got.append((applied.command.topic, applied.command.group,
+                    applied.command.field.velocity[0]))
+    assert got == [("/goal", None, 1.0), ("/goal/b", 1, 3.0), ("/goal/a", 0, 4.0)]
+    # a whole command supersedes every group's command waiting before it
+    for topic, group in (("/goal/a", 0), ("/goal/b", 1), ("/cmd_vel", None)):
+        inbox.arrived(topic, None)
+        inbox.offer(topic, _field(0.0), b"", t0, group)
+    assert inbox.counters()["commands_pending"] == 1
+    assert inbox.take().command.topic == "/cmd_vel"
+    # refused after it was taken (its walls changed): counted refused, not applied
+    inbox.arrived("/goal", None)
+    inbox.offer("/goal", _field(0.0), b"", t0)
+    inbox.take()
+    inbox.refuse_taken()
+    c = inbox.counters()
+    assert c["commands_applied"] == 4 and c["commands_refused"] == 1
+    assert c["commands_superseded"] == 3 and _balanced(c)

@@ -374,3 +374,31 @@ def test_unknown_type():
 
 def test_bundled_scene_loads():
     assert load_scene("").n_agents == 200
+
+
+def test_goal_cell_and_wall_buffer_checked_together():
+    """The geodesic field of a goal command needs goal_wall_buffer >= 1.118 goal_cell, at
+    start and live (the change of either)."""
+    values = {**params.defaults(), "goal_cell": 0.5}
+    assert params.check_start(values) == [
+        "goal_cell: 0.5 m is too coarse for goal_wall_buffer 0.3 m (a grid step could cross a "
+        "thin wall unseen) (fix: set goal_cell to at most 0.2683 m or goal_wall_buffer to at "
+        "least 0.559 m)"]
+    current = params.defaults()
+    assert not params.check_live([("goal_wall_buffer", 0.1)], current).successful
+    assert params.check_live([("goal_cell", 0.5), ("goal_wall_buffer", 0.6)],
+                             current).successful
+
+
+def test_navigation_refusal_names_parameters_and_scene_agents():
+    err = sc.SceneError("goal", "agent 1 at [2, 1] has no way to the goal that keeps wall_buffer "
+                     "0.3 m from walls", "open a passage at least 2 x goal.wall_buffer wide")
+    got = messages.navigation_refusal("/goal/b", err, members=np.array([3, 4, 5]))
+    assert str(got) == ("/goal/b: the geodesic field refused: agent 4 at [2, 1] has no way to "
+                        "the goal that keeps wall_buffer 0.3 m from walls (fix: open a passage "
+                        "at least 2 x parameter goal_wall_buffer wide)")
+    err = sc.SceneError("goal.cell", "0.01 m makes a grid of too many nodes",
+                     "set goal.cell to at least 0.02 m")
+    assert str(messages.navigation_refusal("/goal", err)) == (
+        "/goal: parameter goal_cell refused: 0.01 m makes a grid of too many nodes (fix: set "
+        "parameter goal_cell to at least 0.02 m)")

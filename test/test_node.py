@@ -303,10 +303,11 @@ def test_commands_services_parameters_and_recording(installed, probe, tmp_path):
         probe.cmd_vel.publish(Twist(linear=Vector3(x=1.0, y=0.0)))
         t0 = stamp(probe.agents[-1])
         probe.spin_until(heading_is(probe, [1, 0], 1.0, t0), 10.0, "motion along +x", node)
-        # 2. goal far in +y: goal-directed at the scene's speed 1.3 m/s
+        # 2. goal in +y: goal-directed at the scene's speed 1.3 m/s (a geodesic field: the
+        # scene has a wall and an obstacle)
         g = PointStamped()
         g.header.frame_id = "map"
-        g.point.x, g.point.y = 2.0, 500.0
+        g.point.x, g.point.y = 2.0, 15.0
         probe.goal.publish(g)
         t1 = stamp(probe.agents[-1])
         probe.spin_until(heading_is(probe, [0, 1], 1.3, t1), 10.0, "motion towards the goal",
@@ -405,13 +406,15 @@ def _check_recording(record: Path) -> None:
     assert counts["/cmd_vel"] == 1 and counts["/goal"] == 1 and counts["/velocity_field"] == 1
     assert counts["/poses"] == counts["/agents"] == counts["/clock"] > 20
     assert counts["/walls"] >= 1 and counts["/markers"] >= 2 and counts["/diagnostics"] >= 1
+    assert counts["/navigation_field"] == 2  # the goal's geodesic field, then none (grid)
     meta = info.metadata
     run = meta["sweep_ros"]
     assert run["seed"] == "7" and yaml.safe_load(run["scene"])["name"] == "test_open_20"
     assert yaml.safe_load(run["parameters"])["rate_hz"] == 50.0 and "versions" in run
     commands = [meta[k] for k in sorted(meta) if k.startswith("command_")]
     assert [c["topic"] for c in commands] == ["/cmd_vel", "/goal", "/velocity_field"]
-    assert [yaml.safe_load(c["field"])["kind"] for c in commands] == ["uniform", "goal", "grid"]
+    assert [yaml.safe_load(c["field"])["kind"] for c in commands] == ["uniform", "geodesic",
+                                                                       "grid"]
     assert all(int(c["step"]) * DT == pytest.approx(float(c["t"])) for c in commands)
     assert "reset_000001" in meta and meta["summary"]["commands_refused"] == "8"
     assert meta["sweep_status"]["status"] == "interrupted"
@@ -710,7 +713,7 @@ def test_client_module_commands_a_running_node(installed, probe, tmp_path):
         t0 = stamp(probe.agents[-1])
         probe.spin_until(heading_is(probe, [0.6, -0.8], 1.0, t0), 10.0, "motion along cmd-vel",
                          node)
-        done = client("goal", "2.0", "500.0")
+        done = client("goal", "2.0", "15.0")
         assert done.returncode == 0 and "/goal" in done.stdout, done
         t1 = stamp(probe.agents[-1])
         probe.spin_until(heading_is(probe, [0, 1], 1.3, t1), 10.0, "motion towards the goal",
@@ -869,3 +872,270 @@ def test_map_topic_walls_refusal_and_replay(installed, probe, tmp_path):
             seen += 1
     assert seen > 100 and after_reset > 10
     assert sweep_main(["replay", str(record)]) == 0
+
+
+# ---------------------------------------------------------------------------------------------
+# navigation fields (issue 15)
+# ---------------------------------------------------------------------------------------------
+
+#: a 10 x 6 m room split by a wall at x = 5 with a 1.5 m gap at its top (4.5 <= y <= 6); six
+#: agents on the left, no drift until told
+GAP_ROOM = [{"kind": "polyline", "closed": True,
+             "points": [[0.0, 0.0], [10.0, 0.0], [10.0, 6.0], [0.0, 6.0]]},
+            {"kind": "segment", "a": [5.0, 0.0], "b": [5.0, 4.5]}]
+GAP_AGENTS = [[1.0 + i, 1.0 + j] for i in range(2) for j in range(3)]
+GAP_SCENE = {"name": "test_gap", "agents": {"positions": GAP_AGENTS, "radius": 0.2,
+                                            "speed": 1.3},
+             "walls": GAP_ROOM, "noise": {"sigma": 0.02}}
+
+
+def cloud_columns(cloud: PointCloud2) -> dict[str, np.ndarray]:
+    """The FLOAT32 columns of a navigation_field cloud, by name, row-major."""
+    names = [f.name for f in cloud.fields]
+    assert names == list(topics.NAVIGATION_FIELDS)
+    cols = np.frombuffer(bytes(cloud.data), "<f4").reshape(cloud.height * cloud.width,
+                                                            len(names))
+    return {n: cols[:, i].astype(np.float64) for i, n in enumerate(names)}
+
+
+def navigation_probe(probe: Probe) -> list[PointCloud2]:
+    """Keeps every navigation_field message (transient-local, as the node publishes it)."""
+    from rclpy.qos import DurabilityPolicy
+
+    got: list[PointCloud2] = []
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    probe.node.create_subscription(PointCloud2, "/navigation_field", got.append, latched)
+    return got
+
+
+def test_goal_builds_a_geodesic_field_round_the_wall(installed, probe, tmp_path):
+    """In a scene with walls, a goal command builds a geodesic field (recorded as such): the
+    crowd behind the wall goes through the gap; navigation_field carries the field's grid, its
+    T equal to Geodesic.travel_distance at the nodes; goals in a wall or out of reach are
+    refused with a warning and counted; a command without a field publishes an empty cloud;
+    the recording reads with rosbags and replays bit for bit."""
+    from sweep_core.cli import main as sweep_main
+    from sweep_core.model.fields import field_from_spec
+    from sweep_core.model.scene import Scene
+    from sweep_ros import messages
+
+    clouds = navigation_probe(probe)
+    scene_path = tmp_path / "gap.yaml"
+    scene_path.write_text(yaml.safe_dump(GAP_SCENE))
+    record = tmp_path / "gap.mcap"
+    node = Running(installed, tmp_path, {
+        "scene": str(scene_path), "dt": DT, "seed": 3, "rate_hz": 50.0, "steps_per_tick": 5,
+        "record": str(record), "record_flush_interval_s": 0.2})
+
+    def goal(x: float, y: float) -> PointStamped:
+        g = PointStamped()
+        g.point.x, g.point.y = x, y
+        return g
+    try:
+        probe.connect(node)
+        probe.spin_for(0.5)
+        assert clouds == []  # no drift, no navigation field
+        # a goal cell too coarse for the wall buffer is refused as a parameter
+        set_params = SetParameters.Request(parameters=[
+            Parameter("goal_cell", value=0.5).to_parameter_msg()])
+        res = probe.call(SetParameters, "/sweep_node/set_parameters", set_params, node)
+        assert not res.results[0].successful
+        assert "goal_cell: 0.5 m is too coarse for goal_wall_buffer 0.3 m" in \
+            res.results[0].reason
+        probe.goal.publish(goal(8.0, 1.0))
+        probe.spin_until(lambda: clouds and clouds[-1].width > 0, 20.0,
+                         "a navigation_field", node)
+        cloud = clouds[-1]
+        assert cloud.header.frame_id == "map" and cloud.height > 1
+        cols = cloud_columns(cloud)
+        scene = Scene.from_dict(GAP_SCENE)
+        spec = {"kind": "geodesic", "goal": [8.0, 1.0], "speed": 1.3, "slow_radius": 0.5,
+                "cell": 0.1, "wall_buffer": 0.3}
+        field = field_from_spec(spec, 6, "goal", scene.geometry, None, scene.positions)
+        nodes = np.stack(np.meshgrid(field.x, field.y), axis=-1).reshape(-1, 2)
+        assert (cloud.height, cloud.width) == (len(field.y), len(field.x))
+        np.testing.assert_allclose(cols["x"], nodes[:, 0], atol=1e-5)
+        np.testing.assert_allclose(cols["T"], field.travel_distance(nodes), rtol=1e-6,
+                                   atol=1e-5)
+        # the cloud reads back as a velocity_field grid: the drift at its nodes
+        grid = messages.grid_from_cloud(cloud, 10.0)
+        np.testing.assert_allclose(grid(0.0, nodes), field(0.0, nodes), atol=1e-5)
+        # round the wall: left of it, below the gap, the field heads up to the gap
+        k = int(np.argmin(np.hypot(nodes[:, 0] - 4.5, nodes[:, 1] - 1.0)))
+        assert cols["vy"][k] > 0.9 * 1.3 and abs(cols["vx"][k]) < 0.3
+        probe.spin_until(lambda: min(p.position.x for p in probe.poses[-1].poses) > 5.3,
+                         60.0, "every agent through the gap", node)
+
+        # refused: a goal on the wall, a goal outside the room; the field stays
+        probe.goal.publish(goal(5.0, 2.0))
+        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "1", 10.0,
+                         "the goal on the wall refused", node)
+        probe.spin_for(2.1)  # refusals are logged at most every 2 s
+        probe.goal.publish(goal(12.0, 3.0))
+        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "2", 10.0,
+                         "two goals refused", node)
+        assert diag_value(probe, "commands_applied") == "1"
+        assert diag_value(probe, "drift") == "geodesic" and len(clouds) == 1
+        # a drift without a navigation field: an empty cloud clears it
+        probe.cmd_vel.publish(Twist(linear=Vector3(x=-0.5)))
+        probe.spin_until(lambda: len(clouds) == 2, 10.0, "the empty navigation_field", node)
+        assert clouds[-1].width * clouds[-1].height == 0
+    finally:
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
+    assert "Traceback" not in node.log
+    refused = [line for line in node.log.splitlines() if "command refused" in line]
+    assert len(refused) == 2, node.log
+    assert "/goal: the goal refused: [5, 2] lies in or on walls[1]" in refused[0]
+    assert "(fix: move the goal into the free space)" in refused[0]
+    assert "/goal: the geodesic field refused: agent 0 at [1, 1] has no way to the goal" \
+        in refused[1]
+
+    counts, meta = _read_standard(record)  # rosbags deserialises every message
+    assert counts["/navigation_field"] == 2 and counts["/goal"] == 1
+    commands = [meta[k] for k in sorted(meta) if k.startswith("command_")]
+    assert [yaml.safe_load(c["field"])["kind"] for c in commands] == ["geodesic", "uniform"]
+    assert yaml.safe_load(commands[0]["field"]) == {**spec, "neighbours": 16}
+    assert sweep_main(["replay", str(record)]) == 0
+
+
+def test_group_goals_replace_only_their_group(installed, probe, tmp_path):
+    """goal/<group> (and sweep_client goal --group) gives one group a geodesic field at the
+    group's speed, the other group keeps its drift; goals for two groups stack; the plain goal
+    still means every agent, and a group goal after it keeps the others on it; navigation_field
+    carries a grid per field with its group; an unknown group and an unreachable group goal are
+    refused (the latter counted); the recording reads with rosbags and replays bit for bit."""
+    from sweep_core.cli import main as sweep_main
+    from sweep_core.model.fields import field_from_spec
+    from sweep_core.model.scene import Scene
+
+    clouds = navigation_probe(probe)
+    # group a in front (x = 2), group b behind it (x = 1): a's way to the gap passes clear of b
+    start = np.array([[2.0, 1.0], [2.0, 2.0], [2.0, 3.0], [1.0, 1.0], [1.0, 2.0], [1.0, 3.0]])
+    scene_dict = {**GAP_SCENE, "name": "test_gap_groups",
+                  "agents": {**GAP_SCENE["agents"], "positions": start.tolist(), "groups": [
+                      {"name": "a", "agents": [0, 1, 2], "drift": {"kind": "none"},
+                       "speed": 1.0},
+                      {"name": "b", "agents": {"range": [3, 6]}, "drift": {"kind": "none"},
+                       "speed": 0.6}]}}
+    scene_path = tmp_path / "groups.yaml"
+    scene_path.write_text(yaml.safe_dump(scene_dict))
+    record = tmp_path / "groups.mcap"
+    node = Running(installed, tmp_path, {
+        "scene": str(scene_path), "dt": DT, "seed": 4, "rate_hz": 50.0, "steps_per_tick": 5,
+        "record": str(record), "record_flush_interval_s": 0.2, "publish_markers": False})
+    exe, env = installed
+    python = exe.read_text().splitlines()[0].removeprefix("#!").strip()
+
+    def client(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([python, "-m", "sweep_ros.client", *args], env=env,
+                              cwd=tmp_path, capture_output=True, text=True, timeout=60)
+
+    def goal(x: float, y: float) -> PointStamped:
+        g = PointStamped()
+        g.point.x, g.point.y = x, y
+        return g
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    goal_b = probe.node.create_publisher(PointStamped, "/goal/b", qos)
+    scene = Scene.from_dict(scene_dict)
+    try:
+        probe.connect(node)
+        probe.spin_until(lambda: goal_b.get_subscription_count() > 0, DISCOVERY_S,
+                         "sweep_node subscribing /goal/b", node)
+        done = client("goal", "8", "1", "--group", "a")
+        assert done.returncode == 0 and "/goal/a" in done.stdout, done
+        probe.spin_until(lambda: clouds and clouds[-1].width > 0, 20.0,
+                         "group a's navigation_field", node)
+        cols = cloud_columns(clouds[-1])
+        assert set(cols["group"].tolist()) == {0.0} and clouds[-1].height > 1
+        field_a = field_from_spec({"kind": "geodesic", "goal": [8.0, 1.0], "speed": 1.0},
+                                  3, "goal", scene.geometry, None, start[:3])
+        nodes = np.stack(np.meshgrid(field_a.x, field_a.y), axis=-1).reshape(-1, 2)
+        np.testing.assert_allclose(cols["T"], field_a.travel_distance(nodes), rtol=1e-6,
+                                   atol=1e-5)
+        assert np.max(np.hypot(cols["vx"], cols["vy"])) == pytest.approx(1.0, rel=1e-6)
+
+        def moved() -> np.ndarray:
+            q = np.array([[p.position.x, p.position.y] for p in probe.poses[-1].poses])
+            return np.hypot(*(q - start).T)
+        probe.spin_until(lambda: moved()[:3].min() > 1.5, 30.0, "group a on its way", node)
+        assert moved()[3:].max() < 0.5  # group b: no drift, only noise
+
+        # no such group: the client says which there are; unreachable: refused, counted
+        done = client("--timeout", "5", "goal", "8", "1", "--group", "c")
+        assert done.returncode == 2, done
+        assert done.stderr.strip().splitlines() == [
+            "sweep_client: error: no group 'c': the node takes goals for the groups a, b "
+            "(fix: --group one of them)"]
+        goal_b.publish(goal(12.0, 3.0))
+        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "1", 10.0,
+                         "the unreachable goal of group b refused", node)
+        # goals for both groups stack
+        goal_b.publish(goal(8.0, 5.0))
+        probe.spin_until(lambda: len(clouds) >= 2, 20.0, "both groups' fields", node)
+        cols = cloud_columns(clouds[-1])
+        assert clouds[-1].height == 1 and set(cols["group"].tolist()) == {0.0, 1.0}
+        field_b = field_from_spec({"kind": "geodesic", "goal": [8.0, 5.0], "speed": 0.6},
+                                  3, "goal", scene.geometry, None, start[3:])
+        nodes_b = np.stack(np.meshgrid(field_b.x, field_b.y), axis=-1).reshape(-1, 2)
+        np.testing.assert_allclose(cols["T"][cols["group"] == 1],
+                                   field_b.travel_distance(nodes_b), rtol=1e-6, atol=1e-5)
+        # the plain goal: every agent; then group a's own goal, the others kept on the plain one
+        probe.goal.publish(goal(8.0, 3.0))
+        probe.spin_until(lambda: len(clouds) >= 3, 20.0, "the whole goal's field", node)
+        assert set(cloud_columns(clouds[-1])["group"].tolist()) == {-1.0}
+        assert clouds[-1].height > 1
+        done = client("goal", "2", "5", "--group", "a")
+        assert done.returncode == 0, done
+        probe.spin_until(lambda: len(clouds) >= 4, 20.0, "group a's field over the whole", node)
+        assert set(cloud_columns(clouds[-1])["group"].tolist()) == {-1.0, 0.0, 1.0}
+        probe.spin_until(lambda: diag_value(probe, "commands_applied") == "4", 10.0,
+                         "four goals applied", node)
+        probe.spin_for(1.0)
+    finally:
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
+    assert "Traceback" not in node.log
+    assert "/goal/b: the geodesic field refused: agent 3 at [1, 1] has no way to the goal" \
+        in node.log
+
+    counts, meta = _read_standard(record)  # rosbags deserialises every message
+    assert counts["/goal/a"] == 2 and counts["/goal/b"] == 1 and counts["/goal"] == 1
+    assert counts["/navigation_field"] == 4
+    specs = [yaml.safe_load(meta[k]["field"]) for k in sorted(meta) if k.startswith("command_")]
+    assert [s["kind"] for s in specs] == ["groups", "groups", "geodesic", "groups"]
+    first = specs[0]["groups"]
+    assert [g["name"] for g in first] == ["a", "b"] and first[1]["drift"] == {"kind": "none"}
+    assert first[0]["drift"]["kind"] == "geodesic" and first[0]["drift"]["speed"] == 1.0
+    assert specs[1]["groups"][1]["drift"]["goal"] == [8.0, 5.0]
+    assert specs[1]["groups"][1]["drift"]["speed"] == 0.6
+    last = specs[3]
+    assert last["groups"][0]["drift"]["goal"] == [2.0, 5.0]
+    assert last["groups"][1]["drift"] == last["rest"] == specs[2]
+    assert sweep_main(["replay", str(record)]) == 0
+
+
+def test_goal_stays_straight_without_walls(installed, probe, tmp_path):
+    """No wall, obstacle or map: a goal command is the straight goal field at the scene's
+    speed, and no navigation_field is published."""
+    clouds = navigation_probe(probe)
+    scene_path = tmp_path / "open.yaml"
+    scene_path.write_text(yaml.safe_dump({"name": "test_open", "agents": {
+        "positions": GAP_AGENTS, "radius": 0.2, "speed": 0.9}}))
+    node = Running(installed, tmp_path, {"scene": str(scene_path), "dt": DT, "rate_hz": 50.0,
+                                         "publish_markers": False})
+    try:
+        probe.connect(node)
+        g = PointStamped()
+        g.point.x, g.point.y = 100.0, 2.0
+        probe.goal.publish(g)
+        t0 = stamp(probe.agents[-1])
+        probe.spin_until(heading_is(probe, [1, 0], 0.9, t0), 10.0, "motion towards the goal",
+                         node)
+        probe.spin_until(lambda: diag_value(probe, "commands_applied") == "1", 5.0,
+                         "the goal applied", node)
+        assert diag_value(probe, "drift") == "goal" and clouds == []
+    finally:
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log

@@ -4,11 +4,14 @@ Shared by ``sweep run`` and the ROS node, so a recording looks the same whicheve
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
 
 from sweep_core.io import cdr
+from sweep_core.model.fields import Field, Groups
+from sweep_core.model.geodesic import Geodesic
 from sweep_core.numerics.simulator import State
 
 POSES = "poses"
@@ -16,6 +19,10 @@ AGENTS = "agents"
 #: float32 fields of the ``agents`` PointCloud2, in order
 AGENT_FIELDS = ("id", "x", "y", "radius", "vx", "vy", "reaction_x", "reaction_y")
 TYPES = {POSES: cdr.POSE_ARRAY, AGENTS: cdr.POINT_CLOUD2}
+#: the navigation field of the drift in effect (latched): see :func:`encode_navigation`
+NAVIGATION = "navigation_field"
+#: float32 fields of the ``navigation_field`` PointCloud2, in order
+NAVIGATION_FIELDS = ("x", "y", "z", "T", "vx", "vy", "group")
 
 
 def agent_fields(state: State) -> dict[str, np.ndarray]:
@@ -45,3 +52,56 @@ def record_state(write: Callable[[str, int, bytes], None], state: State,
     ns = stamp_ns(state.t)
     for name, data in encode_state(state, frame_id).items():
         write("/" + name, ns, data)
+
+
+def navigation_fields(drift: Field) -> list[tuple[int, Geodesic]]:
+    """The navigation fields (geodesic, exits) of a drift: [(group, field)], group -1 for the
+    whole drift or a groups drift's rest, k for its group k; empty when it has none."""
+    if isinstance(drift, Geodesic):
+        return [(-1, drift)]
+    if isinstance(drift, Groups):
+        out = [(k, f) for k, f in enumerate(drift.fields) if isinstance(f, Geodesic)]
+        return out + ([(-1, drift.rest)] if isinstance(drift.rest, Geodesic) else [])
+    return []
+
+
+def navigation_epoch(field: Geodesic, t: float) -> int:
+    """The recomputation period of a navigation field holding time t (s): 0 for a field
+    computed once; with ``update_every`` the k of [k s, (k + 1) s) (as Geodesic.arrays)."""
+    if field.update_every is None:
+        return 0
+    return max(int(math.floor(t / field.update_every + 1e-9)), 0)
+
+
+def navigation_key(drift: Field, t: float) -> tuple:
+    """What the ``navigation_field`` message of a drift at t depends on: it needs publishing
+    again exactly when this changes (another field object, or another period of one that is
+    recomputed)."""
+    return tuple((k, id(f), navigation_epoch(f, t)) for k, f in navigation_fields(drift))
+
+
+def encode_navigation(stamp_ns: int, frame_id: str, drift: Field, t: float) -> bytes:
+    """CDR ``navigation_field`` of a drift at t (s): a PointCloud2 of the grid nodes of each of
+    its navigation fields, fields x, y, z = 0 (m), T (the travel distance to the goal, m;
+    travel time = T / speed), vx, vy (the drift there, m/s) and group (-1 for the whole drift
+    or the rest of a groups drift, k for group k). One field: an organised cloud, a row per y
+    node (rows along y, columns along x, as ``velocity_field`` reads it); several: their
+    nodes one after the other (height 1); none: an empty cloud (viewers clear it)."""
+    found = navigation_fields(drift)
+    cols: dict[str, list[np.ndarray]] = {name: [] for name in NAVIGATION_FIELDS}
+    for k, f in found:
+        _, distance = f.arrays(t)
+        X, Y = np.meshgrid(f.x, f.y)
+        nodes = np.stack([X.ravel(), Y.ravel()], axis=1)
+        v = f(t, nodes)
+        cols["x"].append(nodes[:, 0])
+        cols["y"].append(nodes[:, 1])
+        cols["z"].append(np.zeros(len(nodes)))
+        cols["T"].append(distance.ravel())
+        cols["vx"].append(v[:, 0])
+        cols["vy"].append(v[:, 1])
+        cols["group"].append(np.full(len(nodes), float(k)))
+    fields = {name: (np.concatenate(c) if c else np.zeros(0, dtype=np.float32))
+              for name, c in cols.items()}
+    height = len(found[0][1].y) if len(found) == 1 else 1
+    return cdr.encode_point_cloud2(stamp_ns, frame_id, fields, height=height)

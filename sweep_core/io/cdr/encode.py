@@ -109,12 +109,15 @@ def _fields_block(names: tuple[str, ...]) -> bytes:
     return b"".join(parts)
 
 
-def encode_point_cloud2(stamp_ns: int, frame_id: str, fields: Mapping[str, np.ndarray]) -> bytes:
-    """``sensor_msgs/msg/PointCloud2``: an unorganised cloud of N points, every field FLOAT32.
+def encode_point_cloud2(stamp_ns: int, frame_id: str, fields: Mapping[str, np.ndarray],
+                        height: int = 1) -> bytes:
+    """``sensor_msgs/msg/PointCloud2`` of N points, every field FLOAT32.
 
-    ``height`` = 1, ``width`` = N, fields in the mapping's order at offsets 0, 4, 8, ...
-    (datatype 7, count 1), ``point_step`` = 4 F, ``row_step`` = 4 F N, little endian, ``data`` the
-    float32 columns interleaved point by point. Values are cast to float32; NaN and inf are
+    ``height`` = 1 (the default: an unorganised cloud, ``width`` = N) or an organised cloud of
+    ``height`` rows (``width`` = N / height; the columns hold the points row by row), fields in
+    the mapping's order at offsets 0, 4, 8, ... (datatype 7, count 1), ``point_step`` = 4 F,
+    ``row_step`` = 4 F width, little endian, ``data`` the float32 columns interleaved point by
+    point. Values are cast to float32; NaN and inf are
     allowed (e.g. "no value"), and ``is_dense`` is true exactly when every value is finite.
 
     Args:
@@ -122,9 +125,11 @@ def encode_point_cloud2(stamp_ns: int, frame_id: str, fields: Mapping[str, np.nd
         frame_id: header frame id.
         fields: non-empty mapping of field name to an (N,) array; all of one length N.
 
+        height: rows of an organised cloud (N must be a multiple of it), 1 for unorganised.
+
     Raises:
         ValueError: naming the argument (``fields[...]`` for a column), on a bad stamp, frame
-            id, name, shape or a non-numeric column.
+            id, name, shape, height or a non-numeric column.
     """
     prefix = header_prefix(stamp_ns, frame_id)
     if not isinstance(fields, Mapping) or len(fields) == 0:
@@ -153,16 +158,20 @@ def encode_point_cloud2(stamp_ns: int, frame_id: str, fields: Mapping[str, np.nd
                 f"fields[{names[0]!r}]"
             )
         cols.append(col)
+    if isinstance(height, bool) or not isinstance(height, int) or height < 1 or n % height:
+        raise ValueError(f"height: {height!r} does not divide the {n} points into rows (give "
+                         "1 for an unorganised cloud, or a divisor of the number of points)")
     nf = len(names)
     point_step = 4 * nf
     nbytes = point_step * n
+    width = n // height
     head = b"".join(
         (
             prefix,
-            pack_2u32(1, n),
+            pack_2u32(height, width),
             _fields_block(names),
             b"\x00\x00\x00\x00",  # is_bigendian = false + 3 bytes padding
-            pack_3u32(point_step, nbytes, nbytes),  # point_step, row_step, len(data)
+            pack_3u32(point_step, point_step * width, nbytes),  # point_step, row_step, len(data)
         )
     )
     # One output buffer; the data block starts 4-aligned, so it is filled in place as float32.

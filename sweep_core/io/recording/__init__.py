@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from sweep_core.errors import RecordingError
 from sweep_core.io.recording.background import BackgroundRecorder
-from sweep_core.io.recording.format import DEFAULT_QOS_PROFILES
+from sweep_core.io.recording.format import DEFAULT_QOS_PROFILES, qos_profiles
 from sweep_core.io.recording.reader import (
     RecordedMessage,
     RecordingReader,
@@ -44,5 +44,6 @@ __all__ = [
     "RecordingReader",
     "read_metadata",
     "read_recording",
+    "qos_profiles",
     "scan_recording",
 ]

@@ -35,6 +35,16 @@ DEFAULT_QOS_PROFILES = (
     "  liveliness_lease_duration:\n" + _INF + "  avoid_ros_namespace_conventions: false\n"
 )
 
+
+def qos_profiles(depth: int = 10, transient_local: bool = False) -> str:
+    """rosbag2's offered_qos_profiles YAML for a reliable keep-last publisher of ``depth``
+    (transient-local durability for a latched topic such as walls or navigation_field)."""
+    text = DEFAULT_QOS_PROFILES.replace("depth: 10", f"depth: {depth}")
+    if transient_local:
+        text = text.replace("durability: volatile", "durability: transient_local")
+    return text
+
+
 COMPRESSION = {
     "zstd": CompressionType.ZSTD,
     "lz4": CompressionType.LZ4,

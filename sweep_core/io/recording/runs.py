@@ -1,6 +1,9 @@
 """A simulator run recorded to MCAP as ``sweep run`` records it, shared by the CLI and the
 ensemble's workers: the ``/poses`` and ``/agents`` channels, every ``record_every``-th state
-(the first included), and a final ``sweep_status`` record however the run ends."""
+(the first included), and a final ``sweep_status`` record however the run ends. When the
+drift has a navigation field (geodesic, exits), ``/navigation_field`` holds it too, as the node
+publishes it (:func:`~sweep_core.io.topics.encode_navigation`): with the first state, and again
+with the first recorded state of each period a field with ``update_every`` is recomputed for."""
 from __future__ import annotations
 
 import time
@@ -9,9 +12,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from sweep_core.errors import RecordingError, SweepError
-from sweep_core.io import topics
+from sweep_core.io import cdr, topics
 from sweep_core.io.metadata import STATUS_RECORD, status_metadata
 from sweep_core.io.recording.background import BackgroundRecorder
+from sweep_core.io.recording.format import qos_profiles
 from sweep_core.numerics import paths
 from sweep_core.numerics.simulator import Simulator
 
@@ -46,12 +50,22 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
     with BackgroundRecorder(out, metadata=metadata, max_backlog=64) as rec:
         for name, msgtype in topics.TYPES.items():
             rec.add_channel("/" + name, msgtype)
+        navigation: list[tuple | None] = []  # the key of the field last recorded, once there is one
+        if topics.navigation_fields(sim.drift):
+            rec.add_channel("/" + topics.NAVIGATION, cdr.POINT_CLOUD2,
+                            offered_qos_profiles=qos_profiles(1, transient_local=True))
+            navigation.append(None)
 
         def record(s: Simulator) -> None:
             nonlocal steps
             state = s.state
             if state.step % record_every == 0:
                 topics.record_state(rec.write, state, frame_id)
+                if navigation and topics.navigation_key(s.drift, state.t) != navigation[0]:
+                    navigation[0] = topics.navigation_key(s.drift, state.t)
+                    ns = topics.stamp_ns(state.t)
+                    rec.write("/" + topics.NAVIGATION, ns,
+                              topics.encode_navigation(ns, frame_id, s.drift, state.t))
                 if rec.error:
                     raise RecordingError(rec.error)
             if state.step:
