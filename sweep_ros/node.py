@@ -75,6 +75,7 @@ from sweep_core.io import cdr, topics
 from sweep_core.io.metadata import STATUS_RECORD, run_metadata, status_metadata
 from sweep_core.io.recording import BackgroundRecorder, qos_profiles
 from sweep_core.model.fields import Field, Goal, Groups, field_from_spec
+from sweep_core.model.geodesic import navigation_fields
 from sweep_core.model.maps import OccupancyMap, map_from_spec, replace_map
 from sweep_core.model.scene import Scene, load_scene
 from sweep_ros import messages, msgdefs, params
@@ -507,7 +508,7 @@ class SweepNode(Node):
             self.get_logger().warning(f"command refused, {err}", throttle_duration_sec=2.0)
             return
         self._inbox.offer(topic, field, bytes(raw), arrival, group,
-                          built_for if topics.navigation_fields(field) else None)
+                          built_for if navigation_fields(field) else None)
 
     def _apply_command(self, applied: Applied) -> None:
         """Makes a command the drift from the step about to start; records it (the message on
@@ -571,7 +572,7 @@ class SweepNode(Node):
             return drift.with_member_drift(k, field)
         base = dataclasses.replace(self.groups, fields=(drift,) * len(self.groups.fields),
                                    rest=drift).with_member_drift(k, field)
-        if not topics.navigation_fields(drift):
+        if not navigation_fields(drift):
             return base
         return self.scene.drift_from_spec(base.to_spec())
 

@@ -326,7 +326,7 @@ def test_analyze_reports_arrivals_and_evacuation_per_group(tmp_path):
     # the plot draws the west group's travel-time field under the density
     report.write_outputs(an)
     assert out.with_name("run.analysis.png").stat().st_size > 0
-    assert [name for name, _ in plots.navigation_fields(an.meta.scene.drift)] == ["west"]
+    assert [name for name, _ in plots.named_navigation_fields(an.meta.scene.drift)] == ["west"]
     plt = plots.pyplot()
     fig, ax = plt.subplots()
     assert plots.draw_travel_time(ax, an.meta.scene) == " and travel time"

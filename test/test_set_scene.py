@@ -118,3 +118,41 @@ def test_a_navigation_field_follows_the_new_walls() -> None:
     sim.set_drift(command)
     sim.set_scene(scene_with_map(scene, room(True)))
     assert sim.drift is command
+
+
+def test_a_commanded_navigation_field_is_computed_again_round_the_new_walls() -> None:
+    """A goal command's geodesic field (the node's, or a replay's) follows a new map as the
+    scene's own does; a goal the new walls block refuses the map, the simulator unchanged."""
+    from sweep_core.analysis.run import scene_with_map
+
+    def room(wall: bool, block_goal: bool = False) -> dict:
+        cells = np.zeros((20, 40), dtype=np.int8)
+        cells[0, :] = cells[-1, :] = cells[:, 0] = cells[:, -1] = 100
+        if wall:
+            cells[:16, 20] = 100  # a wall from the south with a gap in the north
+        if block_goal:
+            cells[2:10, 28:36] = 100  # a block over the goal
+        return OccupancyMap.from_occupancy_grid(cells.ravel(), 40, 20, 0.25, (0.0, 0.0, 0.0),
+                                                source="/map").to_spec()
+
+    scene = sc.Scene.from_dict({"map": room(False),
+                                "agents": {"positions": [[2.0, 1.5]], "radius": 0.2},
+                                "drift": {"kind": "none"}})
+    sim = sc.Simulator(scene, dt=0.01, seed=0)
+    goal = {"kind": "geodesic", "goal": [8.0, 1.5], "speed": 1.0}
+    sim.set_drift(scene.drift_from_spec(goal))
+    assert sim.drift(0.0, sim.positions)[0][0] > 0.99  # open room: straight east
+    walled = scene_with_map(scene, room(True))
+    sim.set_scene(walled)
+    assert sim.drift.to_spec() == scene.drift_from_spec(goal).to_spec()
+    turned = sim.drift(0.0, sim.positions)[0]
+    assert turned[1] > 0.5  # round the new wall: north first
+    # the same floats as the field a replay builds against the walled scene
+    again = walled.drift_from_spec(goal)
+    assert np.array_equal(again(0.0, sim.positions), sim.drift(0.0, sim.positions))
+    kept = sim.drift
+    with pytest.raises(SceneError) as err:
+        sim.set_scene(scene_with_map(scene, room(True, block_goal=True)))
+    assert err.value.field == "scene" and "cannot follow the new walls" in err.value.problem
+    assert "send a new goal" in err.value.fix
+    assert sim.drift is kept and sim.scene is walled

@@ -10,7 +10,7 @@ import numpy as np
 from sweep_core.analysis.metrics import SPEED_BIN, Analysis
 from sweep_core.errors import SweepError
 from sweep_core.model.fields import Field, Groups
-from sweep_core.model.geodesic import Geodesic
+from sweep_core.model.geodesic import Geodesic, navigation_fields
 from sweep_core.model.scene import Scene
 
 #: travel-time contours drawn per navigation field
@@ -40,22 +40,19 @@ def draw_scene(ax: Any, scene: Scene | None) -> None:
         ax.add_patch(Circle(c, r, fill=False, color="k", lw=1.0))
 
 
-def navigation_fields(drift: Field) -> list[tuple[str, Geodesic]]:
-    """The geodesic / exits fields of a drift, named for a legend ("travel time", or the
-    group's name)."""
-    if isinstance(drift, Geodesic):
-        return [("travel time", drift)]
-    if isinstance(drift, Groups):
-        named = [(name, f) for name, f in zip(drift.names, drift.fields)]
-        named.append(("others", drift.rest))
-        return [(name, f) for name, f in named if isinstance(f, Geodesic)]
-    return []
+def named_navigation_fields(drift: Field) -> list[tuple[str, Geodesic]]:
+    """The geodesic / exits fields of a drift, named for a legend ("travel time", the group's
+    name, or "others" for a groups drift's rest)."""
+    found = navigation_fields(drift)
+    if not isinstance(drift, Groups):
+        return [("travel time", f) for _, f in found]
+    return [(drift.names[k] if k >= 0 else "others", f) for k, f in found]
 
 
 def draw_travel_time(ax: Any, scene: Scene | None) -> str:
     """Contours of the travel time T / speed (s) at t = 0 of the scene's navigation fields
     (one colour each) on a matplotlib axis; the title suffix saying so ("" if none)."""
-    fields = navigation_fields(scene.drift) if scene is not None else []
+    fields = named_navigation_fields(scene.drift) if scene is not None else []
     from matplotlib.lines import Line2D
     handles = []
     for k, (name, f) in enumerate(fields):

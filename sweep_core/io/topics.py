@@ -10,8 +10,8 @@ from collections.abc import Callable
 import numpy as np
 
 from sweep_core.io import cdr
-from sweep_core.model.fields import Field, Groups
-from sweep_core.model.geodesic import Geodesic
+from sweep_core.model.fields import Field
+from sweep_core.model.geodesic import Geodesic, navigation_fields
 from sweep_core.numerics.simulator import State
 
 POSES = "poses"
@@ -52,17 +52,6 @@ def record_state(write: Callable[[str, int, bytes], None], state: State,
     ns = stamp_ns(state.t)
     for name, data in encode_state(state, frame_id).items():
         write("/" + name, ns, data)
-
-
-def navigation_fields(drift: Field) -> list[tuple[int, Geodesic]]:
-    """The navigation fields (geodesic, exits) of a drift: [(group, field)], group -1 for the
-    whole drift or a groups drift's rest, k for its group k; empty when it has none."""
-    if isinstance(drift, Geodesic):
-        return [(-1, drift)]
-    if isinstance(drift, Groups):
-        out = [(k, f) for k, f in enumerate(drift.fields) if isinstance(f, Geodesic)]
-        return out + ([(-1, drift.rest)] if isinstance(drift.rest, Geodesic) else [])
-    return []
 
 
 def navigation_epoch(field: Geodesic, t: float) -> int:

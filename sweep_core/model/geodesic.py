@@ -70,7 +70,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
-from sweep_core.model.fields import Field, grid_cell
+from sweep_core.model.fields import Field, Groups, grid_cell
 from sweep_core.model.geometry import Geometry, single_rows
 from sweep_core.model.maps import OccupancyMap
 from sweep_core.model.outlines import chain_points, points_in_polygon
@@ -219,6 +219,17 @@ class Exits(Geodesic):
     """Several exits: each agent heads for the one with the least weighted travel distance."""
 
     kind = "exits"
+
+
+def navigation_fields(drift: Field) -> list[tuple[int, Geodesic]]:
+    """The navigation fields (geodesic, exits) of a drift: [(group, field)], group -1 for the
+    whole drift or a groups drift's rest, k for its group k; empty when it has none."""
+    if isinstance(drift, Geodesic):
+        return [(-1, drift)]
+    if isinstance(drift, Groups):
+        out = [(k, f) for k, f in enumerate(drift.fields) if isinstance(f, Geodesic)]
+        return out + ([(-1, drift.rest)] if isinstance(drift.rest, Geodesic) else [])
+    return []
 
 
 def navigation_targets(spec: dict, field: str = "drift") -> list[tuple[str, Target]]:

@@ -10,6 +10,7 @@ import numpy as np
 from sweep_core import checks
 from sweep_core.errors import InfeasibleError, SceneError
 from sweep_core.model.fields import Field
+from sweep_core.model.geodesic import navigation_fields
 from sweep_core.model.geometry import gaps, single_rows
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.scene import Scene
@@ -171,9 +172,10 @@ class Simulator:
     # -- geometry ------------------------------------------------------------------------
     def set_scene(self, scene: Scene) -> None:
         """Replace the scene (its walls, obstacles and map) from the next step on, keeping the
-        time, the positions, the noise and the Brownian path, and the drift (a command's; the
-        scene's own is taken from ``scene``, so a navigation field follows the new walls); a
-        later reset returns to ``scene``'s initial positions. ``scene`` must have the same
+        time, the positions, the noise and the Brownian path, and the drift (the scene's own is
+        taken from ``scene``; a command's navigation field, geodesic or exits, is computed again
+        from its spec round the new walls; so a navigation field follows them); a later reset
+        returns to ``scene``'s initial positions. ``scene`` must have the same
         agents (count and radius law). The warm start of the projection is dropped (its rows
         belong to the old walls), so a replay that replaces the scene at the same step gets
         the same floats.
@@ -181,7 +183,9 @@ class Simulator:
         Raises:
             SceneError: other agents, or some agent at the current positions would violate a
                 wall or obstacle of ``scene`` or sit in a blocked cell of its map (the message
-                names every such agent); the simulator is then unchanged.
+                names every such agent), or a command's navigation field cannot be computed
+                round the new walls (its goal blocked or out of an agent's reach); the
+                simulator is then unchanged.
         """
         if not isinstance(scene, Scene):
             raise SceneError("scene", f"must be a sweep_core.Scene, got {type(scene).__name__}",
@@ -201,10 +205,22 @@ class Simulator:
                              f"inside the new walls, obstacles or blocked map cells (agent {bad[0]} "
                              f"at [{first[0]:g}, {first[1]:g}])",
                              "keep those agents' positions free in the new geometry")
-        if self._drift is old.drift:
+        drift = self._drift
+        if drift is old.drift:
             # the scene's own drift is in effect (no command replaced it): take the new scene's,
             # whose navigation field (geodesic, exits) was computed round the new walls
-            self._drift = scene.drift
+            drift = scene.drift
+        elif navigation_fields(drift):
+            # a command's navigation field: computed again round the new walls, from its spec
+            # and the new scene's initial positions, as a replay of the recording does
+            try:
+                drift = scene.drift_from_spec(drift.to_spec())
+            except SceneError as err:
+                raise SceneError("scene", f"the drift in effect ({drift.kind}) cannot follow "
+                                 f"the new walls: {err.field}: {err.problem}",
+                                 "send a new goal (or another drift) before the new walls, "
+                                 "or keep its goal reachable in them") from err
+        self._drift = drift
         self.scene = scene
         self.scheme.scene = scene
         self.scheme.reset()

@@ -16,6 +16,7 @@ from sweep_core.io import cdr, topics
 from sweep_core.io.metadata import STATUS_RECORD, status_metadata
 from sweep_core.io.recording.background import BackgroundRecorder
 from sweep_core.io.recording.format import qos_profiles
+from sweep_core.model.geodesic import navigation_fields
 from sweep_core.numerics import paths
 from sweep_core.numerics.simulator import Simulator
 
@@ -51,7 +52,7 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
         for name, msgtype in topics.TYPES.items():
             rec.add_channel("/" + name, msgtype)
         navigation: list[tuple | None] = []  # the key of the field last recorded, once there is one
-        if topics.navigation_fields(sim.drift):
+        if navigation_fields(sim.drift):
             rec.add_channel("/" + topics.NAVIGATION, cdr.POINT_CLOUD2,
                             offered_qos_profiles=qos_profiles(1, transient_local=True))
             navigation.append(None)
