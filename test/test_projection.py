@@ -106,13 +106,13 @@ def test_jams_are_projected_exactly(spec):
 
 
 def test_larger_jams_are_exact_on_request():
-    """A 100-agent jam is one cluster of 200 variables: above exact_vars it goes to the
+    """A 144-agent jam is one cluster of 288 variables: above exact_vars it goes to the
     interior-point backend (counted in backend_agents); raising exact_vars makes it exact."""
-    spec = hex_jam(10, 10)
+    spec = hex_jam(12, 12)
     default = list(jam_steps(spec, seed=4, steps=3, opts=sc.SolverOptions(method="clusters")))
     exact = list(jam_steps(spec, seed=4, steps=3,
                            opts=sc.SolverOptions(method="clusters", exact_vars=400)))
-    assert max(p.backend_agents for *_, p in default) == 100
+    assert max(p.backend_agents for *_, p in default) == 144
     sim = sc.Simulator(sc.Scene.from_dict(spec), dt=0.01, seed=4,
                        solver=sc.SolverOptions(method="clusters"))
     assert sim.backend_agents == 0  # before any step
