@@ -279,3 +279,17 @@ def test_deep_jam_is_certified_in_few_rounds():
         proj = sim.last.projection
         assert proj.fallback_agents == 0 and proj.bound <= sim.scheme.solver.tol
         assert proj.sweeps <= 8 * certified.SWEEPS, proj.sweeps
+
+
+def test_degenerate_cluster_of_100_agents_is_certified_by_the_exact_solver():
+    """A hexagonal jam of 100 equal disks: the rounds cannot certify its degenerate cluster
+    (200 variables), which then goes to the exact active-set solver (exact_vars 256), not to
+    the interior point, and each step is certified to the tolerance; with exact_vars 128 it
+    went to Clarabel with a bound of about 1e-5 m or more."""
+    steps = list(jam_steps(hex_jam(10, 10), seed=4, steps=6, opts=sc.SolverOptions()))
+    assert max(p.fallback_agents for *_, p in steps) == 100
+    for scene, t1, q, pred, proj in steps:
+        if proj.fallback_agents:
+            assert proj.backend_agents == 0
+        assert proj.bound <= 1e-6, proj.bound
+        assert np.max(np.abs(proj.y - reference(scene, t1, q, pred))) < 2e-6
