@@ -1,6 +1,8 @@
 """Small scene builders shared by the tests (dicts in the public scene schema)."""
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 #: a valid scene with one item of each kind, for tests that break it one key at a time
@@ -12,6 +14,26 @@ GOOD = {
     "drift": {"kind": "goal", "goal": [5, 5], "speed": 1.0},
     "noise": {"sigma": 0.1},
 }
+
+#: the value :func:`variant` takes to remove a key
+MISSING = object()
+
+
+def variant(path: str, value) -> dict:
+    """GOOD with the item at a dotted path (list items by index) replaced by value, or removed
+    when value is MISSING."""
+    d = copy.deepcopy(GOOD)
+    *keys, last = path.split(".")
+    node = d
+    for k in keys:
+        node = node[int(k)] if isinstance(node, list) else node[k]
+    if isinstance(node, list):
+        node[int(last)] = value
+    elif value is MISSING:
+        del node[last]
+    else:
+        node[last] = value
+    return d
 
 
 def hex_jam(rows: int, cols: int, radius: float = 0.24, spacing: float = 0.5,

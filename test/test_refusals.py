@@ -2,36 +2,16 @@
 numbers shown plainly (never numpy reprs such as ``np.float64(-0.1)`` or ``array(...)``)."""
 from __future__ import annotations
 
-import copy
 import math
 import re
 
 import numpy as np
 import pytest
-from scenes import GOOD
+from scenes import GOOD, MISSING, variant
 
 import sweep_core as sc
 from sweep_core import checks
 from sweep_core.errors import show
-
-_MISSING = object()
-
-
-def variant(path: str, value) -> dict:
-    """GOOD with the item at a dotted path (list items by index) replaced or removed."""
-    d = copy.deepcopy(GOOD)
-    *keys, last = path.split(".")
-    node = d
-    for k in keys:
-        node = node[int(k)] if isinstance(node, list) else node[k]
-    if isinstance(node, list):
-        node[int(last)] = value
-    elif value is _MISSING:
-        del node[last]
-    else:
-        node[last] = value
-    return d
-
 
 #: (fault, dotted path in GOOD, bad value, field named, the value as the message shows it)
 FAULTS = [
@@ -42,7 +22,7 @@ FAULTS = [
     ("radius not a number", "agents.radius", "big", "agents.radius", "'big'"),
     ("radius list of the wrong length", "agents.radius", [0.2, 0.2], "agents.radius",
      "got [0.2, 0.2]"),
-    ("missing radius", "agents.radius", _MISSING, "agents.radius", "missing"),
+    ("missing radius", "agents.radius", MISSING, "agents.radius", "missing"),
     ("NaN position", "agents.positions", [[0, 0], [math.nan, 0], [0, 1]], "agents.positions",
      "nan at index [1, 0]"),
     ("positions of 3 coordinates", "agents.positions", [[0, 0, 0]], "agents.positions",
