@@ -103,6 +103,20 @@ def _sorted_cells(q: np.ndarray, reach: float, x0: float, y0: float, ny: int
 
 
 @numba.njit(cache=True, nogil=True)
+def _first_cell(sk: np.ndarray, starts: np.ndarray, cells: int, want: int) -> int:
+    """The first of the ``cells`` runs of cell-sorted agents (run c starts at ``starts[c]``)
+    whose cell key ``sk`` is >= want (binary search; ``cells`` when there is none)."""
+    lo, hi = 0, cells
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if sk[starts[mid]] < want:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@numba.njit(cache=True, nogil=True)
 def _pairs_sorted(q: np.ndarray, reach: float, x0: float, y0: float, ny: int,
                   out_i: np.ndarray, out_j: np.ndarray) -> int:
     """Sparse crowds: agents sorted by cell key, neighbour cells found by binary search
@@ -115,13 +129,7 @@ def _pairs_sorted(q: np.ndarray, reach: float, x0: float, y0: float, ny: int,
         found = _compare(q, r2, order, a0, a1, a0, a1, True, out_i, out_j, found)
         for s in range(4):
             want = sk[a0] + _HALF_STENCIL[s, 0] * ny + _HALF_STENCIL[s, 1]
-            lo, hi = 0, cells
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if sk[starts[mid]] < want:
-                    lo = mid + 1
-                else:
-                    hi = mid
+            lo = _first_cell(sk, starts, cells, want)
             if lo < cells and sk[starts[lo]] == want:
                 found = _compare(q, r2, order, a0, a1, starts[lo], starts[lo + 1], False,
                                  out_i, out_j, found)
@@ -177,15 +185,7 @@ def _segments_sorted(q: np.ndarray, a: np.ndarray, b: np.ndarray, reach: float, 
         for cx in range(lo_x, hi_x + 1):
             base = cx * ny
             # the cells of this column in range lie in one run of sorted keys
-            want = base + lo_y
-            lo, hi = 0, cells
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if sk[starts[mid]] < want:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            c = lo
+            c = _first_cell(sk, starts, cells, base + lo_y)
             while c < cells and sk[starts[c]] <= base + hi_y:
                 for v in range(starts[c], starts[c + 1]):
                     u = order[v]
