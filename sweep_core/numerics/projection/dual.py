@@ -146,8 +146,8 @@ def _phi(x: np.ndarray, rh: np.ndarray, lam: np.ndarray) -> float:
 def face_step(x: np.ndarray, d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray,
               rh: np.ndarray, lam: np.ndarray, cg_iters: int, passes: int) -> int:
     """Up to ``passes`` face passes (:func:`face_pass`), in place on lam and x: a pass whose
-    full step would make a multiplier negative stops at the first one that reaches 0 (an
-    active-set move that drops that row, phi decreasing), and the next pass works on the
+    full step would make multipliers negative drops the rows whose multipliers its projected
+    search brings to 0 (an active-set move, phi decreasing), and the next pass works on the
     smaller face. Returns the CG iterations run."""
     total = 0
     for _ in range(passes):
