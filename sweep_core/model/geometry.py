@@ -6,6 +6,7 @@ Distances in m, positions (N, 2).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -88,7 +89,10 @@ class Geometry:
         if not self.is_moving:
             return self
         angle = self.motion_angular * t
-        cos, sin = np.cos(angle), np.sin(angle)
+        # the C library's scalar cos and sin: numpy's own SIMD kernels of them differ in the
+        # last bit between CPU generations, and a pose decides positions
+        cos = np.array([math.cos(a) for a in angle.tolist()])
+        sin = np.array([math.sin(a) for a in angle.tolist()])
 
         def move(p: np.ndarray, m: np.ndarray) -> np.ndarray:
             out = p.copy()
