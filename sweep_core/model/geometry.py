@@ -149,7 +149,11 @@ def single_values(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray
     # half-planes: g = <n, q> - (c + v t) - r
     c = geom.halfplane_offset + geom.halfplane_velocity * t
     n = np.broadcast_to(geom.halfplane_normal, (len(q),) + geom.halfplane_normal.shape)
-    out.append((q @ geom.halfplane_normal.T - c - r[:, None], n,
+    # <n, q> written out (a matrix product goes through BLAS, whose kernels round differently
+    # on different CPUs)
+    hn = geom.halfplane_normal
+    nq = q[:, 0:1] * hn[None, :, 0] + q[:, 1:2] * hn[None, :, 1]
+    out.append((nq - c - r[:, None], n,
                 np.broadcast_to(c, (len(q), len(c)))))
     # segments: g = |q - p| - r with p the closest point of [a, b]
     ab = geom.segment_b - geom.segment_a
