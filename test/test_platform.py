@@ -113,3 +113,21 @@ def test_the_platform_is_recorded_and_differences_are_named(tmp_path):
     assert any(n.startswith("recorded on cpu_flags 'sse4_2'") for n in res.notes) == \
         (recorded["cpu_flags"] != "sse4_2")
     assert "recorded on cpu 'Other CPU 9000'" in replay.format_replay(res)
+
+
+def test_warm_up_compiles_every_kernel_of_the_engine():
+    """Every numba kernel of sweep_core is in the cache once warm_up has run (the test
+    session's start runs it on a fresh clone), so no user path meets a compile after it; a
+    kernel it does not reach is named here."""
+    import importlib
+    import pkgutil
+
+    import sweep_core
+    from sweep_core.numerics import kernels
+
+    for info in pkgutil.walk_packages(sweep_core.__path__, "sweep_core."):
+        if not info.name.startswith(("sweep_core.cli", "sweep_core.bench", "sweep_core.ensemble")):
+            importlib.import_module(info.name)
+    kernels.warm_up()
+    # a kernel compiles into the cache when first called, by Python or by another kernel
+    assert len(kernels.dispatchers()) >= 20 and kernels.uncached() == []

@@ -12,6 +12,7 @@ the face step, the bridge scheme), on a small bundled jam, and reports what it c
 """
 from __future__ import annotations
 
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -45,9 +46,17 @@ class WarmUp:
 
 
 def dispatchers() -> list[CPUDispatcher]:
-    """Every compiled kernel of the engine."""
-    return [value for module in MODULES for value in vars(module).values()
-            if isinstance(value, CPUDispatcher)]
+    """Every compiled kernel of the engine: those of :data:`MODULES` and of any other
+    ``sweep_core`` module imported so far."""
+    modules = {m.__name__: m for m in MODULES}
+    modules.update((name, m) for name, m in list(sys.modules.items())
+                   if name.startswith("sweep_core.") and m is not None)
+    seen: dict[int, CPUDispatcher] = {}
+    for module in modules.values():
+        for value in list(vars(module).values()):
+            if isinstance(value, CPUDispatcher) and value.py_func.__module__ == module.__name__:
+                seen[id(value)] = value
+    return list(seen.values())
 
 
 def compiled_count() -> int:
@@ -55,14 +64,23 @@ def compiled_count() -> int:
     return sum(sum(d.stats.cache_misses.values()) for d in dispatchers())
 
 
+def uncached() -> list[str]:
+    """The kernels (module.name) with no entry in numba's on-disk cache: all of them when that
+    cannot be told (the cache is then taken to be cold)."""
+    out = []
+    for d in dispatchers():
+        try:  # numba keeps the index file's path on the dispatcher's cache (not a public API)
+            index = Path(d._cache._cache_file._index_path)  # type: ignore[attr-defined]
+        except AttributeError:  # numba's cache layout changed
+            index = None
+        if index is None or not index.is_file():
+            out.append(f"{d.py_func.__module__}.{d.py_func.__name__}")
+    return out
+
+
 def cached() -> bool:
-    """Whether every kernel has an entry in numba's on-disk cache (False also when that
-    cannot be told: the cache is then taken to be cold)."""
-    try:  # numba keeps the index file's path on the dispatcher's cache (not a public API)
-        return all(Path(d._cache._cache_file._index_path).is_file()  # type: ignore[attr-defined]
-                   for d in dispatchers())
-    except AttributeError:  # numba's cache layout changed
-        return False
+    """Whether every kernel has an entry in numba's on-disk cache."""
+    return not uncached()
 
 
 def _jam() -> Scene:
