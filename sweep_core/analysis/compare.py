@@ -13,10 +13,11 @@ from pathlib import Path
 import numpy as np
 
 from sweep_core.analysis.frames import FrameReader, progress_bar
-from sweep_core.analysis.plots import pyplot
-from sweep_core.analysis.report import jsonable, output_paths, write_table
+from sweep_core.analysis.plots import pyplot, save_figure
+from sweep_core.analysis.report import OTHER, jsonable, output_paths, write_table
 from sweep_core.analysis.run import NS, RunMeta, load_run
 from sweep_core.errors import RecordingError, SweepError
+from sweep_core.io.outputs import check_output
 
 
 @dataclass
@@ -139,11 +140,14 @@ def write_comparison(c: Comparison, plots: bool = True) -> dict[str, str]:
     pa, pb = Path(c.a), Path(c.b)
     base = pa.with_name(f"{pa.stem}_vs_{pb.stem}.mcap")
     out = output_paths(base, ".compare")
-    write_table(out["csv"], ("t_s", "max_distance_m", "mean_distance_m"), c.table)
     agents_csv = output_paths(base, ".agents")["csv"]
+    inputs = [c.a, c.b]
+    for p in (out["csv"], agents_csv) + ((out["png"],) if plots else ()):
+        check_output(p, inputs, other=OTHER)  # all checked before any is written
+    write_table(out["csv"], ("t_s", "max_distance_m", "mean_distance_m"), c.table, inputs)
     per = np.column_stack([np.arange(len(c.per_agent_sup_m)), c.per_agent_sup_m,
                            c.per_agent_t_s])
-    write_table(agents_csv, ("agent", "sup_distance_m", "t_of_sup_s"), per)
+    write_table(agents_csv, ("agent", "sup_distance_m", "t_of_sup_s"), per, inputs)
     files = {"csv": str(out["csv"]), "agents_csv": str(agents_csv)}
     if plots:
         plt = pyplot()
@@ -159,7 +163,7 @@ def write_comparison(c: Comparison, plots: bool = True) -> dict[str, str]:
         ax2.set_ylabel("sup over time (m)")
         ax2.set_title("per agent")
         fig.tight_layout()
-        fig.savefig(out["png"])
+        save_figure(fig, out["png"], inputs)
         plt.close(fig)
         files["png"] = str(out["png"])
     return files

@@ -68,7 +68,7 @@ class MapChange:
 
 def scene_with_map(scene: Scene, spec: dict) -> Scene:
     """``scene`` with its map replaced by ``spec`` (the packed form), as the node builds it."""
-    return Scene.from_dict(replace_map(scene.spec, spec))
+    return Scene.from_dict(replace_map(scene.spec, spec), files=False)
 
 
 @dataclass
@@ -198,7 +198,9 @@ def load_run(path: str | Path) -> RunMeta:
     scene = None
     if raw.get("scene"):
         try:
-            scene = Scene.from_yaml_text(raw["scene"], source="the recorded scene")
+            # a recording is data: its scene is rebuilt from what it carries, and a map it
+            # names by path is refused, never read from this machine
+            scene = Scene.from_yaml_text(raw["scene"], source="the recorded scene", files=False)
         except SweepError as err:
             problems.append(f"the recorded scene does not load: {err}")
     dt = _number(raw, "dt", float, problems)

@@ -156,23 +156,25 @@ class Scene:
 
     @classmethod
     def from_yaml_text(cls, text: str, name: str = "scene", source: str = "the scene",
-                       base: Path | None = None) -> Scene:
+                       base: Path | None = None, files: bool = True) -> Scene:
         """Parse (libyaml's loader when present) and validate a scene given as YAML text;
         ``source`` names it in errors (a file path, "the recorded scene"); base: the directory
-        a relative map path is read from."""
+        a relative map path is read from; ``files=False`` (a scene a recording carries) refuses
+        a map given as a file path instead of reading it."""
         try:
             data = load_yaml(text)
         except YAMLError as err:
             raise SceneError("scene", f"{source} is not valid YAML: {yaml_problem(err)}",
                              "correct the YAML syntax at that line") from err
-        return cls.from_dict(data if data is not None else {}, name=name, base=base)
+        return cls.from_dict(data if data is not None else {}, name=name, base=base, files=files)
 
     @classmethod
-    def from_dict(cls, data: dict, name: str = "scene", base: Path | None = None) -> Scene:
+    def from_dict(cls, data: dict, name: str = "scene", base: Path | None = None,
+                  files: bool = True) -> Scene:
         """Validate a scene dict (see the module docstring) and build the scene; base: the
         directory relative file names in it (a map) are read from (default: the working
-        directory)."""
-        return _build(data, name, base)
+        directory); ``files=False``: no file is read (a map must be in its packed form)."""
+        return _build(data, name, base, files)
 
 
 def _list(value: Any, field: str) -> list:
@@ -189,7 +191,7 @@ def _compact(values: np.ndarray, given: Any) -> float | list:
     return values.tolist() if np.ndim(given) else float(given)
 
 
-def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
+def _build(data: Any, default_name: str, base: Path | None = None, files: bool = True) -> Scene:
     checks.mapping(data, "scene", allowed=_TOP_KEYS, required={"agents"})
     spec: dict = {"name": str(data.get("name", default_name))}
     if "description" in data:
@@ -203,7 +205,7 @@ def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
         raise SceneError("constraints", f"names Python constraints {show(data['constraints'])} "
                          "that a scene file or a recording cannot rebuild",
                          "build the scene in Python and add them with Scene.with_constraints")
-    grid = map_from_spec(data["map"], "map", base) if data.get("map") is not None else None
+    grid = map_from_spec(data["map"], "map", base, files) if data.get("map") is not None else None
     geometry, walls_spec, obstacles_spec = _geometry(data, grid)
     spec["walls"], spec["obstacles"] = walls_spec, obstacles_spec
     agents = checks.mapping(data["agents"], "agents",
