@@ -7,7 +7,7 @@ per agent, over time.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +38,8 @@ class Comparison:
     truncated: list[str]
     notes: list[str]
     table: np.ndarray  # t, max over agents, mean over agents
+    #: skipped chunks and messages of either file, one line each
+    problems: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         d = {k: v for k, v in self.__dict__.items() if k != "table"}
@@ -98,6 +100,8 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
             last = d
             bar.update()
             fa, fb = next(ia, None), next(ib, None)
+    ia.close()  # type: ignore[attr-defined]  # generators: closing one fills its problems
+    ib.close()  # type: ignore[attr-defined]
     if not rows:
         raise SweepError(f"{ma.path} and {mb.path} have no recorded time in common "
                          "(fix: compare runs of the same scene whose recorded times overlap, "
@@ -113,7 +117,7 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
         sup_agent=sup_agent, final_max_m=float(last.max(initial=0.0)),
         final_mean_m=float(last.mean()) if n else 0.0, per_agent_sup_m=per.tolist(),
         per_agent_t_s=arg.tolist(), shared_path=_path_note(ma, mb), truncated=truncated,
-        notes=notes, table=table)
+        notes=notes, table=table, problems=ra.problems + rb.problems)
 
 
 def format_comparison(c: Comparison) -> str:

@@ -12,7 +12,7 @@ from dataclasses import fields as dc_fields
 from pathlib import Path
 from typing import Any
 
-from sweep_core.errors import RecordingError, SweepError
+from sweep_core.errors import RecordingError, SweepError, show
 from sweep_core.io import cdr
 from sweep_core.io.metadata import describe_status
 from sweep_core.io.recording import ChannelInfo, scan_recording
@@ -219,6 +219,12 @@ def load_run(path: str | Path) -> RunMeta:
         raise RecordingError(f"{info.path}: no geometry_msgs/msg/PoseArray topic '/poses' "
                              f"(topics: {sorted(info.channels)}) (fix: analyse a recording "
                              "made by sweep run or sweep_node)")
+    for topic in (poses, _pick_topic(info.channels, "/agents", cdr.POINT_CLOUD2, declared)):
+        encoding = info.channels[topic].message_encoding if topic in info.channels else "cdr"
+        if encoding != "cdr":
+            raise RecordingError(f"{info.path}: topic {topic} is recorded in the "
+                                 f"{show(encoding)} encoding, not cdr (fix: analyse a "
+                                 "recording made by sweep run, sweep_node or ros2 bag record)")
     agents = _pick_topic(info.channels, "/agents", cdr.POINT_CLOUD2, declared)
     resets = sorted(int(rec.get("log_time_ns", 0))
                     for _, rec in _indexed(info.metadata, "reset"))

@@ -39,7 +39,7 @@ from sweep_core.errors import SceneError, show
 from sweep_core.model.fields import DEFAULT_SPEED, Field, field_from_spec
 from sweep_core.model.geometry import Geometry, gaps
 from sweep_core.model.groups import scene_drift
-from sweep_core.model.maps import OccupancyMap, map_from_spec
+from sweep_core.model.maps import OccupancyMap, map_from_spec, read_bounded
 from sweep_core.model.outlines import chain_points
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
 from sweep_core.model.spawn import spawn
@@ -48,6 +48,9 @@ from sweep_core.model.yaml_files import YAMLError, dump_yaml, load_yaml, yaml_pr
 
 #: overlap (m) tolerated in a given initial configuration (rounding of touching disks)
 INITIAL_TOLERANCE = 1e-9
+
+#: largest scene file read (bytes); a scene of 1e5 agents is about 5 MB
+MAX_SCENE_BYTES = 256 << 20
 
 _TOP_KEYS = {"name", "description", "horizon", "agents", "walls", "obstacles", "map", "drift",
              "noise", "constraints"}
@@ -145,10 +148,8 @@ class Scene:
         """Load and validate a scene file."""
         path = Path(path)
         try:
-            text = path.read_text()
-        except OSError as err:
-            raise SceneError("scene", f"cannot read {str(path)!r}: {err.strerror}",
-                             "give the path of a scene YAML file") from err
+            text = read_bounded(path, MAX_SCENE_BYTES, "scene",
+                                "give the path of a scene YAML file").decode()
         except UnicodeDecodeError as err:
             raise SceneError("scene", f"{str(path)!r} is not UTF-8 text (byte {err.start})",
                              "give the path of a scene YAML file") from err
