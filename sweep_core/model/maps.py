@@ -235,9 +235,13 @@ def read_map_yaml(path: Path, field: str = "map.yaml") -> OccupancyMap:
     if not isinstance(meta, dict):
         raise SceneError(where, f"{str(path)!r} is not a map_server YAML file (its top level "
                          "is not a mapping of image, resolution, origin, ...)", fix)
-    meta = checks.mapping(meta, where, allowed={"image", "resolution", "origin", "negate",
-                                                "occupied_thresh", "free_thresh", "mode"},
-                          required={"image", "resolution", "origin"})
+    allowed = {"image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh",
+               "mode"}
+    unknown = [k for k in meta if k not in allowed]
+    if unknown:  # not named: the file may be anything, and errors quote none of it
+        raise SceneError(where, f"{str(path)!r} has {len(unknown)} key(s) a map_server YAML "
+                         "file does not have", f"use only the keys {sorted(allowed)}")
+    meta = checks.mapping(meta, where, allowed=allowed, required={"image", "resolution", "origin"})
     resolution = _resolution(meta["resolution"], f"{where}.resolution")
     origin = _origin(meta["origin"], f"{where}.origin")
     negate = meta.get("negate", 0)
@@ -269,6 +273,7 @@ def _yaml_where(err: YAMLError) -> str:
 def read_bounded(path: Path, limit: int, field: str, fix: str) -> bytes:
     """The bytes of ``path`` once it is known to be a regular file of at most ``limit``
     bytes (checked with stat before it is opened, and again on the open file)."""
+    data = b""
     try:
         st = os.stat(path)
         if stat.S_ISREG(st.st_mode) and st.st_size <= limit:
