@@ -28,6 +28,7 @@ setup(
         "tqdm>=4.60",
         "matplotlib>=3.7",
         "numba>=0.60",
+        "cvxopt>=1.3",
     ],
     zip_safe=True,
     maintainer="sweep_ros developers",

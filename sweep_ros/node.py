@@ -78,6 +78,7 @@ from sweep_core.model.fields import Field, Goal, Groups, field_from_spec
 from sweep_core.model.geodesic import navigation_fields
 from sweep_core.model.maps import OccupancyMap, map_from_spec, replace_map
 from sweep_core.model.scene import Scene, load_scene
+from sweep_core.numerics import kernels
 from sweep_ros import messages, msgdefs, params
 from sweep_ros.errors import StartError
 from sweep_ros.gate import StepGate
@@ -126,6 +127,10 @@ class SweepNode(Node):
         except SceneError as err:
             raise StartError([f"scene {self._p['scene'] or '(bundled default)'}: {err}"]) from err
         self._apply_sigma()
+        # every kernel a step, a goal's navigation field or a map can call, compiled (first
+        # run on this machine) or loaded now: no command waits for a compile once ready
+        self.warm_up = kernels.warm_up(self.get_logger().info)
+        self._compiled_at_start = kernels.compiled_count()
         self.frame_id: str = self._p["frame_id"]
         self._dt_ns = topics.stamp_ns(self.sim.dt)
 
@@ -211,7 +216,8 @@ class SweepNode(Node):
             f"scene {self.scene.name!r} ({self.scene.n_agents} agents), dt {self.sim.dt:g} s, "
             f"seed {self.sim.seed}, {self._p['rate_hz']:g} Hz x {self._p['steps_per_tick']} "
             f"steps, recording: {self._p['record'] or 'off'}"
-            + (f", maps from {self.sub_map.topic_name}" if self.sub_map is not None else ""))
+            + (f", maps from {self.sub_map.topic_name}" if self.sub_map is not None else "")
+            + f"; kernels ready in {self.warm_up.seconds:.1f} s; ready")
         self._step_thread = threading.Thread(target=self._step_loop, name="sweep steps",
                                              daemon=True)
         self._step_thread.start()
@@ -394,6 +400,8 @@ class SweepNode(Node):
             "projection_bound_m": sim.bound,
             "min_gap_m": sim.min_gap,
             "drift": sim.drift.kind,
+            "compile_s": self.warm_up.seconds,
+            "kernels_compiled_late": kernels.compiled_count() - self._compiled_at_start,
             **counters,
             "resets": self._resets,
             "maps_applied": self._maps_applied,

@@ -16,3 +16,14 @@ os.environ.setdefault("SWEEP_TEST_DOMAIN_BASE", str(os.getpid() % 25))
 os.environ["ROS_DOMAIN_ID"] = str(1 + 4 * int(os.environ["SWEEP_TEST_DOMAIN_BASE"]) + _index % 4)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def pytest_configure(config) -> None:
+    """Compiles the engine's kernels into the shared cache once, before the test processes
+    start (each would otherwise compile them itself at its first step: minutes on a loaded
+    2-core machine), and says so when it does."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    from sweep_core.numerics import kernels
+
+    kernels.warm_up(lambda line: print(f"sweep tests: {line}", file=sys.stderr, flush=True))

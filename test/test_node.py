@@ -34,7 +34,11 @@ from sweep_core.io import cdr, topics
 from sweep_core.io.recording import read_recording, scan_recording
 
 REPO = Path(__file__).resolve().parents[1]
-DISCOVERY_S = 10.0
+# deadlines of waits for an event (discovery, a state, a reply, motion): a waiting test
+# returns as soon as the event comes, so they only bound a failure; generous for a loaded
+# 2-core machine. No test's verdict depends on how fast the node steps.
+DISCOVERY_S = 60.0
+WAIT_S = 120.0
 DT = 0.01
 # 20 agents in open space (a far wall and obstacle only for the walls topic); a little noise
 POSITIONS = [[1.0 * (k % 5), 1.0 * (k // 5)] for k in range(20)]
@@ -121,24 +125,17 @@ def installed(tmp_path_factory):
     return exe, env
 
 
-#: steps the bundled scene and a small jam once, so every kernel is compiled and cached
-WARM_UP = """
-from sweep_core import Simulator
-from sweep_core.model.scene import Scene, load_scene
-jam = [[0.5 * c + 0.25 * (r % 2), 0.433 * r] for r in range(6) for c in range(10)]
-for scene in (load_scene(""), Scene.from_dict({
-        "agents": {"positions": jam, "radius": 0.24},
-        "drift": {"kind": "goal", "goal": [2.5, 1.1], "speed": 1.0},
-        "noise": {"sigma": 0.1}})):
-    Simulator(scene, dt=0.01, seed=0).step(5)
-"""
+#: compiles every kernel of the installed copy into its cache, as a node does before ready
+WARM_UP = "from sweep_core.numerics import kernels; kernels.warm_up()"
 
 
 class Running:
     """A sweep_node subprocess; its output goes to a log file read on failure."""
 
-    def __init__(self, installed, tmp_path: Path, overrides: dict, name: str = "run"):
+    def __init__(self, installed, tmp_path: Path, overrides: dict, name: str = "run",
+                 extra_env: dict[str, str] | None = None):
         exe, env = installed
+        env = dict(env, **(extra_env or {}))
         self.params = tmp_path / f"{name}.yaml"
         self.params.write_text(yaml.safe_dump({"/**": {"ros__parameters": overrides}}))
         self.log_path = tmp_path / f"{name}.log"
@@ -156,7 +153,7 @@ class Running:
     def alive(self) -> bool:
         return self.proc.poll() is None
 
-    def stop(self, sig: int = signal.SIGINT, timeout: float = 15.0) -> int:
+    def stop(self, sig: int = signal.SIGINT, timeout: float = 60.0) -> int:
         if self.alive():
             self.proc.send_signal(sig)
         try:
@@ -215,7 +212,7 @@ class Probe:
         client = self.node.create_client(srv_type, name)
         self.spin_until(lambda: client.service_is_ready(), DISCOVERY_S, f"service {name}", proc)
         future = client.call_async(request)
-        self.spin_until(future.done, 10.0, f"reply of {name}", proc)
+        self.spin_until(future.done, WAIT_S, f"reply of {name}", proc)
         self.node.destroy_client(client)
         return future.result()
 
@@ -302,7 +299,7 @@ def test_commands_services_parameters_and_recording(installed, probe, tmp_path):
         # 1. cmd_vel: uniform +x
         probe.cmd_vel.publish(Twist(linear=Vector3(x=1.0, y=0.0)))
         t0 = stamp(probe.agents[-1])
-        probe.spin_until(heading_is(probe, [1, 0], 1.0, t0), 10.0, "motion along +x", node)
+        probe.spin_until(heading_is(probe, [1, 0], 1.0, t0), WAIT_S, "motion along +x", node)
         # 2. goal in +y: goal-directed at the scene's speed 1.3 m/s (a geodesic field: the
         # scene has a wall and an obstacle)
         g = PointStamped()
@@ -310,12 +307,12 @@ def test_commands_services_parameters_and_recording(installed, probe, tmp_path):
         g.point.x, g.point.y = 2.0, 15.0
         probe.goal.publish(g)
         t1 = stamp(probe.agents[-1])
-        probe.spin_until(heading_is(probe, [0, 1], 1.3, t1), 10.0, "motion towards the goal",
+        probe.spin_until(heading_is(probe, [0, 1], 1.3, t1), WAIT_S, "motion towards the goal",
                          node)
         # 3. a valid grid: uniform -x at 0.8 m/s over the whole scene (clamped outside)
         probe.field.publish(grid_cloud([-50.0, 0.0, 50.0], [-50.0, 50.0], -0.8, 0.0))
         t2 = stamp(probe.agents[-1])
-        probe.spin_until(heading_is(probe, [-1, 0], 0.8, t2), 10.0, "motion along the grid",
+        probe.spin_until(heading_is(probe, [-1, 0], 0.8, t2), WAIT_S, "motion along the grid",
                          node)
 
         # 4. malformed commands: refused, node alive, engine untouched
@@ -338,13 +335,13 @@ def test_commands_services_parameters_and_recording(installed, probe, tmp_path):
                          (probe.field, irregular), (probe.field, nan_grid)]:
             pub.publish(msg)
             probe.spin_for(0.05)
-        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "8", 10.0,
+        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "8", WAIT_S,
                          "diagnostics counting 8 refused commands", node)
         assert diag_value(probe, "commands_applied") == "3"
         assert diag_value(probe, "commands_received") == "11"
         assert diag_value(probe, "drift") == "grid"
         t3 = stamp(probe.agents[-1])
-        probe.spin_until(heading_is(probe, [-1, 0], 0.8, t3), 5.0, "grid motion still", node)
+        probe.spin_until(heading_is(probe, [-1, 0], 0.8, t3), WAIT_S, "grid motion still", node)
         assert "command refused" in node.log
 
         # 5. live parameters: rate_hz changes, dt is refused with a reason
@@ -362,7 +359,7 @@ def test_commands_services_parameters_and_recording(installed, probe, tmp_path):
         res = probe.call(SetParameters, "/sweep_node/set_parameters", set_params, node)
         assert res.results[0].successful, res.results[0].reason
         probe.spin_until(lambda: 1.8 < float(diag_value(probe, "real_time_factor") or 0) < 2.2,
-                         8.0, "real-time factor 2 in diagnostics", node)
+                         WAIT_S, "real-time factor 2 in diagnostics", node)
 
         # 6. pause, then exactly one step
         assert probe.call(SetBool, "/pause", SetBool.Request(data=True), node).success
@@ -371,13 +368,13 @@ def test_commands_services_parameters_and_recording(installed, probe, tmp_path):
         k = round(last / (DT * 1e9))
         res = probe.call(Trigger, "/step", Trigger.Request(), node)
         assert res.success, res.message
-        probe.spin_until(lambda: len(probe.poses) > n_before, 5.0, "the stepped state", node)
+        probe.spin_until(lambda: len(probe.poses) > n_before, WAIT_S, "the stepped state", node)
         probe.spin_for(0.5)
         assert [stamp(m) for m in probe.poses[n_before:]] == [topics.stamp_ns((k + 1) * DT)]
         # 7. reset: initial poses again (while paused), at t = 0
         n_before = len(probe.poses)
         assert probe.call(Trigger, "/reset", Trigger.Request(), node).success
-        probe.spin_until(lambda: len(probe.poses) > n_before, 5.0, "the reset state", node)
+        probe.spin_until(lambda: len(probe.poses) > n_before, WAIT_S, "the reset state", node)
         again = probe.poses[-1]
         assert stamp(again) == 0
         got = np.array([[p.position.x, p.position.y] for p in again.poses])
@@ -385,7 +382,7 @@ def test_commands_services_parameters_and_recording(installed, probe, tmp_path):
         # stepping is refused once running again
         assert probe.call(SetBool, "/pause", SetBool.Request(data=False), node).success
         assert not probe.call(Trigger, "/step", Trigger.Request(), node).success
-        probe.spin_until(lambda: stamp(probe.poses[-1]) > 0, 5.0, "running after reset", node)
+        probe.spin_until(lambda: stamp(probe.poses[-1]) > 0, WAIT_S, "running after reset", node)
         assert node.alive()
     finally:
         code = node.stop(signal.SIGINT)
@@ -455,7 +452,7 @@ def test_sigkill_leaves_readable_recording(installed, probe, tmp_path):
         "rate_hz": 20.0, "steps_per_tick": 1, "record": str(record),
         "record_flush_interval_s": 0.1, "publish_markers": False})
     try:
-        probe.spin_until(lambda: len(probe.poses) >= 15, DISCOVERY_S + 5, "15 states", node)
+        probe.spin_until(lambda: len(probe.poses) >= 15, WAIT_S, "15 states", node)
         received = len(probe.poses)
         probe.spin_for(0.3)  # at least one flush after those
     finally:
@@ -495,7 +492,7 @@ def test_infeasible_step_pauses_and_reports(installed, probe, tmp_path):
         probe.spin_for(0.3)
         assert all(stamp(m) <= last_ok for m in probe.poses)
         assert probe.call(Trigger, "/reset", Trigger.Request(), node).success
-        probe.spin_until(lambda: stamp(probe.poses[-1]) == 0, 5.0, "the reset state", node)
+        probe.spin_until(lambda: stamp(probe.poses[-1]) == 0, WAIT_S, "the reset state", node)
         assert node.alive()
     finally:
         code = node.stop(signal.SIGINT)
@@ -569,7 +566,7 @@ def test_signal_closes_recording_with_status(installed, probe, tmp_path, sig):
     node = Running(installed, tmp_path, {"rate_hz": 20.0, "steps_per_tick": 1,
                                          "record": str(record), "publish_markers": False})
     try:
-        probe.spin_until(lambda: len(probe.poses) >= 10, DISCOVERY_S + 5, "10 states", node)
+        probe.spin_until(lambda: len(probe.poses) >= 10, WAIT_S, "10 states", node)
     finally:
         code = node.stop(sig)
     assert code == 0, node.log
@@ -608,14 +605,14 @@ def test_command_burst_latest_wins_and_counted(installed, probe, tmp_path):
                 if probe.diagnostics else {}
             return (d.get("commands_pending") == "0" and d.get("commands_lost", "x").isdigit()
                     and int(d["commands_received"]) + int(d["commands_lost"]) == n and d)
-        d = probe.spin_until(settled, 15.0, f"diagnostics accounting for {n} commands", node)
+        d = probe.spin_until(settled, WAIT_S, f"diagnostics accounting for {n} commands", node)
         received, applied = int(d["commands_received"]), int(d["commands_applied"])
         superseded, refused = int(d["commands_superseded"]), int(d["commands_refused"])
         assert received == applied + superseded + refused, d
         assert d["commands_published"] == str(n), d
         assert applied >= 1 and superseded >= 1 and refused <= len(bad), d
         assert 0.0 <= float(d["command_latency_last_ms"]) <= float(d["command_latency_max_ms"])
-        probe.spin_until(heading_is(probe, last, 1.0, t0), 10.0, "motion along the last command",
+        probe.spin_until(heading_is(probe, last, 1.0, t0), WAIT_S, "motion along the last command",
                          node)
     finally:
         code = node.stop(signal.SIGTERM)
@@ -632,7 +629,7 @@ def test_command_burst_latest_wins_and_counted(installed, probe, tmp_path):
 
 
 def _timed_call(probe: Probe, srv_type, name: str, request, proc: Running,
-                timeout: float = 10.0):
+                timeout: float = WAIT_S):
     """(response, seconds from the request to the reply), the service discovered first."""
     client = probe.node.create_client(srv_type, name)
     probe.spin_until(lambda: client.service_is_ready(), DISCOVERY_S, f"service {name}", proc)
@@ -662,13 +659,12 @@ def test_pause_answers_between_steps_of_a_long_tick(installed, probe, tmp_path):
         probe.spin_for(1.5)
         res, latency = _timed_call(probe, SetBool, "/pause", SetBool.Request(data=True), node)
         assert res.success, res.message
-        assert latency < 1.0, f"pause took {latency:.2f} s"
         k = int(res.message.split("at step ")[1].split(",")[0])
-        assert k > 0, res.message
+        # inside the first tick (steps 1 to 10000), not after it: it answered between steps
+        assert 0 < k < 10000, res.message
         # the tick publishes the state it stopped at, and nothing after it
         probe.spin_until(lambda: probe.poses and stamp(probe.poses[-1]) == topics.stamp_ns(
-            k * DT), 5.0,
-                         f"the state of step {k}", node)
+            k * DT), WAIT_S, f"the state of step {k}", node)
         probe.spin_for(1.0)
         assert stamp(probe.poses[-1]) == topics.stamp_ns(k * DT)
         res, latency = _timed_call(probe, Trigger, "/step", Trigger.Request(), node)
@@ -677,8 +673,11 @@ def test_pause_answers_between_steps_of_a_long_tick(installed, probe, tmp_path):
         assert probe.call(SetBool, "/pause", SetBool.Request(data=False), node).success
         probe.spin_for(1.0)
         res, latency = _timed_call(probe, Trigger, "/reset", Trigger.Request(), node)
-        assert res.success and latency < 1.0, (res.message, latency)
-        probe.spin_until(lambda: stamp(probe.poses[-1]) == 0, 5.0, "the reset state", node)
+        assert res.success, res.message
+        # inside the tick that began at step k + 1 (10000 steps), between two of its steps
+        was = int(res.message.split("(was step ")[1].split(",")[0])
+        assert k + 1 <= was < k + 1 + 10000, res.message
+        probe.spin_until(lambda: stamp(probe.poses[-1]) == 0, WAIT_S, "the reset state", node)
     finally:
         code = node.stop(signal.SIGTERM)
     assert code == 0, node.log
@@ -711,12 +710,12 @@ def test_client_module_commands_a_running_node(installed, probe, tmp_path):
         assert done.returncode == 0 and "/cmd_vel" in done.stdout, done
         assert client("resume").returncode == 0
         t0 = stamp(probe.agents[-1])
-        probe.spin_until(heading_is(probe, [0.6, -0.8], 1.0, t0), 10.0, "motion along cmd-vel",
+        probe.spin_until(heading_is(probe, [0.6, -0.8], 1.0, t0), WAIT_S, "motion along cmd-vel",
                          node)
         done = client("goal", "2.0", "15.0")
         assert done.returncode == 0 and "/goal" in done.stdout, done
         t1 = stamp(probe.agents[-1])
-        probe.spin_until(heading_is(probe, [0, 1], 1.3, t1), 10.0, "motion towards the goal",
+        probe.spin_until(heading_is(probe, [0, 1], 1.3, t1), WAIT_S, "motion towards the goal",
                          node)
         done = client("status")
         assert done.returncode == 0 and "commands_applied: 2" in done.stdout, done
@@ -807,7 +806,7 @@ def test_map_topic_walls_refusal_and_replay(installed, probe, tmp_path):
         def map_pieces():
             last = walls[-1] if walls else None
             return last and [m for m in last.markers if m.ns == "map"]
-        pieces = probe.spin_until(map_pieces, 5.0, "walls markers of the map", node)
+        pieces = probe.spin_until(map_pieces, WAIT_S, "walls markers of the map", node)
         a, b = grid_of(narrow).segments()
         got = sorted((m.pose.position.x, m.pose.position.y) for m in pieces)
         want = sorted(map(tuple, ((a + b) / 2).tolist()))
@@ -816,9 +815,9 @@ def test_map_topic_walls_refusal_and_replay(installed, probe, tmp_path):
         probe.cmd_vel.publish(Twist(linear=Vector3(x=1.0)))  # into the east wall at x = 4.5
         probe.spin_for(4.0)
         map_pub.publish(wide)
-        probe.spin_until(lambda: diag_value(probe, "maps_applied") == "2", 10.0,
+        probe.spin_until(lambda: diag_value(probe, "maps_applied") == "2", WAIT_S,
                          "the wider map applied", node)
-        probe.spin_until(lambda: max(p.position.x for p in probe.poses[-1].poses) > 5.0, 10.0,
+        probe.spin_until(lambda: max(p.position.x for p in probe.poses[-1].poses) > 5.0, WAIT_S,
                          "the crowd beyond the old wall", node)
         a, b = grid_of(wide).segments()
         assert len(walls[-1].markers) == 1 + 1 + len(a)  # DELETEALL, the scene's wall, map
@@ -827,20 +826,24 @@ def test_map_topic_walls_refusal_and_replay(installed, probe, tmp_path):
         assert np.allclose(got, sorted(map(tuple, ((a + b) / 2).tolist())), atol=1e-9)
         probe.spin_for(3.0)
         map_pub.publish(narrow)  # now cuts the agents piled at x ~ 6.35: refused
-        probe.spin_until(lambda: diag_value(probe, "map_refused") == "1", 10.0,
+        probe.spin_until(lambda: diag_value(probe, "map_refused") == "1", WAIT_S,
                          "the narrow map refused", node)
         assert diag_value(probe, "maps_applied") == "2"
         assert "map refused" in probe.diagnostics[-1].status[0].message
         n, t_refused = len(probe.poses), stamp(probe.poses[-1])
-        probe.spin_until(lambda: len(probe.poses) > n + 10, 5.0, "the run going on", node)
+        probe.spin_until(lambda: len(probe.poses) > n + 10, WAIT_S, "the run going on", node)
         assert stamp(probe.poses[-1]) > t_refused and node.alive()
         # free where the agents are now, but not where a reset puts them: refused too
         map_pub.publish(room_grid(6, origin=(5.0, -1.0)))
-        probe.spin_until(lambda: diag_value(probe, "map_refused") == "2", 10.0,
+        probe.spin_until(lambda: diag_value(probe, "map_refused") == "2", WAIT_S,
                          "the map without the start refused", node)
         # reset: back to the start, the wide map kept; then the run goes on
+        n = len(probe.poses)
         assert probe.call(Trigger, "/reset", Trigger.Request(), node).success
-        probe.spin_until(lambda: stamp(probe.poses[-1]) > topics.stamp_ns(2.0), 10.0,
+        # the states published since the reset call: from t = 0 on (the last one before the
+        # reset may be later than 2 s already)
+        since = lambda: [stamp(p) for p in probe.poses[n:]]  # noqa: E731
+        probe.spin_until(lambda: 0 in since() and since()[-1] > topics.stamp_ns(2.0), WAIT_S,
                          "2 s after the reset", node)
         assert len(walls[-1].markers) == 1 + len(a)  # the wide map's walls, republished
     finally:
@@ -969,17 +972,17 @@ def test_goal_builds_a_geodesic_field_round_the_wall(installed, probe, tmp_path)
 
         # refused: a goal on the wall, a goal outside the room; the field stays
         probe.goal.publish(goal(5.0, 2.0))
-        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "1", 10.0,
+        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "1", WAIT_S,
                          "the goal on the wall refused", node)
         probe.spin_for(2.1)  # refusals are logged at most every 2 s
         probe.goal.publish(goal(12.0, 3.0))
-        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "2", 10.0,
+        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "2", WAIT_S,
                          "two goals refused", node)
         assert diag_value(probe, "commands_applied") == "1"
         assert diag_value(probe, "drift") == "geodesic" and len(clouds) == 1
         # a drift without a navigation field: an empty cloud clears it
         probe.cmd_vel.publish(Twist(linear=Vector3(x=-0.5)))
-        probe.spin_until(lambda: len(clouds) == 2, 10.0, "the empty navigation_field", node)
+        probe.spin_until(lambda: len(clouds) == 2, WAIT_S, "the empty navigation_field", node)
         assert clouds[-1].width * clouds[-1].height == 0
     finally:
         code = node.stop(signal.SIGINT)
@@ -1069,7 +1072,7 @@ def test_group_goals_replace_only_their_group(installed, probe, tmp_path):
             "sweep_client: error: no group 'c': the node takes goals for the groups a, b "
             "(fix: --group one of them)"]
         goal_b.publish(goal(12.0, 3.0))
-        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "1", 10.0,
+        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "1", WAIT_S,
                          "the unreachable goal of group b refused", node)
         # goals for both groups stack
         goal_b.publish(goal(8.0, 5.0))
@@ -1090,7 +1093,7 @@ def test_group_goals_replace_only_their_group(installed, probe, tmp_path):
         assert done.returncode == 0, done
         probe.spin_until(lambda: len(clouds) >= 4, 20.0, "group a's field over the whole", node)
         assert set(cloud_columns(clouds[-1])["group"].tolist()) == {-1.0, 0.0, 1.0}
-        probe.spin_until(lambda: diag_value(probe, "commands_applied") == "4", 10.0,
+        probe.spin_until(lambda: diag_value(probe, "commands_applied") == "4", WAIT_S,
                          "four goals applied", node)
         probe.spin_for(1.0)
     finally:
@@ -1131,11 +1134,46 @@ def test_goal_stays_straight_without_walls(installed, probe, tmp_path):
         g.point.x, g.point.y = 100.0, 2.0
         probe.goal.publish(g)
         t0 = stamp(probe.agents[-1])
-        probe.spin_until(heading_is(probe, [1, 0], 0.9, t0), 10.0, "motion towards the goal",
+        probe.spin_until(heading_is(probe, [1, 0], 0.9, t0), WAIT_S, "motion towards the goal",
                          node)
-        probe.spin_until(lambda: diag_value(probe, "commands_applied") == "1", 5.0,
+        probe.spin_until(lambda: diag_value(probe, "commands_applied") == "1", WAIT_S,
                          "the goal applied", node)
         assert diag_value(probe, "drift") == "goal" and clouds == []
+    finally:
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
+
+
+def test_first_goal_on_a_cold_cache_compiles_nothing_after_ready(installed, probe, tmp_path):
+    """A node on a machine whose kernel cache is empty compiles its kernels before it is
+    ready (said in its log, timed in its diagnostics): its first goal, a geodesic field round
+    a wall (kernels the steps themselves never call), is applied with no compile after ready
+    (before: the first goal waited seconds for them)."""
+    scene_path = tmp_path / "gap.yaml"
+    scene_path.write_text(yaml.safe_dump(GAP_SCENE))
+    node = Running(installed, tmp_path, {
+        "scene": str(scene_path), "dt": DT, "seed": 3, "rate_hz": 50.0, "steps_per_tick": 5},
+        extra_env={"NUMBA_CACHE_DIR": str(tmp_path / "empty_cache")})
+    try:
+        # the compile comes before the node subscribes: minutes on a loaded machine
+        probe.spin_until(lambda: probe.goal.get_subscription_count() > 0, 900.0,
+                         "sweep_node ready", node)
+        probe.connect(node)
+        assert "compiling kernels, first run on this machine" in node.log, node.log
+        g = PointStamped()
+        g.point.x, g.point.y = 8.0, 1.0
+        probe.goal.publish(g)
+        probe.spin_until(lambda: diag_value(probe, "commands_applied") == "1", WAIT_S,
+                         "the goal applied", node)
+        assert float(diag_value(probe, "compile_s")) > 0.0
+        assert diag_value(probe, "kernels_compiled_late") == "0", probe.diagnostics[-1]
+        # a goal in the wall, refused, compiles nothing either
+        g.point.x, g.point.y = 5.0, 0.5
+        probe.goal.publish(g)
+        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "1", WAIT_S,
+                         "the goal in the wall refused", node)
+        assert diag_value(probe, "kernels_compiled_late") == "0", probe.diagnostics[-1]
+        print(f"first goal: command_latency_last_ms {diag_value(probe, 'command_latency_last_ms')}")
     finally:
         code = node.stop(signal.SIGINT)
     assert code == 0, node.log

@@ -10,11 +10,16 @@ rebuilt from the recorded packed map at its step, kept over later resets, as the
 and compares the raw float64 centres of every recorded
 ``/poses`` message with the simulator's, bit for bit. Steps that were not recorded (``sweep run
 --record-every K``, node ticks of several steps) are simulated but not compared. The same
-numpy / scipy / solver versions give the same floats; the recorded versions are checked and a
-difference is reported.
+versions of the libraries in :data:`~sweep_core.io.versions.SHAPING` give the same floats on any
+x86-64 CPU (nothing that decides positions takes a CPU-dependent code path); the recorded
+versions and platform are checked and differences are reported. After a first difference the
+replay goes on along its own path to the end of the recording and reports how far it departs:
+the largest distance from the recorded poses and the first step where it exceeds
+:data:`DEPARTURE_M`.
 """
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,12 +31,12 @@ from sweep_core.analysis.frames import FrameReader, GapFinder, progress_bar
 from sweep_core.analysis.report import jsonable
 from sweep_core.analysis.run import MapChange, RunMeta, load_run, require_replayable, scene_with_map
 from sweep_core.errors import InfeasibleError, RecordingError, SweepError
-from sweep_core.io.versions import versions
+from sweep_core.io.versions import SHAPING, platform_record, versions
 from sweep_core.numerics import paths
 from sweep_core.numerics.simulator import Simulator
 
-#: versions whose difference can change the floats of a run
-_SHAPING = ("numpy", "scipy", "proxsuite", "clarabel")
+#: a departure from the recorded poses (m) above the rounding of float64 positions
+DEPARTURE_M = 1e-9
 #: attempts at one step that keeps failing (the node retries a failed step after a resume,
 #: drawing new increments each time)
 MAX_ATTEMPTS = 100
@@ -51,6 +56,13 @@ class Divergence:
     agents_differing: int
     max_distance_m: float
     reason: str = "positions differ"
+    #: over the frames from this one to the last one replayed: the largest distance of an
+    #: agent from its recorded pose (m), and the first step (time, s) where it exceeds
+    #: DEPARTURE_M (None: it never does)
+    departure_max_m: float = 0.0
+    departure_step: int | None = None
+    departure_t_s: float | None = None
+    frames_after: int = 0
 
 
 @dataclass
@@ -88,12 +100,27 @@ def version_notes(meta: RunMeta) -> list[str]:
     """Differences between the recorded versions and these that can change floats."""
     now = versions()
     out = []
-    for name in _SHAPING:
+    for name in SHAPING:
         rec = meta.versions.get(name)
         if rec is not None and rec != now.get(name):
             out.append(f"{name} {now.get(name)} here, {rec} in the recording: bit identity is "
                        "only guaranteed with the recorded versions")
     return out
+
+
+def platform_notes(meta: RunMeta) -> list[str]:
+    """Differences between the platform the recording was made on and this one (positions
+    are the same on any x86-64 CPU with the same versions; another architecture or operating
+    system may round differently)."""
+    try:
+        rec = json.loads(meta.raw.get("platform") or "{}")
+    except ValueError:
+        return ["the recording's platform record is not JSON"]
+    if not isinstance(rec, dict) or not rec:
+        return []
+    here = platform_record()
+    return [f"recorded on {key} {rec.get(key)!r}, replayed on {here[key]!r}"
+            for key in here if key in rec and rec[key] != here[key]]
 
 
 def make_simulator(meta: RunMeta) -> Simulator:
@@ -191,6 +218,14 @@ class _Replayer:
             self.simulated += 1
 
 
+def _depart(div: Divergence, step: int, t: float, distance: float) -> None:
+    """Counts one frame at or after the first divergence, ``distance`` (m) from its pose."""
+    div.frames_after += 1
+    div.departure_max_m = max(div.departure_max_m, distance)
+    if div.departure_step is None and distance > DEPARTURE_M:
+        div.departure_step, div.departure_t_s = step, t
+
+
 def _bits_equal(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Per agent: both coordinates have the same float64 bits."""
     a = np.ascontiguousarray(a, dtype=np.float64).view(np.uint64)
@@ -207,7 +242,7 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
     meta = load_run(path)
     rep = _Replayer(meta)
     reader, finder = FrameReader(meta, agents=False), GapFinder(meta.record_every)
-    notes = version_notes(meta)
+    notes = version_notes(meta) + platform_notes(meta)
     compared, last_step, last_t = 0, 0, 0.0
     div: Divergence | None = None
     bar = progress_bar(meta.frames or None, "frame", progress)
@@ -221,15 +256,20 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
             try:
                 rep.advance_to(seg, step)
             except SweepError as err:
-                q = fr.positions
-                div = Divergence(step, t, seg, -1, [], [], math.inf, len(q), math.inf,
-                                 f"the replay cannot reach this step: {err}")
-                break
+                if div is None:
+                    q = fr.positions
+                    div = Divergence(step, t, seg, -1, [], [], math.inf, len(q), math.inf,
+                                     f"the replay cannot reach this step: {err}")
+                break  # a replay departed already ends here on its own path
             q, mine = fr.positions, rep.sim.positions
             if q.shape != mine.shape:
-                div = Divergence(step, t, seg, -1, [], [], math.inf, len(q), math.inf,
-                                 f"{len(q)} poses recorded, {len(mine)} agents replayed")
+                if div is None:
+                    div = Divergence(step, t, seg, -1, [], [], math.inf, len(q), math.inf,
+                                     f"{len(q)} poses recorded, {len(mine)} agents replayed")
                 break
+            if div is not None:  # departed already: how far, along the replay's own path
+                _depart(div, step, t, float(np.hypot(*(q - mine).T).max()))
+                continue
             same = _bits_equal(q, mine)
             if not same.all():
                 bad = np.nonzero(~same)[0]
@@ -237,7 +277,8 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
                 i = int(bad[0])
                 div = Divergence(step, t, seg, i, q[i].tolist(), mine[i].tolist(),
                                  float(dist[i]), int(len(bad)), float(dist.max()))
-                break
+                _depart(div, step, t, div.max_distance_m)
+                continue
             compared += 1
             last_step, last_t = step, t
     if reader.truncated is None:  # stopped early at a divergence: the file was not read out
@@ -285,6 +326,11 @@ def format_replay(res: ReplayResult) -> str:
                      f"segment {d.segment}), first agent {d.agent}: recorded "
                      f"{d.recorded}, replayed {d.replayed} ({d.distance_m:.3g} m); "
                      f"{d.agents_differing} agents differ, at most by {d.max_distance_m:.3g} m")
+        over = ("never beyond 1e-9 m" if d.departure_step is None else
+                f"beyond {DEPARTURE_M:g} m from step {d.departure_step} "
+                f"(t = {d.departure_t_s:.6g} s)")
+        lines.append(f"departure          over {d.frames_after} frames from there: at most "
+                     f"{d.departure_max_m:.3g} m, {over}")
     lines += [f"not compared       {g[3]} states between the recorded steps {g[1]} and {g[2]}"
               + (f" of segment {g[0]}" if g[0] else "") + " (missing from the file)"
               for g in res.gaps[:5]]

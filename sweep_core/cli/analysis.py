@@ -10,11 +10,19 @@ import sys
 
 from sweep_core.analysis import compare, metrics, replay, report
 from sweep_core.io.recording.recover import hint
+from sweep_core.numerics import kernels
 
 __all__ = ["register"]
 
 
+def _kernels() -> None:
+    """Compiles (first run on this machine, said on stderr) or loads the engine's kernels
+    before the progress bar starts."""
+    kernels.warm_up(lambda line: print(f"sweep: {line}", file=sys.stderr))
+
+
 def _analyze(args: argparse.Namespace) -> int:
+    _kernels()
     line = metrics.parse_line(args.line) if args.line else None
     an = metrics.analyze(args.recording, line=line, arrive_radius=args.arrive_radius,
                           cell=args.cell, progress=not args.quiet)
@@ -35,6 +43,7 @@ def _analyze(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
+    _kernels()
     res = replay.replay(args.recording, progress=not args.quiet)
     for line in res.problems:
         print(line, file=sys.stderr)

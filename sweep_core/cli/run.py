@@ -22,7 +22,7 @@ from sweep_core.io.metadata import run_metadata
 from sweep_core.io.outputs import check_output, write_text
 from sweep_core.io.recording.runs import record_run
 from sweep_core.model.scene import Scene, load_scene
-from sweep_core.numerics import paths
+from sweep_core.numerics import kernels, paths
 from sweep_core.numerics.projection import SolverOptions
 from sweep_core.numerics.projection.options import METHODS
 from sweep_core.numerics.schemes import SCHEMES
@@ -94,6 +94,9 @@ def _run(args: argparse.Namespace) -> int:
     stats = {"min_gap": math.inf, "active_rows_max": 0, "active_rows_sum": 0, "steps": 0,
              "backend_agents_max": 0, "bound_max_m": 0.0}
 
+    # compiling (first run on this machine) or loading the kernels, said and timed apart
+    warm = kernels.warm_up(lambda line: print(f"sweep: {line}", file=sys.stderr))
+    stats["compile_s"] = warm.seconds
     meta = run_metadata(scene, sim, t_end, args.record_every)
     meta["path_dt"] = repr(args.path_dt) if args.path_dt else ""
 
@@ -152,7 +155,8 @@ def _write_summary(summary_path: Path, out: Path, scene: Scene, sim: Simulator,
     summary = {
         "status": status, "error": error,
         "scene": scene.name, "agents": scene.n_agents, "t_end_s": sim.t, "dt_s": sim.dt,
-        "seed": sim.seed, "scheme": sim.scheme.name, "steps": steps, "wall_time_s": wall,
+        "seed": sim.seed, "scheme": sim.scheme.name, "steps": steps,
+        "compile_s": stats["compile_s"], "wall_time_s": wall,
         "steps_per_s": steps / wall if wall > 0 else None,
         "ms_per_step": 1e3 * wall / steps if steps else 0.0,
         "min_gap_m": _finite(stats["min_gap"] if steps else sim.min_gap),

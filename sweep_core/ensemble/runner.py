@@ -24,6 +24,7 @@ from sweep_core.ensemble.task import RECORD, Task, simulate
 from sweep_core.errors import SceneError
 from sweep_core.io.outputs import write_text
 from sweep_core.model.scene import DEFAULT_SCENE, Scene, copy_spec, load_scene
+from sweep_core.numerics import kernels
 from sweep_core.numerics.schemes import SCHEMES
 
 #: columns first in the table, in this order (grid keys follow "point")
@@ -169,7 +170,11 @@ def _run(base: Scene, spec: dict, points: list, keys: list[str], out_dir: Path |
             tasks[name].marker = str(marker)
     try:
         if todo:
+            # compiled here once (first run on this machine) into the cache the workers of a
+            # local cluster share, then loaded by every worker before its first run
+            kernels.warm_up(say)
             with cluster.connect(client, scheduler, workers, say) as cl:
+                cl.run(kernels.warm_up)
                 _execute(cl, [(name, tasks[name]) for name in todo], rows, out_dir, progress)
     finally:
         if marker is not None:

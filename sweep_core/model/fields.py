@@ -87,7 +87,10 @@ class Linear(Field):
     kind = "linear"
 
     def __call__(self, t: float, q: np.ndarray) -> np.ndarray:
-        return q @ self.matrix.T + self.offset
+        # written out, not through BLAS (whose kernels round differently on different CPUs)
+        m = self.matrix
+        return np.stack([q[:, 0] * m[0, 0] + q[:, 1] * m[0, 1],
+                         q[:, 0] * m[1, 0] + q[:, 1] * m[1, 1]], axis=1) + self.offset
 
     def to_spec(self) -> dict:
         return {"kind": self.kind, "matrix": self.matrix.tolist(), "offset": self.offset.tolist()}

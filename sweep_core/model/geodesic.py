@@ -508,7 +508,7 @@ def _visible(geometry: Geometry, a: np.ndarray, b: np.ndarray, chunk: int = 256)
     half-plane (the end b may touch one)."""
     ok = np.ones(len(a), dtype=bool)
     for n, c0 in zip(geometry.halfplane_normal, geometry.halfplane_offset):
-        ok &= b @ n - c0 >= -1e-12
+        ok &= b[:, 0] * n[0] + b[:, 1] * n[1] - c0 >= -1e-12  # not BLAS: CPU-independent
     if len(geometry.circle_radius):
         ab = b - a
         rel = geometry.circle_center[None] - a[:, None]

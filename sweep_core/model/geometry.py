@@ -6,6 +6,7 @@ Distances in m, positions (N, 2).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -88,7 +89,10 @@ class Geometry:
         if not self.is_moving:
             return self
         angle = self.motion_angular * t
-        cos, sin = np.cos(angle), np.sin(angle)
+        # the C library's scalar cos and sin: numpy's own SIMD kernels of them differ in the
+        # last bit between CPU generations, and a pose decides positions
+        cos = np.array([math.cos(a) for a in angle.tolist()])
+        sin = np.array([math.sin(a) for a in angle.tolist()])
 
         def move(p: np.ndarray, m: np.ndarray) -> np.ndarray:
             out = p.copy()
@@ -145,7 +149,11 @@ def single_values(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray
     # half-planes: g = <n, q> - (c + v t) - r
     c = geom.halfplane_offset + geom.halfplane_velocity * t
     n = np.broadcast_to(geom.halfplane_normal, (len(q),) + geom.halfplane_normal.shape)
-    out.append((q @ geom.halfplane_normal.T - c - r[:, None], n,
+    # <n, q> written out (a matrix product goes through BLAS, whose kernels round differently
+    # on different CPUs)
+    hn = geom.halfplane_normal
+    nq = q[:, 0:1] * hn[None, :, 0] + q[:, 1:2] * hn[None, :, 1]
+    out.append((nq - c - r[:, None], n,
                 np.broadcast_to(c, (len(q), len(c)))))
     # segments: g = |q - p| - r with p the closest point of [a, b]
     ab = geom.segment_b - geom.segment_a

@@ -54,6 +54,7 @@ import math
 import struct
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from sweep_core.errors import InfeasibleError, SceneError
@@ -174,7 +175,7 @@ class BridgeReflection(ProjectedEuler):
                 out = pred.copy()
             aa, bb, vv = a[agent, item], b[agent, item], var[agent, 0]
             u = 1.0 - rng.random(len(agent))  # (0, 1]
-            m = 0.5 * (aa + bb - np.sqrt((aa - bb) ** 2 - 2.0 * vv * np.log(u)))
+            m = 0.5 * (aa + bb - np.sqrt((aa - bb) ** 2 - 2.0 * vv * log_each(u)))
             push = np.maximum(-m, 0.0)
             np.add.at(out, agent, push[:, None] * nrm[agent, item])
         return out
@@ -260,3 +261,14 @@ def adaptive(tolerance: float, max_depth: int = 5) -> type[AdaptiveSubstep]:
 #: registry of schemes by name
 SCHEMES: dict[str, type[Scheme]] = {
     cls.name: cls for cls in (ProjectedEuler, BridgeReflection, AdaptiveSubstep)}
+
+
+@numba.njit(cache=True, nogil=True)
+def log_each(u: np.ndarray) -> np.ndarray:
+    """log(u) of each entry (K,), through the C library's scalar log: numpy's SIMD log differs
+    in the last bit between CPU generations (AVX-512 has its own kernel), and it decides
+    positions here."""
+    out = np.empty_like(u)
+    for k in range(u.shape[0]):
+        out[k] = math.log(u[k])
+    return out

@@ -328,3 +328,13 @@ def cluster_certificates(x: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.n
         if s < low[c]:
             low[c] = s
     return comp, low, total
+
+
+@numba.njit(cache=True, nogil=True)
+def dot(a: np.ndarray, b: np.ndarray) -> float:
+    """sum_k a_k b_k of two (K,) vectors, added in index order: the same bits on every CPU
+    (BLAS's ddot splits the sum by the vector width the CPU offers)."""
+    s = 0.0
+    for k in range(a.shape[0]):
+        s += a[k] * b[k]
+    return s

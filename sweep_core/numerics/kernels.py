@@ -1,0 +1,138 @@
+"""The compiled kernels, compiled (or loaded from numba's cache) before the first step.
+
+numba compiles a kernel at its first call and keeps the machine code on disk (``cache=True``:
+``__pycache__`` beside the module, or numba's user cache directory where the package is
+read-only; ``NUMBA_CACHE_DIR`` moves it), one entry per CPU model, which every entry point
+(``sweep run``, ``sweep_node``, ``sweep analyze``, an ensemble's workers) shares. Compiling
+them all takes 10 to 40 s on two cores, once per machine; loading them from the cache takes a
+fraction of a second. :func:`warm_up` makes that moment a known one, before anything is timed
+or published: it calls every kernel through the code paths a simulation takes (both
+neighbour searches, segment walls and obstacles, a geodesic field, the certified rounds and
+the face step, the bridge scheme), on a small bundled jam, and reports what it compiled.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+from numba.core.registry import CPUDispatcher
+
+from sweep_core.model import neighbours
+from sweep_core.model.scene import Scene
+from sweep_core.numerics import schemes
+from sweep_core.numerics.projection import dual
+from sweep_core.numerics.simulator import Simulator
+
+#: the modules that hold compiled kernels
+MODULES: tuple[ModuleType, ...] = (neighbours, dual, schemes)
+
+#: the message shown while kernels compile
+COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
+
+
+@dataclass(frozen=True)
+class WarmUp:
+    """What :func:`warm_up` did: ``seconds`` (s) it took, ``compiled`` kernel signatures it
+    compiled (0: all came from the cache)."""
+
+    seconds: float
+    compiled: int
+
+
+def dispatchers() -> list[CPUDispatcher]:
+    """Every compiled kernel of the engine."""
+    return [value for module in MODULES for value in vars(module).values()
+            if isinstance(value, CPUDispatcher)]
+
+
+def compiled_count() -> int:
+    """Kernel signatures compiled in this process so far (not loaded from the cache)."""
+    return sum(sum(d.stats.cache_misses.values()) for d in dispatchers())
+
+
+def cached() -> bool:
+    """Whether every kernel has an entry in numba's on-disk cache (False also when that
+    cannot be told: the cache is then taken to be cold)."""
+    try:  # numba keeps the index file's path on the dispatcher's cache (not a public API)
+        return all(Path(d._cache._cache_file._index_path).is_file()  # type: ignore[attr-defined]
+                   for d in dispatchers())
+    except AttributeError:  # numba's cache layout changed
+        return False
+
+
+def _jam() -> Scene:
+    """40 disks of two radii pressed into a 1.2 m door in a room of segment walls, with a
+    circle and a polygon obstacle, a geodesic drift and noise."""
+    pos = [[0.6 + 0.5 * (k % 8) + 0.25 * ((k // 8) % 2), 0.6 + 0.45 * (k // 8)]
+           for k in range(40)]
+    return Scene.from_dict({
+        "name": "warm_up",
+        "agents": {"positions": pos, "radius": [0.2 + 0.02 * (k % 3) for k in range(40)]},
+        "walls": [{"kind": "polyline", "points": [[5.4, 2.4], [5.4, 3.2], [0, 3.2],
+                                                  [0, 0], [5.4, 0], [5.4, 1.2]]},
+                  {"kind": "halfplane", "normal": [0.0, 1.0], "offset": -1.0}],
+        "obstacles": [{"kind": "circle", "center": [4.7, 2.7], "radius": 0.2},
+                      {"kind": "polygon", "points": [[4.6, 0.3], [5.0, 0.3], [4.8, 0.6]]}],
+        "drift": {"kind": "geodesic", "goal": [7.0, 1.8], "speed": 1.5},
+        "noise": {"sigma": 0.1},
+    })
+
+
+def _exercise() -> None:
+    """Every kernel, through the paths a simulation takes."""
+    scene = _jam()
+    for scheme in ("projected_euler", "bridge"):
+        Simulator(scene, dt=0.02, seed=0, scheme=scheme).step(12)
+    # neighbour searches on a crowd spread wide enough for the sorted cell lists
+    rng = np.random.default_rng(0)
+    far = rng.uniform(0.0, 400.0, (64, 2))
+    neighbours.pairs_within(far, 1.0)
+    neighbours.segments_within(far, far[:3], far[3:6], 1.0)
+    neighbours.segments_within(far[:4], far[:3], far[3:6], 1.0)
+    # kernels a small jam may not reach (the factored face step's products, the bridge's
+    # logarithm of a wall contact), called with the types their callers pass
+    v = np.ones(3)
+    dual.dot(v, v)
+    schemes.log_each(v)
+    one = np.zeros(1, dtype=np.int64)
+    dual.slacks(np.zeros((2, 2)), one, one - 1, np.ones((1, 2)), np.zeros(1))
+
+
+def warm_up(notify: Callable[[str], None] | None = None) -> WarmUp:
+    """Compiles every kernel of the engine, or loads it from the cache.
+
+    ``notify`` (e.g. ``print`` to stderr, a logger) hears :data:`COMPILING` at once when the
+    cache is cold, or after a second when loading is taking that long (a cache made on
+    another CPU), and then one line with the time; nothing when the cache was warm.
+    """
+    start = time.perf_counter()
+    before = compiled_count()
+    said = threading.Event()
+    timer = None
+    if notify is not None:
+        if not cached():
+            said.set()
+            notify(COMPILING)
+        else:
+            def late() -> None:
+                said.set()
+                notify(COMPILING)
+            timer = threading.Timer(1.0, late)
+            timer.daemon = True
+            timer.start()
+    try:
+        _exercise()
+    finally:
+        if timer is not None:
+            timer.cancel()
+    done = WarmUp(time.perf_counter() - start, compiled_count() - before)
+    if notify is not None and (said.is_set() or done.compiled):
+        notify(f"kernels ready: {done.compiled} compiled in {done.seconds:.1f} s"
+               if done.compiled else f"kernels loaded from the cache in {done.seconds:.1f} s")
+    return done
+
