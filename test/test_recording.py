@@ -296,7 +296,7 @@ def test_errors(tmp_path):
         Recorder(tmp_path / "c.mcap", chunk_size=0)
     with pytest.raises(RecordingError, match="metadata"):
         Recorder(tmp_path / "c.mcap", metadata={"a": 1.0})
-    with pytest.raises(OutputError, match="dir.mcap: cannot be created"):
+    with pytest.raises(OutputError, match="dir.mcap: cannot be created for writing"):
         Recorder(tmp_path / "no" / "dir.mcap")
     if os.path.exists("/dev/full"):  # a device is never written to, nor replaced
         with pytest.raises(OutputError, match="/dev/full: exists and is a character device"):

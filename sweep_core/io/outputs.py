@@ -85,8 +85,9 @@ def _open_regular(path: str, other: str) -> int:
     try:
         fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NONBLOCK | os.O_CLOEXEC, 0o666)
     except OSError as err:
-        raise OutputError(path, f"cannot be created ({err.strerror})",
-                          f"{other} in a writable folder") from None
+        raise OutputError(path, f"cannot be {'opened' if os.path.exists(path) else 'created'} "
+                          f"for writing ({err.strerror})", f"{other} in a writable folder") \
+            from None
     mode = os.fstat(fd).st_mode
     if not stat.S_ISREG(mode):
         os.close(fd)

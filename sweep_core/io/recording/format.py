@@ -142,5 +142,8 @@ def describe_stop(err: Exception, f: IO[bytes]) -> str:
         where = f" near byte {pos} of {size}"
     except (OSError, ValueError):
         where = ""
-    detail = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
+    text = str(err)
+    # the reader's own words only: a message that quotes the file's bytes is not shown
+    quotes = "b'" in text or 'b"' in text or "\\x" in text
+    detail = f"{type(err).__name__}: {text}" if text and not quotes else type(err).__name__
     return f"incomplete record{where} ({detail})"
