@@ -6,6 +6,7 @@ value (shown plainly, see :func:`sweep_core.errors.show`) and the fix.
 from __future__ import annotations
 
 import math
+import stat
 from typing import Any
 
 import numpy as np
@@ -119,3 +120,17 @@ def kind(value: dict, field: str, kinds: Any, default: str | None = None) -> str
         raise SceneError(f"{field}.kind", f"unknown kind {show(k)}",
                          f"use one of {sorted(kinds)}")
     return str(k)
+
+
+#: what a file of each kind is called in messages
+_FILE_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISCHR, "a character device"),
+               (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+               (stat.S_ISSOCK, "a socket"), (stat.S_ISREG, "a regular file"))
+
+
+def file_kind(mode: int) -> str:
+    """What an ``st_mode`` is, for messages: 'a folder', 'a FIFO (named pipe)', ..."""
+    for test, name in _FILE_KINDS:
+        if test(mode):
+            return name
+    return "not a regular file"

@@ -99,3 +99,20 @@ class InfeasibleError(SweepError):
 
 class RecordingError(SweepError):
     """An MCAP recording could not be written or read."""
+
+
+class OutputError(SweepError):
+    """An output file cannot be written safely: it is one of the inputs, it is not a regular
+    file (a folder, a device, a FIFO), another run is writing it, or the writing failed.
+
+    Attributes:
+        path: the output path.
+        problem: what is wrong.
+        fix: what to do instead.
+    """
+
+    def __init__(self, path: str, problem: str, fix: str) -> None:
+        self.path = path
+        self.problem = problem
+        self.fix = fix
+        super().__init__(f"{path}: {problem} (fix: {fix})")

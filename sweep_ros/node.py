@@ -274,9 +274,13 @@ class SweepNode(Node):
                         "after a reset log times go on from the last one (records reset_*)",
         })
         try:
+            scene_file = os.path.expanduser(self._p["scene"]) if self._p["scene"] else None
+            map_file = (self.scene.spec.get("map") or {}).get("source")
             self.recorder = BackgroundRecorder(
                 os.path.expanduser(self._p["record"]), metadata=meta,
-                flush_interval_s=self._p["record_flush_interval_s"])
+                flush_interval_s=self._p["record_flush_interval_s"],
+                inputs=[scene_file, map_file if map_file and os.path.isfile(map_file) else None],
+                other="-p record:=OTHER.mcap", on_error=self._recording_failed)
             for topic, msgtype in names.items():
                 definition = None if msgtype in cdr.SCHEMAS else msgdefs.definition(msgtype)
                 qos = qos_profiles(1, True) if topic in latched else qos_profiles(10)
@@ -285,6 +289,12 @@ class SweepNode(Node):
             if self.recorder is not None:
                 self.recorder.close()
             raise StartError([f"parameter record: {err}"]) from err
+
+    def _recording_failed(self, message: str) -> None:
+        """Called once, on the writer thread, when the recording stops (disk full, ...): logged
+        at once; the simulation, its topics and services go on, unrecorded."""
+        self.get_logger().error(f"recording stopped: {message}; the simulation goes on "
+                                "without recording")
 
     def _apply_sigma(self) -> None:
         sigma = self._p["noise_sigma"]
@@ -799,6 +809,4 @@ class SweepNode(Node):
                 **status_metadata(status, steps=self.sim.n_steps, t=self.sim.t, error=reason),
                 "log_time_ns": str(self._last_log_ns),
                 "simulation_error": self.failure or ""})
-            self.recorder.close()
-            if self.recorder.error:
-                self.get_logger().error(f"recording: {self.recorder.error}")
+            self.recorder.close()  # an error is logged once, when it happens (on_error)

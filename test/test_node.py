@@ -1178,3 +1178,54 @@ def test_first_goal_on_a_cold_cache_compiles_nothing_after_ready(installed, prob
         code = node.stop(signal.SIGINT)
     assert code == 0, node.log
 
+
+def test_record_may_not_be_the_scene(installed, tmp_path):
+    """Before: `sweep_node -p scene:=victim.yaml -p record:=victim.yaml` started and turned
+    the scene into a recording."""
+    victim = tmp_path / "victim.yaml"
+    victim.write_text(yaml.safe_dump(SCENE))
+    before = victim.read_bytes()
+    node = Running(installed, tmp_path, {"scene": str(victim), "record": str(victim)})
+    try:
+        code = node.proc.wait(timeout=60)
+    finally:
+        node.stop(signal.SIGKILL)
+    assert code == 2, node.log
+    assert f"parameter record: {victim}: is also an input" in node.log, node.log
+    assert "record:=OTHER.mcap" in node.log and "Traceback" not in node.log
+    assert victim.read_bytes() == before
+
+
+def test_a_full_disk_is_logged_at_once_and_once(installed, tmp_path):
+    """Before: a node recording onto a full disk said nothing in its log until shutdown."""
+    small = tmp_path / "small"
+    small.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=512k", "tmpfs", str(small)],
+                      capture_output=True).returncode != 0:
+        pytest.skip("cannot mount a small tmpfs here")
+    try:
+        fd = os.open(small / "filler", os.O_WRONLY | os.O_CREAT)
+        try:  # leave about 64 KiB: the metadata fits, a few seconds of messages do not
+            os.write(fd, b"\0" * (512 - 64) * 1024)
+        finally:
+            os.close(fd)
+        scene_path = tmp_path / "scene.yaml"
+        scene_path.write_text(yaml.safe_dump(SCENE))
+        node = Running(installed, tmp_path, {
+            "scene": str(scene_path), "dt": DT, "rate_hz": 50.0, "steps_per_tick": 1,
+            "record": str(small / "run.mcap"), "record_flush_interval_s": 0.2})
+        try:
+            deadline = time.monotonic() + 120
+            while "recording stopped" not in node.log:
+                assert node.alive() and time.monotonic() < deadline, node.log
+                time.sleep(0.1)
+            time.sleep(1.0)
+            assert node.alive(), node.log  # the simulation goes on
+        finally:
+            code = node.stop(signal.SIGINT)
+        log = node.log
+        assert code == 0, log
+        assert log.count("No space left on device") == 1, log
+        assert "[ERROR]" in log.split("recording stopped")[0].splitlines()[-1], log
+    finally:
+        subprocess.run(["umount", "-l", str(small)], check=False)

@@ -7,16 +7,17 @@ per agent, over time.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from sweep_core.analysis.frames import FrameReader, progress_bar
-from sweep_core.analysis.plots import pyplot
-from sweep_core.analysis.report import jsonable, output_paths, write_table
+from sweep_core.analysis.plots import pyplot, save_figure
+from sweep_core.analysis.report import OTHER, jsonable, output_paths, write_table
 from sweep_core.analysis.run import NS, RunMeta, load_run
 from sweep_core.errors import RecordingError, SweepError
+from sweep_core.io.outputs import check_output
 
 
 @dataclass
@@ -37,6 +38,8 @@ class Comparison:
     truncated: list[str]
     notes: list[str]
     table: np.ndarray  # t, max over agents, mean over agents
+    #: skipped chunks and messages of either file, one line each
+    problems: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         d = {k: v for k, v in self.__dict__.items() if k != "table"}
@@ -97,6 +100,8 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
             last = d
             bar.update()
             fa, fb = next(ia, None), next(ib, None)
+    ia.close()  # type: ignore[attr-defined]  # generators: closing one fills its problems
+    ib.close()  # type: ignore[attr-defined]
     if not rows:
         raise SweepError(f"{ma.path} and {mb.path} have no recorded time in common "
                          "(fix: compare runs of the same scene whose recorded times overlap, "
@@ -112,7 +117,7 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
         sup_agent=sup_agent, final_max_m=float(last.max(initial=0.0)),
         final_mean_m=float(last.mean()) if n else 0.0, per_agent_sup_m=per.tolist(),
         per_agent_t_s=arg.tolist(), shared_path=_path_note(ma, mb), truncated=truncated,
-        notes=notes, table=table)
+        notes=notes, table=table, problems=ra.problems + rb.problems)
 
 
 def format_comparison(c: Comparison) -> str:
@@ -139,11 +144,14 @@ def write_comparison(c: Comparison, plots: bool = True) -> dict[str, str]:
     pa, pb = Path(c.a), Path(c.b)
     base = pa.with_name(f"{pa.stem}_vs_{pb.stem}.mcap")
     out = output_paths(base, ".compare")
-    write_table(out["csv"], ("t_s", "max_distance_m", "mean_distance_m"), c.table)
     agents_csv = output_paths(base, ".agents")["csv"]
+    inputs = [c.a, c.b]
+    for p in (out["csv"], agents_csv) + ((out["png"],) if plots else ()):
+        check_output(p, inputs, other=OTHER)  # all checked before any is written
+    write_table(out["csv"], ("t_s", "max_distance_m", "mean_distance_m"), c.table, inputs)
     per = np.column_stack([np.arange(len(c.per_agent_sup_m)), c.per_agent_sup_m,
                            c.per_agent_t_s])
-    write_table(agents_csv, ("agent", "sup_distance_m", "t_of_sup_s"), per)
+    write_table(agents_csv, ("agent", "sup_distance_m", "t_of_sup_s"), per, inputs)
     files = {"csv": str(out["csv"]), "agents_csv": str(agents_csv)}
     if plots:
         plt = pyplot()
@@ -159,7 +167,7 @@ def write_comparison(c: Comparison, plots: bool = True) -> dict[str, str]:
         ax2.set_ylabel("sup over time (m)")
         ax2.set_title("per agent")
         fig.tight_layout()
-        fig.savefig(out["png"])
+        save_figure(fig, out["png"], inputs)
         plt.close(fig)
         files["png"] = str(out["png"])
     return files

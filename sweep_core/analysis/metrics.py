@@ -19,11 +19,6 @@ Precision of each metric:
 Time is the log time of the messages (equal to simulation time for ``sweep run``; the node
 keeps it increasing over resets). A file cut short (SIGKILL) is read up to its last complete
 chunk and reported as truncated.
-
-Longer than 400 lines because the metrics are computed in one pass over the frames by one
-accumulator (each frame is decoded once however many metrics read it), and the definitions
-of the metrics (minimum gap, touching, reaction, speeds, flow, arrivals, density with its
-grid bound) are what the README's table cites.
 """
 from __future__ import annotations
 
@@ -35,7 +30,9 @@ from typing import Any
 import numpy as np
 
 from sweep_core.analysis.arrivals import ArrivalTracker, start_exits, stats, time_for
-from sweep_core.analysis.frames import Frame, FrameReader, progress_bar
+from sweep_core.analysis.density import MAX_CELLS as MAX_CELLS  # re-exported for the CLI
+from sweep_core.analysis.density import Hist2D
+from sweep_core.analysis.frames import Frame, FrameReader, GapFinder, progress_bar
 from sweep_core.analysis.run import NS, RunMeta, Schedule, load_run, scene_with_map
 from sweep_core.errors import RecordingError, SweepError
 from sweep_core.model.geometry import Geometry, gaps
@@ -44,9 +41,6 @@ from sweep_core.model.geometry import Geometry, gaps
 CONTACT_TOL = 1e-6
 #: width of the speed histogram bins (m/s); speed quantiles are exact to half of it
 SPEED_BIN = 1e-3
-#: most cells of the density map (``--cell``): 4e6 cells are 32 MB of counts, a 2000 x 2000 grid
-MAX_CELLS = 4_000_000
-
 
 def parse_line(text: str) -> tuple[float, float, float, float]:
     """``x0,y0,x1,y1`` -> 4 floats (a segment of non-zero length)."""
@@ -88,74 +82,6 @@ def line_crossings(p0: np.ndarray, p1: np.ndarray, line: tuple[float, float, flo
     return out
 
 
-def _cells(lo: float, hi: float, cell: float) -> int:
-    """Cells of side ``cell`` spanned along one axis by points in [lo, hi] (m)."""
-    return math.floor(hi / cell) - math.floor(lo / cell) + 1
-
-
-class _Hist2D:
-    """Counts of points per square cell, on a grid that grows as needed up to MAX_CELLS.
-
-    A grid that would grow beyond MAX_CELLS stops counting but keeps the extent of the points;
-    :meth:`check` then refuses it, naming the smallest cell that fits the whole run.
-    """
-
-    def __init__(self, cell: float) -> None:
-        self.cell = cell
-        self.counts = np.zeros((0, 0), dtype=np.int64)
-        self.ix0 = self.iy0 = 0
-        self.lo = np.array([math.inf, math.inf])
-        self.hi = -self.lo
-        self.too_fine = False
-
-    def add(self, q: np.ndarray) -> None:
-        if not len(q):
-            return
-        self.lo = np.minimum(self.lo, q.min(axis=0))
-        self.hi = np.maximum(self.hi, q.max(axis=0))
-        if self.too_fine:
-            return
-        ix = np.floor(q[:, 0] / self.cell).astype(np.int64)
-        iy = np.floor(q[:, 1] / self.cell).astype(np.int64)
-        h, w = self.counts.shape
-        if self.counts.size == 0:
-            self.ix0, self.iy0 = int(ix.min()), int(iy.min())
-        lo_x, lo_y = min(self.ix0, int(ix.min())), min(self.iy0, int(iy.min()))
-        hi_x, hi_y = max(self.ix0 + w, int(ix.max()) + 1), max(self.iy0 + h, int(iy.max()) + 1)
-        if (lo_x, lo_y, hi_x - lo_x, hi_y - lo_y) != (self.ix0, self.iy0, w, h):
-            if (hi_x - lo_x) * (hi_y - lo_y) > MAX_CELLS:
-                self.too_fine = True
-                self.counts = np.zeros((0, 0), dtype=np.int64)
-                return
-            grown = np.zeros((hi_y - lo_y, hi_x - lo_x), dtype=np.int64)
-            grown[self.iy0 - lo_y:self.iy0 - lo_y + h, self.ix0 - lo_x:self.ix0 - lo_x + w] = \
-                self.counts
-            self.counts, self.ix0, self.iy0 = grown, lo_x, lo_y
-        np.add.at(self.counts, (iy - self.iy0, ix - self.ix0), 1)
-
-    def _fits(self, cell: float) -> bool:
-        (x0, y0), (x1, y1) = self.lo, self.hi
-        return _cells(x0, x1, cell) * _cells(y0, y1, cell) <= MAX_CELLS
-
-    def check(self) -> None:
-        """Raises SweepError if the grid needed more than MAX_CELLS cells (see the class)."""
-        if not self.too_fine:
-            return
-        (x0, y0), (x1, y1) = self.lo, self.hi
-        nx, ny = _cells(x0, x1, self.cell), _cells(y0, y1, self.cell)
-        c = max(math.sqrt((x1 - x0) * (y1 - y0) / MAX_CELLS), self.cell)
-        while not self._fits(c):
-            c *= 1.01
-        # shown with 2 significant digits, rounded up to a cell that fits
-        shown = float(f"{c:.2g}")
-        while shown < c or not self._fits(shown):
-            shown = float(f"{shown + 10.0 ** (math.floor(math.log10(shown)) - 1):.2g}")
-        raise SweepError(f"--cell: {self.cell:g} m makes a density grid of {nx} x {ny} = "
-                         f"{nx * ny:.3g} cells over the {x1 - x0:.3g} x {y1 - y0:.3g} m the "
-                         f"agents cover, more than the limit {MAX_CELLS:g} "
-                         f"(fix: --cell {shown:g} or larger)")
-
-
 @dataclass
 class Analysis:
     """Result of :func:`analyze`: ``summary`` (JSON-ready), ``table`` (one row per frame,
@@ -178,6 +104,8 @@ class Analysis:
     #: the exit each agent reached (its label, see :mod:`sweep_core.analysis.arrivals`), or
     #: None (not arrived, or not under an exits drift)
     arrival_exit: list[str | None] = field(default_factory=list)
+    #: one line per skipped chunk or message and per gap (also in the summary as counts)
+    problems: list[str] = field(default_factory=list)
 
 
 def _quantile(hist: np.ndarray, p: float) -> float | None:
@@ -207,7 +135,7 @@ class _Metrics:
         self.geometry = meta.scene.geometry if meta.scene is not None else _empty_geometry()
         self.rows: list[tuple] = []
         self.hist = np.zeros(0, dtype=np.int64)
-        self.density = _Hist2D(cell)
+        self.density = Hist2D(cell)
         self.n: int | None = None
         self.t0 = 0
         self.worst: tuple[float, float, str] | None = None  # (gap, t, between)
@@ -448,9 +376,15 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
                          f"got {arrive_radius!r}")
     meta = load_run(path)
     metrics = _Metrics(meta, line, arrive_radius, float(cell))
-    reader = FrameReader(meta)
+    reader, finder = FrameReader(meta), GapFinder(meta.record_every)
     with progress_bar(meta.frames or None, "frame", progress) as bar:
         for fr in reader:
             metrics.add(fr)
+            finder.add(fr, meta.segment_of(fr.log_ns), int(metrics.rows[-1][1]))
             bar.update()
-    return metrics.result(reader)
+    an = metrics.result(reader)
+    # states the file lacks (gaps) or holds unreadably (skipped), each listed on stderr
+    an.summary["gaps"] = finder.to_dict()
+    an.summary["skipped_messages"] = reader.bad
+    an.problems = reader.problems + finder.lines(meta.path)
+    return an

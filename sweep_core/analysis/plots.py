@@ -9,6 +9,7 @@ import numpy as np
 
 from sweep_core.analysis.metrics import SPEED_BIN, Analysis
 from sweep_core.errors import SweepError
+from sweep_core.io.outputs import replacing
 from sweep_core.model.fields import Field, Groups
 from sweep_core.model.geodesic import Geodesic, navigation_fields
 from sweep_core.model.scene import Scene
@@ -145,5 +146,12 @@ def plot_analysis(an: Analysis, png: Path) -> None:
     ax.set_aspect("equal")
     ax.set_title(("density" if travel else "density (time average)") + travel)
     fig.tight_layout()
-    fig.savefig(png)
+    save_figure(fig, png, [an.meta.path])
     plt.close(fig)
+
+
+def save_figure(fig: Any, png: str | Path, inputs: list[str]) -> None:
+    """Saves ``fig`` as PNG to ``png`` through a temporary file renamed over it
+    (:func:`sweep_core.io.outputs.replacing`); ``png`` may be none of ``inputs``."""
+    with replacing(png, inputs, other="write beside another recording") as tmp:
+        fig.savefig(tmp, format="png")

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from sweep_core.analysis.frames import FrameReader, progress_bar
+from sweep_core.analysis.frames import FrameReader, GapFinder, progress_bar
 from sweep_core.analysis.report import jsonable
 from sweep_core.analysis.run import MapChange, RunMeta, load_run, require_replayable, scene_with_map
 from sweep_core.errors import InfeasibleError, RecordingError, SweepError
@@ -81,6 +81,14 @@ class ReplayResult:
     notes: list[str] = field(default_factory=list)
     #: recorded maps (``map_*``) the replay rebuilt the walls with
     maps_applied: int = 0
+    #: /poses messages missing from the file (their steps were not compared), see ``gaps``
+    missing_messages: int = 0
+    #: [segment, after_step, before_step, missing] of each gap
+    gaps: list[list[int]] = field(default_factory=list)
+    #: messages skipped because they cannot be decoded (their steps were not compared)
+    skipped_messages: int = 0
+    #: one line per skipped chunk or message and per gap
+    problems: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         d = dict(self.__dict__)
@@ -233,7 +241,7 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
     """
     meta = load_run(path)
     rep = _Replayer(meta)
-    reader = FrameReader(meta, agents=False)
+    reader, finder = FrameReader(meta, agents=False), GapFinder(meta.record_every)
     notes = version_notes(meta) + platform_notes(meta)
     compared, last_step, last_t = 0, 0, 0.0
     div: Divergence | None = None
@@ -244,6 +252,7 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
             seg = meta.segment_of(fr.log_ns)
             step = meta.step_of(fr.stamp_ns)
             t = step * meta.dt
+            finder.add(fr, seg, step)
             try:
                 rep.advance_to(seg, step)
             except SweepError as err:
@@ -286,7 +295,9 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
         steps_simulated=rep.simulated, last_step=last_step, last_t_s=last_t,
         segments=len(meta.resets) + 1, commands_applied=rep.applied,
         truncated=bool(reader.truncated), read_until=reader.error if reader.truncated else None,
-        divergence=div, notes=notes, maps_applied=rep.maps_applied)
+        divergence=div, notes=notes, maps_applied=rep.maps_applied,
+        missing_messages=finder.missing, gaps=(finder.to_dict() or {}).get("gaps", []),
+        skipped_messages=reader.bad, problems=reader.problems + finder.lines(meta.path))
 
 
 def format_replay(res: ReplayResult) -> str:
@@ -300,7 +311,12 @@ def format_replay(res: ReplayResult) -> str:
                  f"{res.commands_applied} command(s) applied"
                  + (f", {res.maps_applied} map(s)" if res.maps_applied else ""))
     d = res.divergence
-    if d is None:
+    unread = res.missing_messages + res.skipped_messages
+    if d is None and unread:
+        lines.append(f"result             IDENTICAL on the {res.frames_compared} frames read; "
+                     f"{unread} recorded states were not compared ({res.missing_messages} "
+                     f"missing from the file, {res.skipped_messages} unreadable)")
+    elif d is None:
         lines.append("result             IDENTICAL: every recorded pose reproduced bit for bit")
     elif d.agent < 0:
         lines.append(f"result             DIVERGED at step {d.step} (t = {d.t_s:.6g} s, "
@@ -315,5 +331,10 @@ def format_replay(res: ReplayResult) -> str:
                 f"(t = {d.departure_t_s:.6g} s)")
         lines.append(f"departure          over {d.frames_after} frames from there: at most "
                      f"{d.departure_max_m:.3g} m, {over}")
+    lines += [f"not compared       {g[3]} states between the recorded steps {g[1]} and {g[2]}"
+              + (f" of segment {g[0]}" if g[0] else "") + " (missing from the file)"
+              for g in res.gaps[:5]]
+    if len(res.gaps) > 5:
+        lines.append(f"not compared       {len(res.gaps) - 5} more gaps")
     lines += [f"note               {n}" for n in res.notes]
     return "\n".join(lines)

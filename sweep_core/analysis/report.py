@@ -12,6 +12,7 @@ import numpy as np
 
 from sweep_core.analysis.metrics import Analysis
 from sweep_core.analysis.plots import plot_analysis
+from sweep_core.io.outputs import check_output, replacing
 
 
 def output_paths(recording: str | Path, suffix: str) -> dict[str, Path]:
@@ -27,8 +28,15 @@ def _fmt(x: float) -> str:
     return repr(float(x))
 
 
-def write_table(path: Path, header: tuple[str, ...] | list[str], rows: np.ndarray) -> None:
-    with open(path, "w", newline="") as f:
+#: the fix an analysis output error names (its outputs are named after the recording)
+OTHER = "copy the recording to a writable folder and analyse the copy"
+
+
+def write_table(path: Path, header: tuple[str, ...] | list[str], rows: np.ndarray,
+                inputs: list[str] | None = None) -> None:
+    """A CSV table, written to a temporary file renamed over ``path`` (never one of
+    ``inputs``; an error leaves no partial file)."""
+    with replacing(path, inputs or [], other=OTHER) as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)
         for row in rows:
@@ -39,12 +47,15 @@ def write_outputs(an: Analysis, plots: bool = True) -> dict[str, str]:
     """``RUN.analysis.csv`` (per frame), ``RUN.density.csv`` (x, y of each cell centre,
     agents/m^2), ``RUN.analysis.png``; returns their paths."""
     out = output_paths(an.meta.path, ".analysis")
-    write_table(out["csv"], Analysis.COLUMNS, an.table)
     dens_path = output_paths(an.meta.path, ".density")["csv"]
+    inputs = [an.meta.path]
+    for p in (out["csv"], dens_path) + ((out["png"],) if plots else ()):
+        check_output(p, inputs, other=OTHER)  # all checked before any is written
+    write_table(out["csv"], Analysis.COLUMNS, an.table, inputs)
     iy, ix = np.nonzero(an.density)
     cells = np.column_stack([an.density_origin[0] + (ix + 0.5) * an.cell,
                              an.density_origin[1] + (iy + 0.5) * an.cell, an.density[iy, ix]])
-    write_table(dens_path, ("x_m", "y_m", "agents_per_m2"), cells)
+    write_table(dens_path, ("x_m", "y_m", "agents_per_m2"), cells, inputs)
     files = {"csv": str(out["csv"]), "density_csv": str(dens_path)}
     if plots:
         plot_analysis(an, out["png"])

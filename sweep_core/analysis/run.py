@@ -12,7 +12,7 @@ from dataclasses import fields as dc_fields
 from pathlib import Path
 from typing import Any
 
-from sweep_core.errors import RecordingError, SweepError
+from sweep_core.errors import RecordingError, SweepError, show
 from sweep_core.io import cdr
 from sweep_core.io.metadata import describe_status
 from sweep_core.io.recording import ChannelInfo, scan_recording
@@ -68,7 +68,7 @@ class MapChange:
 
 def scene_with_map(scene: Scene, spec: dict) -> Scene:
     """``scene`` with its map replaced by ``spec`` (the packed form), as the node builds it."""
-    return Scene.from_dict(replace_map(scene.spec, spec))
+    return Scene.from_dict(replace_map(scene.spec, spec), files=False)
 
 
 @dataclass
@@ -198,7 +198,9 @@ def load_run(path: str | Path) -> RunMeta:
     scene = None
     if raw.get("scene"):
         try:
-            scene = Scene.from_yaml_text(raw["scene"], source="the recorded scene")
+            # a recording is data: its scene is rebuilt from what it carries, and a map it
+            # names by path is refused, never read from this machine
+            scene = Scene.from_yaml_text(raw["scene"], source="the recorded scene", files=False)
         except SweepError as err:
             problems.append(f"the recorded scene does not load: {err}")
     dt = _number(raw, "dt", float, problems)
@@ -217,6 +219,12 @@ def load_run(path: str | Path) -> RunMeta:
         raise RecordingError(f"{info.path}: no geometry_msgs/msg/PoseArray topic '/poses' "
                              f"(topics: {sorted(info.channels)}) (fix: analyse a recording "
                              "made by sweep run or sweep_node)")
+    for topic in (poses, _pick_topic(info.channels, "/agents", cdr.POINT_CLOUD2, declared)):
+        encoding = info.channels[topic].message_encoding if topic in info.channels else "cdr"
+        if encoding != "cdr":
+            raise RecordingError(f"{info.path}: topic {topic} is recorded in the "
+                                 f"{show(encoding)} encoding, not cdr (fix: analyse a "
+                                 "recording made by sweep run, sweep_node or ros2 bag record)")
     agents = _pick_topic(info.channels, "/agents", cdr.POINT_CLOUD2, declared)
     resets = sorted(int(rec.get("log_time_ns", 0))
                     for _, rec in _indexed(info.metadata, "reset"))

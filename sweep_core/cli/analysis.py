@@ -26,6 +26,8 @@ def _analyze(args: argparse.Namespace) -> int:
     line = metrics.parse_line(args.line) if args.line else None
     an = metrics.analyze(args.recording, line=line, arrive_radius=args.arrive_radius,
                           cell=args.cell, progress=not args.quiet)
+    for line in an.problems:  # skipped chunks and messages, gaps: one line each
+        print(line, file=sys.stderr)
     an.summary["outputs"] = report.write_outputs(an, plots=not args.no_plots)
     if args.json:
         print(json.dumps(report.jsonable(an.summary), indent=2))
@@ -43,6 +45,8 @@ def _analyze(args: argparse.Namespace) -> int:
 def _replay(args: argparse.Namespace) -> int:
     _kernels()
     res = replay.replay(args.recording, progress=not args.quiet)
+    for line in res.problems:
+        print(line, file=sys.stderr)
     print(report.dumps(res.to_dict()) if args.json else replay.format_replay(res))
     if res.truncated:
         print(hint(args.recording), file=sys.stderr)
@@ -51,6 +55,8 @@ def _replay(args: argparse.Namespace) -> int:
 
 def _compare(args: argparse.Namespace) -> int:
     cmp = compare.compare(args.a, args.b, progress=not args.quiet)
+    for line in cmp.problems:
+        print(line, file=sys.stderr)
     files = compare.write_comparison(cmp, plots=not args.no_plots)
     if args.json:
         d = cmp.to_dict()

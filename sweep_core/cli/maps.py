@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sweep_core.io.outputs import check_output, replacing, write_text
 from sweep_core.model.maps import OccupancyMap, read_map_yaml
 from sweep_core.model.yaml_files import dump_yaml
 
@@ -43,8 +44,10 @@ def starter_scene(grid: OccupancyMap, yaml_path: str, count: int, radius: float)
             "noise": {"sigma": 0.05}}
 
 
-def plot(grid: OccupancyMap, walls: tuple[np.ndarray, np.ndarray], out: str) -> None:
-    """The blocked cells in grey and the walls in red, world coordinates."""
+def plot(grid: OccupancyMap, walls: tuple[np.ndarray, np.ndarray], out: str,
+         inputs: list[str] | None = None) -> None:
+    """The blocked cells in grey and the walls in red, world coordinates, as PNG to ``out``
+    (through a temporary file renamed over it; never one of ``inputs``)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -62,29 +65,38 @@ def plot(grid: OccupancyMap, walls: tuple[np.ndarray, np.ndarray], out: str) -> 
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(f"{Path(grid.source).name}: {len(a)} wall segments")
-    fig.savefig(out, dpi=120, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        with replacing(out, inputs or [], other="--png OTHER.png") as tmp:
+            fig.savefig(tmp, format="png", dpi=120, bbox_inches="tight")
+    finally:
+        plt.close(fig)
 
 
 def _map(args: argparse.Namespace) -> int:
     grid = read_map_yaml(Path(args.map), "map")
+    inputs = [args.map, grid.image]
+    png = scene = None  # checked before anything is written
+    if args.png:
+        png = check_output(args.png, inputs, other="--png OTHER.png")
+    if args.scene:
+        scene = check_output(args.scene, inputs, other="--scene OTHER.yaml")
     walls = grid.segments()  # the map's one costly computation, done once
     lines = describe(grid, walls)
     width = max(len(k) for k, _ in lines) + 2
     for key, value in lines:
         print(f"{key:<{width}}{value}")
-    if args.png:
-        plot(grid, walls, args.png)
-        print(f"{'png':<{width}}{args.png}")
-    if args.scene:
+    if png is not None:
+        plot(grid, walls, str(png), inputs)
+        print(f"{'png':<{width}}{png}")
+    if scene is not None:
         rel = Path(args.map).resolve()
         try:
-            rel = rel.relative_to(Path(args.scene).resolve().parent)
+            rel = rel.relative_to(scene.resolve().parent)
         except ValueError:
             pass
-        Path(args.scene).write_text(dump_yaml(starter_scene(grid, str(rel), args.count,
-                                                            args.radius)))
-        print(f"{'scene':<{width}}{args.scene}")
+        write_text(scene, dump_yaml(starter_scene(grid, str(rel), args.count, args.radius)),
+                   inputs, other="--scene OTHER.yaml")
+        print(f"{'scene':<{width}}{scene}")
     return 0
 
 

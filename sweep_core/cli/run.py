@@ -16,8 +16,10 @@ from pathlib import Path
 from typing import Any
 
 from sweep_core import checks
+from sweep_core.errors import SweepError
 from sweep_core.io import limits
 from sweep_core.io.metadata import run_metadata
+from sweep_core.io.outputs import check_output, write_text
 from sweep_core.io.recording.runs import record_run
 from sweep_core.model.scene import Scene, load_scene
 from sweep_core.numerics import kernels, paths
@@ -86,7 +88,9 @@ def _run(args: argparse.Namespace) -> int:
         paths.substeps(dt, args.path_dt)  # refused before the recording is created
     limits.check_run_size(scene.n_agents, dt, t_end, args.record_every,
                           path_dt=args.path_dt or None, frame_id=args.frame_id, force=args.force)
-    out = Path(args.out)
+    inputs = scene_files(args.scene, scene)
+    out = check_output(args.out, inputs)
+    summary_out = check_output(out.with_suffix(".summary.json"), inputs)
     stats = {"min_gap": math.inf, "active_rows_max": 0, "active_rows_sum": 0, "steps": 0,
              "backend_agents_max": 0, "bound_max_m": 0.0}
 
@@ -109,9 +113,10 @@ def _run(args: argparse.Namespace) -> int:
     with StopOnSignal() as stop:
         run = record_run(sim, t_end, out, meta, record_every=args.record_every,
                          frame_id=args.frame_id, path_dt=args.path_dt or None,
-                         progress=not args.quiet, on_state=tally)
+                         progress=not args.quiet, on_state=tally, inputs=inputs)
     status, error, failure, wall = run.status, run.error, run.failure, run.wall_s
-    summary_path = _write_summary(args, out, scene, sim, solver, stats, wall, status, error)
+    summary_path = _write_summary(summary_out, out, scene, sim, solver, stats, wall, status,
+                                  error)
     if isinstance(failure, Interrupted):
         print(f"sweep: interrupted by {error} at t = {sim.t:g} s (step {stats['steps']}); "
               f"the recording was closed: {out}; summary: {summary_path}", file=sys.stderr)
@@ -121,13 +126,30 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_summary(args: argparse.Namespace, out: Path, scene: Scene, sim: Simulator,
+def scene_files(path: str | None, scene: Scene) -> list[str]:
+    """The files a scene was read from: its YAML (none for the bundled scene) and the map
+    YAML it names (outputs may be none of them)."""
+    files = [path] if path else []
+    source = (scene.spec.get("map") or {}).get("source")
+    if source and Path(source).is_file():
+        files.append(source)
+    return files
+
+
+def _finite(value: float) -> float | None:
+    """``value``, or None (JSON null) when it is infinite or NaN."""
+    return value if math.isfinite(value) else None
+
+
+def _write_summary(summary_path: Path, out: Path, scene: Scene, sim: Simulator,
                    solver: SolverOptions, stats: dict, wall: float, status: str,
                    error: str) -> Path:
-    """Writes ``OUT.summary.json`` and prints it (to stdout); returns its path.
+    """Writes ``OUT.summary.json`` (strict JSON) and prints it (to stdout); returns its path.
 
     ``active_rows_*``: rows of a step's linearised constraint set (agent pairs near enough to
-    be built, walls, obstacles) that hold with equality after its projection.
+    be built, walls, obstacles) that hold with equality after its projection. ``min_gap_m`` is
+    null when no constraint exists (one agent and no walls), ``steps_per_s`` when no wall time
+    was measured.
     """
     steps = stats["steps"]
     summary = {
@@ -135,9 +157,9 @@ def _write_summary(args: argparse.Namespace, out: Path, scene: Scene, sim: Simul
         "scene": scene.name, "agents": scene.n_agents, "t_end_s": sim.t, "dt_s": sim.dt,
         "seed": sim.seed, "scheme": sim.scheme.name, "steps": steps,
         "compile_s": stats["compile_s"], "wall_time_s": wall,
-        "steps_per_s": steps / wall if wall > 0 else math.inf,
+        "steps_per_s": steps / wall if wall > 0 else None,
         "ms_per_step": 1e3 * wall / steps if steps else 0.0,
-        "min_gap_m": stats["min_gap"] if steps else sim.min_gap,
+        "min_gap_m": _finite(stats["min_gap"] if steps else sim.min_gap),
         "max_overlap_m": max(0.0, -stats["min_gap"]) if steps else 0.0,
         "active_rows_mean": stats["active_rows_sum"] / steps if steps else 0.0,
         "active_rows_max": stats["active_rows_max"],
@@ -145,17 +167,17 @@ def _write_summary(args: argparse.Namespace, out: Path, scene: Scene, sim: Simul
         "bound_max_m": stats["bound_max_m"], "tol_m": solver.tol, "recording": str(out),
         "recording_bytes": out.stat().st_size if out.exists() else 0,
     }
-    summary_path = out.with_suffix(".summary.json")
     try:
-        summary_path.write_text(json.dumps(summary, indent=2) + "\n")
-    except OSError as err:  # e.g. the disk that stopped the recording is full
-        print(f"sweep: warning: {summary_path}: cannot write the summary ({err.strerror}); "
-              "it is printed below", file=sys.stderr)
+        write_text(summary_path, json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    except SweepError as err:  # e.g. the disk that stopped the recording is full
+        print(f"sweep: warning: cannot write the summary: {err}; it is printed below",
+              file=sys.stderr)
     width = max(len(k) for k in summary)
     for key, value in summary.items():
         if key == "error" and not value:
             continue
-        shown = f"{value:.6g}" if isinstance(value, float) else str(value)
+        shown = f"{value:.6g}" if isinstance(value, float) else "-" if value is None \
+            else str(value)
         print(f"{key:<{width}}  {shown}")
     print(f"{'summary':<{width}}  {summary_path}")
     return summary_path

@@ -10,6 +10,7 @@ import pandas as pd
 
 from sweep_core.analysis.plots import pyplot
 from sweep_core.ensemble.store import summarize
+from sweep_core.io.outputs import replacing
 
 #: candidates for "evacuation time", the first with a finite value wins: every agent through
 #: the counting line (--line), then 90 % or 50 % of them, then the same for arrivals at the goal
@@ -56,7 +57,8 @@ def _histogram(plt: Any, table: pd.DataFrame, col: str, keys: list[str], title: 
     if drawn:
         ax.legend(fontsize="small")
     fig.tight_layout()
-    fig.savefig(png, dpi=100)
+    with replacing(png, other="--out OTHERDIR") as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)
 
 
@@ -87,7 +89,8 @@ def _against(plt: Any, table: pd.DataFrame, key: str, keys: list[str], cols: lis
             ax.legend(fontsize="small")
     fig.suptitle(f"mean and 95 % interval (normal approximation) against {key}")
     fig.tight_layout()
-    fig.savefig(png, dpi=100)
+    with replacing(png, other="--out OTHERDIR") as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)
 
 

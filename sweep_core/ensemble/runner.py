@@ -9,6 +9,7 @@ the worker count or the order of completion. Rows are written to DIR as they arr
 from __future__ import annotations
 
 import math
+import os
 import uuid
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -21,6 +22,7 @@ from sweep_core.analysis.metrics import parse_line
 from sweep_core.ensemble import cluster, grid, store
 from sweep_core.ensemble.task import RECORD, Task, simulate
 from sweep_core.errors import SceneError
+from sweep_core.io.outputs import write_text
 from sweep_core.model.scene import DEFAULT_SCENE, Scene, copy_spec, load_scene
 from sweep_core.numerics import kernels
 from sweep_core.numerics.schemes import SCHEMES
@@ -117,6 +119,22 @@ def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0:
     points = grid.grid(vary, spec)
     keys = list(points[0])
     out_dir = Path(out).resolve() if out is not None else None
+    held = None  # DIR/.lock, held while this ensemble writes DIR
+    if out_dir is not None:
+        held = store.lock(out_dir)
+    try:
+        return _run(base, spec, points, keys, out_dir, runs, seed0, t_end, dt, scheme, record,
+                    line, arrive_radius, client, scheduler, workers, progress, plots, say)
+    finally:
+        if held is not None:
+            os.close(held)
+
+
+def _run(base: Scene, spec: dict, points: list, keys: list[str], out_dir: Path | None,
+         runs: int, seed0: int, t_end: float, dt: float, scheme: str, record: str,
+         line: Any, arrive_radius: float | None, client: Any, scheduler: str | None,
+         workers: int | None, progress: bool, plots: bool, say: Any) -> pd.DataFrame:
+    """The ensemble of :func:`run` once its options are checked and DIR is locked."""
     if out_dir is not None:
         store.check_config(out_dir, {"scene": spec, "t_end": t_end, "dt": dt, "scheme": scheme,
                                      "line": list(line) if line else None,
@@ -208,7 +226,8 @@ def _save(out_dir: Path, name: str, row: dict[str, Any]) -> None:
     if row.get("summary_json"):
         summaries = out_dir / "summaries"
         summaries.mkdir(exist_ok=True)
-        (summaries / f"{name}.json").write_text(row["summary_json"] + "\n")
+        write_text(summaries / f"{name}.json", row["summary_json"] + "\n",
+                   other="--out OTHERDIR")
     store.write_row(out_dir, name, row)
 
 

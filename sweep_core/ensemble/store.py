@@ -20,14 +20,15 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
-from sweep_core.errors import SweepError
+from sweep_core import checks
+from sweep_core.errors import OutputError, SweepError
+from sweep_core.io.outputs import open_locked, replacing, write_text
 
 CONFIG = "ensemble.json"
 #: statuses that count as done on resume
@@ -42,6 +43,20 @@ BOOKKEEPING = ("point", "run", "seed", "dt", "scheme", "status", "error", "worke
 def run_name(pid: str, seed: int) -> str:
     """File stem of a run: grid point id and seed."""
     return f"{pid}_s{seed}"
+
+
+def lock(out: Path) -> int:
+    """Makes DIR (absent, or a folder) and locks it for this ensemble: a descriptor of
+    DIR/.lock, locked until closed; a second ensemble writing DIR at the same time is refused.
+
+    Raises:
+        OutputError: DIR exists and is not a folder, or another ensemble is writing it.
+    """
+    if out.exists() and not out.is_dir():
+        raise OutputError(str(out), f"exists and is {checks.file_kind(out.stat().st_mode)}, "
+                          "not a folder", "--out NEWDIR")
+    out.mkdir(parents=True, exist_ok=True)
+    return open_locked(out / ".lock", other="--out OTHERDIR")
 
 
 def check_config(out: Path, config: dict[str, Any]) -> None:
@@ -62,18 +77,15 @@ def check_config(out: Path, config: dict[str, Any]) -> None:
                 "directory, or the same scene and options to resume)")
         return
     out.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(text + "\n")
-    os.replace(tmp, path)
+    write_text(path, text + "\n", other="--out OTHERDIR")
 
 
 def write_row(out: Path, name: str, row: dict[str, Any]) -> None:
     """One run's row to DIR/runs/NAME.parquet (written to a temporary name, then renamed)."""
     runs = out / "runs"
     runs.mkdir(parents=True, exist_ok=True)
-    tmp = runs / f".{name}.parquet.tmp"
-    pd.DataFrame([row]).to_parquet(tmp, index=False)
-    os.replace(tmp, runs / f"{name}.parquet")
+    with replacing(runs / f"{name}.parquet", other="--out OTHERDIR") as tmp:
+        pd.DataFrame([row]).to_parquet(tmp, index=False)
 
 
 def read_rows(out: Path, names: Iterable[str]) -> dict[str, dict[str, Any]]:
@@ -144,9 +156,9 @@ def summarize(table: pd.DataFrame, grid_keys: list[str]) -> pd.DataFrame:
 def write_tables(out: Path, table: pd.DataFrame, grid_keys: list[str]) -> dict[str, str]:
     """DIR/runs.parquet and DIR/summary.csv; returns their paths."""
     runs = out / "runs.parquet"
-    tmp = out / ".runs.parquet.tmp"
-    table.to_parquet(tmp, index=False)
-    os.replace(tmp, runs)
+    with replacing(runs, other="--out OTHERDIR") as tmp:
+        table.to_parquet(tmp, index=False)
     summary = out / "summary.csv"
-    summarize(table, grid_keys).to_csv(summary, index=False, float_format="%.9g")
+    write_text(summary, summarize(table, grid_keys).to_csv(index=False, float_format="%.9g"),
+               other="--out OTHERDIR")
     return {"runs": str(runs), "summary": str(summary)}

@@ -25,6 +25,8 @@ from __future__ import annotations
 import base64
 import copy
 import math
+import os
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -33,10 +35,14 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import SceneError
-from sweep_core.model.yaml_files import YAMLError, load_yaml, yaml_problem
+from sweep_core.model.yaml_files import YAMLError, load_yaml
 
 #: most cells a map may have (a 40 000 x 40 000 grid would be 1.6e9)
 MAX_CELLS = 25_000_000
+#: largest map YAML file read (bytes): map_server's files are a few hundred bytes
+MAX_YAML_BYTES = 1 << 20
+#: largest map image read (bytes): an ASCII PGM of MAX_CELLS pixels of up to 3 digits
+MAX_IMAGE_BYTES = 4 * MAX_CELLS + (1 << 20)
 
 
 @dataclass(frozen=True)
@@ -49,6 +55,8 @@ class OccupancyMap:
     resolution: float
     origin: tuple[float, float, float]
     source: str
+    #: the image file it was read from ("" when not read from files)
+    image: str = ""
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -167,15 +175,22 @@ def replace_map(spec: dict, packed: dict) -> dict:
     return out
 
 
-def map_from_spec(value: Any, field: str, base: Path | None) -> OccupancyMap:
+def map_from_spec(value: Any, field: str, base: Path | None, files: bool = True
+                  ) -> OccupancyMap:
     """The scene's ``map`` entry: ``{yaml: PATH}`` (relative to the scene file, else to the
-    working directory) or the packed form :meth:`OccupancyMap.to_spec` writes."""
+    working directory) or the packed form :meth:`OccupancyMap.to_spec` writes. ``files=False``
+    (a scene carried by a recording) refuses ``{yaml: PATH}``: a recording is replayed from
+    the packed map it carries, never from a local file it names."""
     spec = checks.mapping(value, field, allowed={"yaml", "source", "resolution", "origin",
                                                  "width", "height", "blocked"})
     if "yaml" in spec:
         if set(spec) != {"yaml"}:
             raise SceneError(field, "mixes yaml with the packed form",
                              "give either {yaml: PATH} or the packed map a recording holds")
+        if not files:
+            raise SceneError(f"{field}.yaml", "names a map file; a recorded scene carries its "
+                             "map packed, and local files it names are never read",
+                             "use a recording made by sweep run or sweep_node")
         path = Path(str(spec["yaml"]))
         if not path.is_absolute() and base is not None:
             path = base / path
@@ -203,20 +218,30 @@ def map_from_spec(value: Any, field: str, base: Path | None) -> OccupancyMap:
 
 
 def read_map_yaml(path: Path, field: str = "map.yaml") -> OccupancyMap:
-    """A map_server map: its YAML file and the image it names (see the module docstring)."""
+    """A map_server map: its YAML file and the image it names (see the module docstring).
+
+    Both are read only when they are regular files of at most :data:`MAX_YAML_BYTES` /
+    :data:`MAX_IMAGE_BYTES` (no FIFO, device or huge file is opened); errors name the file and
+    what is wrong with it, never its contents."""
+    fix = "give the path of a map_server YAML file"
     try:
-        meta = load_yaml(path.read_text())
-    except (OSError, UnicodeDecodeError) as err:
-        why = err.strerror if isinstance(err, OSError) else "not UTF-8 text"
-        raise SceneError(field, f"cannot read {str(path)!r}: {why}",
-                         "give the path of a map_server YAML file") from err
+        meta = load_yaml(read_bounded(path, MAX_YAML_BYTES, field, fix).decode())
+    except UnicodeDecodeError as err:
+        raise SceneError(field, f"{str(path)!r} is not UTF-8 text", fix) from err
     except YAMLError as err:
-        raise SceneError(field, f"{path} is not valid YAML: {yaml_problem(err)}",
+        raise SceneError(field, f"{path} is not valid YAML ({_yaml_where(err)})",
                          "correct the map file's YAML syntax at that line") from err
     where = f"{field} ({path.name})"
-    meta = checks.mapping(meta, where, allowed={"image", "resolution", "origin", "negate",
-                                                "occupied_thresh", "free_thresh", "mode"},
-                          required={"image", "resolution", "origin"})
+    if not isinstance(meta, dict):
+        raise SceneError(where, f"{str(path)!r} is not a map_server YAML file (its top level "
+                         "is not a mapping of image, resolution, origin, ...)", fix)
+    allowed = {"image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh",
+               "mode"}
+    unknown = [k for k in meta if k not in allowed]
+    if unknown:  # not named: the file may be anything, and errors quote none of it
+        raise SceneError(where, f"{str(path)!r} has {len(unknown)} key(s) a map_server YAML "
+                         "file does not have", f"use only the keys {sorted(allowed)}")
+    meta = checks.mapping(meta, where, allowed=allowed, required={"image", "resolution", "origin"})
     resolution = _resolution(meta["resolution"], f"{where}.resolution")
     origin = _origin(meta["origin"], f"{where}.origin")
     negate = meta.get("negate", 0)
@@ -234,23 +259,52 @@ def read_map_yaml(path: Path, field: str = "map.yaml") -> OccupancyMap:
     p = pixels / 255.0 if negate else (255.0 - pixels) / 255.0
     blocked = ~(p < free)  # occupied or unknown
     # image row 0 is the top of the map: flip so that row 0 is the lowest y
-    return OccupancyMap(blocked[::-1].copy(), resolution, origin, str(path))
+    return OccupancyMap(blocked[::-1].copy(), resolution, origin, str(path), str(image))
+
+
+def _yaml_where(err: YAMLError) -> str:
+    """Where a YAML error is (line, column) and what it is, without the text it quotes."""
+    mark = getattr(err, "problem_mark", None)
+    problem = getattr(err, "problem", None) or "not YAML"
+    at = f"line {mark.line + 1} column {mark.column + 1}: " if mark is not None else ""
+    return f"{at}{problem.split(' that ')[0].split(chr(39))[0].strip()}"
+
+
+def read_bounded(path: Path, limit: int, field: str, fix: str) -> bytes:
+    """The bytes of ``path`` once it is known to be a regular file of at most ``limit``
+    bytes (checked with stat before it is opened, and again on the open file)."""
+    data = b""
+    try:
+        st = os.stat(path)
+        if stat.S_ISREG(st.st_mode) and st.st_size <= limit:
+            with open(path, "rb") as f:
+                st = os.fstat(f.fileno())
+                data = f.read(limit + 1) if stat.S_ISREG(st.st_mode) else b""
+    except OSError as err:
+        raise SceneError(field, f"cannot read {str(path)!r}: {err.strerror}", fix) from err
+    if not stat.S_ISREG(st.st_mode):
+        raise SceneError(field, f"{str(path)!r} is {checks.file_kind(st.st_mode)}, not a regular file",
+                         fix)
+    if st.st_size > limit or len(data) > limit:
+        raise SceneError(field, f"{str(path)!r} has {max(st.st_size, len(data))} bytes, more "
+                         f"than the limit of {limit} bytes for this file", fix)
+    return data
 
 
 def read_image(path: Path, field: str) -> np.ndarray:
     """A grey image (H, W) of values 0..255: binary or ASCII PGM (8 or 16 bit), or PNG (the
-    mean of its colour channels; alpha ignored)."""
-    try:
-        data = path.read_bytes()
-    except OSError as err:
-        raise SceneError(field, f"cannot read {str(path)!r}: {err.strerror}",
-                         "give the map image's path relative to the map YAML") from err
+    mean of its colour channels; alpha ignored); a regular file of at most
+    :data:`MAX_IMAGE_BYTES`."""
+    data = read_bounded(path, MAX_IMAGE_BYTES, field,
+                        "give the map image's path relative to the map YAML")
     if data[:2] in (b"P5", b"P2"):
         return _pgm(data, path, field)
     if data[:8] == b"\x89PNG\r\n\x1a\n":
+        import io
+
         import matplotlib.image
 
-        img = np.asarray(matplotlib.image.imread(str(path)), dtype=float)
+        img = np.asarray(matplotlib.image.imread(io.BytesIO(data), format="png"), dtype=float)
         if img.ndim == 3:
             img = img[..., :3].mean(axis=2) if img.shape[2] >= 3 else img[..., 0]
         scale = 255.0 if img.max(initial=0.0) <= 1.0 else 1.0

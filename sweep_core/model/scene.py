@@ -39,7 +39,7 @@ from sweep_core.errors import SceneError, show
 from sweep_core.model.fields import DEFAULT_SPEED, Field, field_from_spec
 from sweep_core.model.geometry import Geometry, gaps
 from sweep_core.model.groups import scene_drift
-from sweep_core.model.maps import OccupancyMap, map_from_spec
+from sweep_core.model.maps import OccupancyMap, map_from_spec, read_bounded
 from sweep_core.model.outlines import chain_points
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
 from sweep_core.model.spawn import spawn
@@ -48,6 +48,9 @@ from sweep_core.model.yaml_files import YAMLError, dump_yaml, load_yaml, yaml_pr
 
 #: overlap (m) tolerated in a given initial configuration (rounding of touching disks)
 INITIAL_TOLERANCE = 1e-9
+
+#: largest scene file read (bytes); a scene of 1e5 agents is about 5 MB
+MAX_SCENE_BYTES = 256 << 20
 
 _TOP_KEYS = {"name", "description", "horizon", "agents", "walls", "obstacles", "map", "drift",
              "noise", "constraints"}
@@ -145,10 +148,8 @@ class Scene:
         """Load and validate a scene file."""
         path = Path(path)
         try:
-            text = path.read_text()
-        except OSError as err:
-            raise SceneError("scene", f"cannot read {str(path)!r}: {err.strerror}",
-                             "give the path of a scene YAML file") from err
+            text = read_bounded(path, MAX_SCENE_BYTES, "scene",
+                                "give the path of a scene YAML file").decode()
         except UnicodeDecodeError as err:
             raise SceneError("scene", f"{str(path)!r} is not UTF-8 text (byte {err.start})",
                              "give the path of a scene YAML file") from err
@@ -156,23 +157,25 @@ class Scene:
 
     @classmethod
     def from_yaml_text(cls, text: str, name: str = "scene", source: str = "the scene",
-                       base: Path | None = None) -> Scene:
+                       base: Path | None = None, files: bool = True) -> Scene:
         """Parse (libyaml's loader when present) and validate a scene given as YAML text;
         ``source`` names it in errors (a file path, "the recorded scene"); base: the directory
-        a relative map path is read from."""
+        a relative map path is read from; ``files=False`` (a scene a recording carries) refuses
+        a map given as a file path instead of reading it."""
         try:
             data = load_yaml(text)
         except YAMLError as err:
             raise SceneError("scene", f"{source} is not valid YAML: {yaml_problem(err)}",
                              "correct the YAML syntax at that line") from err
-        return cls.from_dict(data if data is not None else {}, name=name, base=base)
+        return cls.from_dict(data if data is not None else {}, name=name, base=base, files=files)
 
     @classmethod
-    def from_dict(cls, data: dict, name: str = "scene", base: Path | None = None) -> Scene:
+    def from_dict(cls, data: dict, name: str = "scene", base: Path | None = None,
+                  files: bool = True) -> Scene:
         """Validate a scene dict (see the module docstring) and build the scene; base: the
         directory relative file names in it (a map) are read from (default: the working
-        directory)."""
-        return _build(data, name, base)
+        directory); ``files=False``: no file is read (a map must be in its packed form)."""
+        return _build(data, name, base, files)
 
 
 def _list(value: Any, field: str) -> list:
@@ -189,7 +192,7 @@ def _compact(values: np.ndarray, given: Any) -> float | list:
     return values.tolist() if np.ndim(given) else float(given)
 
 
-def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
+def _build(data: Any, default_name: str, base: Path | None = None, files: bool = True) -> Scene:
     checks.mapping(data, "scene", allowed=_TOP_KEYS, required={"agents"})
     spec: dict = {"name": str(data.get("name", default_name))}
     if "description" in data:
@@ -203,7 +206,7 @@ def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
         raise SceneError("constraints", f"names Python constraints {show(data['constraints'])} "
                          "that a scene file or a recording cannot rebuild",
                          "build the scene in Python and add them with Scene.with_constraints")
-    grid = map_from_spec(data["map"], "map", base) if data.get("map") is not None else None
+    grid = map_from_spec(data["map"], "map", base, files) if data.get("map") is not None else None
     geometry, walls_spec, obstacles_spec = _geometry(data, grid)
     spec["walls"], spec["obstacles"] = walls_spec, obstacles_spec
     agents = checks.mapping(data["agents"], "agents",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import queue
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from sweep_core.errors import RecordingError
@@ -25,8 +25,9 @@ class BackgroundRecorder:
     up slows the run instead of filling the memory; 0 = unbounded.
 
     A Recorder error (disk full, ...) stops recording and is kept in ``error`` (later writes
-    are dropped); what was flushed before stays readable. ``close()`` writes what is queued,
-    the summary and the footer; writes after it are dropped.
+    are dropped); what was flushed before stays readable. ``on_error(message)``, when given,
+    is called once, on the writer thread, as soon as that happens (the node logs it at once).
+    ``close()`` writes what is queued, the summary and the footer; writes after it are dropped.
     """
 
     def __init__(
@@ -35,9 +36,11 @@ class BackgroundRecorder:
         *,
         metadata: Mapping[str, str] | None = None,
         max_backlog: int = 0,
+        on_error: Callable[[str], None] | None = None,
         **recorder_options: Any,
     ) -> None:
         self.recorder = Recorder(path, metadata=metadata, **recorder_options)
+        self._on_error = on_error
         self.path = self.recorder.path
         self.error: str | None = None
         self.written = 0
@@ -98,6 +101,7 @@ class BackgroundRecorder:
                     self.recorder.flush()
             except Exception as err:  # noqa: BLE001 - kept for the caller; the thread lives on
                 self.error = str(err) if isinstance(err, RecordingError) else repr(err)
+                self._report()
             finally:
                 if kind == "flush":
                     data.set()
@@ -111,4 +115,15 @@ class BackgroundRecorder:
         try:
             self.recorder.close()
         except RecordingError as err:
-            self.error = self.error or str(err)
+            if self.error is None:
+                self.error = str(err)
+                self._report()
+
+    def _report(self) -> None:
+        """Calls ``on_error`` with the first error (once; its own failure is ignored)."""
+        callback, self._on_error = self._on_error, None
+        if callback is not None and self.error is not None:
+            try:
+                callback(self.error)
+            except Exception:  # noqa: BLE001 - a logging failure must not stop the writer
+                pass

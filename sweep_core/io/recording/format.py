@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import re
+import stat
 from collections.abc import Mapping
 from importlib.metadata import PackageNotFoundError, version
 from typing import IO, Any
@@ -11,6 +12,7 @@ from typing import IO, Any
 import numpy as np
 from mcap.writer import CompressionType
 
+from sweep_core.checks import file_kind
 from sweep_core.errors import RecordingError
 
 MAGIC = b"\x89MCAP0\r\n"
@@ -96,17 +98,27 @@ def check_time(value: Any, what: str) -> int:
 
 
 def open_for_reading(path: str | os.PathLike[str]) -> tuple[str, IO[bytes]]:
+    """``path`` opened for reading once it is known to be a regular file that starts with the
+    MCAP magic (a FIFO or a device is refused before it is opened: reading one could block or
+    never end). Errors name the file, never its contents."""
     p = os.fspath(path)
     try:
+        mode = os.stat(p).st_mode
+        if not stat.S_ISREG(mode):
+            raise RecordingError(f"{p}: is {file_kind(mode)}, not a recording file (fix: pass "
+                                 "a .mcap file written by sweep_ros or ros2 bag record -s mcap)")
         f = open(p, "rb")
     except OSError as err:
         raise RecordingError(f"{p}: cannot open the recording ({err.strerror})") from None
+    if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):  # replaced since the check
+        f.close()
+        raise RecordingError(f"{p}: is not a regular file (fix: pass a .mcap file)")
     head = f.read(len(MAGIC))
     if head != MAGIC[: len(head)]:
         f.close()
         raise RecordingError(
-            f"{p}: not an MCAP file (starts with {head!r}) (fix: pass a .mcap written by "
-            "sweep_ros or ros2 bag record -s mcap)"
+            f"{p}: not an MCAP file (it does not start with the MCAP magic bytes) (fix: pass a "
+            ".mcap written by sweep_ros or ros2 bag record -s mcap)"
         )
     f.seek(0)
     return p, f
@@ -130,5 +142,8 @@ def describe_stop(err: Exception, f: IO[bytes]) -> str:
         where = f" near byte {pos} of {size}"
     except (OSError, ValueError):
         where = ""
-    detail = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
+    text = str(err)
+    # the reader's own words only: a message that quotes the file's bytes is not shown
+    quotes = "b'" in text or 'b"' in text or "\\x" in text
+    detail = f"{type(err).__name__}: {text}" if text and not quotes else type(err).__name__
     return f"incomplete record{where} ({detail})"

@@ -33,6 +33,7 @@ from mcap.writer import CompressionType, Writer
 
 from sweep_core.errors import RecordingError
 from sweep_core.io.metadata import RECOVER_RECORD
+from sweep_core.io.outputs import replacing
 from sweep_core.io.recording.format import describe_stop, library_string, open_for_reading
 
 #: nanoseconds per second
@@ -131,31 +132,20 @@ def recover(path: str | os.PathLike[str], out: str | os.PathLike[str] | None = N
     an interrupted recovery leaves no half-written ``out``.
 
     Raises:
-        RecordingError: ``path`` cannot be opened or is not MCAP, ``out`` is ``path`` itself,
-            or ``out`` cannot be written.
+        RecordingError: ``path`` cannot be opened or is not MCAP, or ``out`` is ``path``.
+        OutputError: ``out`` is not a regular file (a folder, a device, a FIFO), another
+            recovery is writing it, or it cannot be written (full disk).
     """
     src, f = open_for_reading(path)
     dst = os.fspath(default_output(src) if out is None else out)
-    if _same_file(src, dst):
-        f.close()
-        raise RecordingError(f"{dst}: is the recording being recovered; recover never "
-                             "overwrites its input (fix: name another OUT file)")
-    # written beside OUT, then renamed over it: an interrupted recovery leaves no half OUT
-    tmp = os.path.join(os.path.dirname(os.path.abspath(dst)),
-                       f".{os.path.basename(dst)}.{os.getpid()}.partial")
-    try:
-        with f, open(tmp, "wb") as o:
-            result = _copy(src, f, o, dst, chunk_size)
-        os.replace(tmp, dst)
-    except OSError as err:
-        raise RecordingError(f"{dst}: cannot write the recovered recording "
-                             f"({err.strerror or err}) (fix: free disk space or write "
-                             "elsewhere)") from None
-    finally:
-        f.close()
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return result
+    with f:
+        if _same_file(src, dst):
+            raise RecordingError(f"{dst}: is the recording being recovered; recover never "
+                                 "overwrites its input (fix: name another OUT file)")
+        # written beside OUT, then renamed over it: an interrupted recovery leaves no half OUT;
+        # OUT must be absent or a regular file, and one recovery at a time writes it
+        with replacing(dst, [src], other="another OUT") as tmp, open(tmp, "wb") as o:
+            return _copy(src, f, o, dst, chunk_size)
 
 
 def _copy(src: str, f: IO[bytes], o: IO[bytes], dst: str, chunk_size: int) -> Recovery:

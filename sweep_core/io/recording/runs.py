@@ -6,8 +6,9 @@ publishes it (:func:`~sweep_core.io.topics.encode_navigation`): with the first s
 with the first recorded state of each period a field with ``update_every`` is recomputed for."""
 from __future__ import annotations
 
+import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,18 +38,22 @@ class RecordedRun:
 def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str], *,
                record_every: int = 1, frame_id: str = "map", path_dt: float | None = None,
                progress: bool = False,
-               on_state: Callable[[Simulator], None] | None = None) -> RecordedRun:
+               on_state: Callable[[Simulator], None] | None = None,
+               inputs: Iterable[str | os.PathLike[str] | None] = ()) -> RecordedRun:
     """Steps ``sim`` to ``t_end`` (s), on a Brownian path drawn at ``path_dt`` when given,
     recording to ``out`` (a writer thread compresses and writes; at most 64 messages wait, so
     a writer that falls behind slows the run instead of filling the memory). ``on_state(sim)``
     is called after each state is recorded, the first included; a KeyboardInterrupt (or
     subclass, e.g. a signal turned into one) it raises ends the run as ``interrupted``. The
-    run never raises: the outcome, written as the ``sweep_status`` record too, is returned."""
+    run never raises once the recording is open: the outcome, written as the ``sweep_status``
+    record too, is returned. ``out`` may be none of ``inputs`` (the scene and map files) and is
+    locked while written (:mod:`sweep_core.io.outputs`): an OutputError is raised before the
+    first step if it cannot be."""
     status, error = "completed", ""
     failure: BaseException | None = None
     steps = 0
     wall = 0.0
-    with BackgroundRecorder(out, metadata=metadata, max_backlog=64) as rec:
+    with BackgroundRecorder(out, metadata=metadata, max_backlog=64, inputs=inputs) as rec:
         for name, msgtype in topics.TYPES.items():
             rec.add_channel("/" + name, msgtype)
         navigation: list[tuple | None] = []  # the key of the field last recorded, once there is one

@@ -8,9 +8,21 @@ from typing import IO, Any
 
 from mcap.reader import SeekingReader
 from mcap.records import Channel, Chunk, Footer, Header, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.stream_reader import StreamReader
 
+from sweep_core.io.recording.chunks import ChunkError, chunk_records
 from sweep_core.io.recording.format import describe_stop, is_complete, open_for_reading
+
+
+def _readable(chunk: Chunk) -> list[Any]:
+    """The records of a chunk up to the first that cannot be read (the reader names it)."""
+    out = []
+    try:
+        for _, record in chunk_records(chunk):
+            out.append(record)
+    except ChunkError:
+        pass
+    return out
 
 
 @dataclass
@@ -124,7 +136,7 @@ def _scan_stream(p: str, f: IO[bytes]) -> RecordingInfo:
             try:
                 record = next(records)
                 if isinstance(record, Chunk):
-                    pending = breakup_chunk(record)[::-1]
+                    pending = _readable(record)[::-1]
                     chunks += 1
                     continue
             except StopIteration:

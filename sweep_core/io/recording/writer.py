@@ -4,7 +4,7 @@ from __future__ import annotations
 import os
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import IO
 
 from mcap.exceptions import McapError
@@ -12,6 +12,7 @@ from mcap.writer import Writer
 
 from sweep_core.errors import RecordingError
 from sweep_core.io import cdr
+from sweep_core.io.outputs import open_locked
 from sweep_core.io.recording.format import (
     COMPRESSION,
     DEFAULT_QOS_PROFILES,
@@ -34,12 +35,16 @@ class Recorder:
             rec.write("/crowd/poses", t_ns, cdr.encode_pose_array(t_ns, "map", q))
 
     Args:
-        path: file to create (overwritten).
+        path: file to create (a regular file there is overwritten; one of ``inputs``, a
+            folder, a device or a FIFO is refused, and so is a file another Recorder is writing:
+            the file is locked while it is written, see :mod:`sweep_core.io.outputs`).
         metadata: written at once as a metadata record named ``"sweep_ros"``.
         chunk_size: close a chunk once its uncompressed content reaches this many bytes.
         flush_interval_s: close the chunk in progress and flush the file at least this often
             (wall time); ``None`` flushes only on full chunks and on ``close()``.
         compression: ``"zstd"`` (default), ``"lz4"`` or ``"none"``.
+        inputs: files the run reads (its scene, its map): ``path`` may be none of them.
+        other: how to name another file, the fix in errors (``--out OTHER``, ``record:=OTHER``).
 
     Not safe for concurrent ``write`` calls from several threads without an outer lock (the
     internal lock only guards against the background flusher).
@@ -53,6 +58,8 @@ class Recorder:
         chunk_size: int = 1 << 20,
         flush_interval_s: float | None = 1.0,
         compression: str = "zstd",
+        inputs: Iterable[str | os.PathLike[str] | None] = (),
+        other: str = "--out OTHER",
     ) -> None:
         self.path = os.fspath(path)
         if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size <= 0:
@@ -77,12 +84,9 @@ class Recorder:
         self.chunk_size = chunk_size
         self.flush_interval_s = None if flush_interval_s is None else float(flush_interval_s)
         self.compression = compression
-        try:
-            self._file: IO[bytes] = open(self.path, "wb")
-        except OSError as err:
-            raise RecordingError(
-                f"{self.path}: cannot create the recording ({err.strerror})"
-            ) from None
+        # checked, created without truncation, locked, then emptied: a second writer of the
+        # same file is refused before it touches the first one's data
+        self._file: IO[bytes] = os.fdopen(open_locked(self.path, inputs, other=other), "wb")
         try:
             # The Writer's own size trigger is disabled (huge chunk_size): every chunk is closed
             # by _flush_locked(), so each closed chunk also reaches the OS at once.
