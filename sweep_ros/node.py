@@ -61,6 +61,8 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseArray, Twist
 from nav_msgs.msg import OccupancyGrid
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
 from rclpy.exceptions import InvalidTopicNameException, ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -78,7 +80,7 @@ from sweep_core.model.fields import Field, Goal, Groups, field_from_spec
 from sweep_core.model.geodesic import navigation_fields
 from sweep_core.model.maps import OccupancyMap, map_from_spec, replace_map
 from sweep_core.model.scene import Scene, load_scene
-from sweep_ros import messages, msgdefs, params
+from sweep_ros import graph, messages, msgdefs, params, results
 from sweep_ros.errors import StartError
 from sweep_ros.gate import StepGate
 from sweep_ros.inbox import Applied, CommandInbox
@@ -113,6 +115,7 @@ class SweepNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
+        started = time.monotonic()
         self._p = self._declare_parameters()
         self._closed = False
         self.recorder: BackgroundRecorder | None = None
@@ -125,6 +128,7 @@ class SweepNode(Node):
                                  solver=params.solver_options(self._p))
         except SceneError as err:
             raise StartError([f"scene {self._p['scene'] or '(bundled default)'}: {err}"]) from err
+        self._check_name(started + self._p["name_check_s"])
         self._apply_sigma()
         self.frame_id: str = self._p["frame_id"]
         self._dt_ns = topics.stamp_ns(self.sim.dt)
@@ -161,14 +165,19 @@ class SweepNode(Node):
 
         # interfaces (relative names: namespaces and remapping apply)
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        inbound = QoSProfile(depth=COMMAND_QUEUE_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+        self._inbound = inbound = QoSProfile(depth=COMMAND_QUEUE_DEPTH,
+                                             reliability=ReliabilityPolicy.RELIABLE)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.pub_poses = self.create_publisher(PoseArray, topics.POSES, reliable)
         self.pub_agents = self.create_publisher(PointCloud2, topics.AGENTS, reliable)
         self.pub_markers = self.create_publisher(MarkerArray, "markers", reliable)
         self.pub_walls = self.create_publisher(MarkerArray, "walls", latched)
-        self.pub_diag = self.create_publisher(DiagnosticArray, "diagnostics", reliable)
+        # latched, so that a client reads the last one at once instead of waiting up to 1 s
+        self.pub_diag = self.create_publisher(DiagnosticArray, "diagnostics", latched)
+        self.pub_results = self.create_publisher(DiagnosticArray, results.TOPIC, results.QOS)
+        self._results = results.CommandResults(self.pub_results,
+                                               self.get_fully_qualified_name(), self._record)
         self.pub_navigation = self.create_publisher(PointCloud2, topics.NAVIGATION, latched)
         self.pub_clock = (self.create_publisher(Clock, "clock", reliable)
                           if self._p["publish_clock"] else None)
@@ -184,6 +193,8 @@ class SweepNode(Node):
                                      lambda raw, info, k=k: self._on_group_goal(k, raw, info),
                                      inbound, raw=True)
             for k, name in enumerate(self.groups.names if self.groups is not None else ())]
+        #: goal/<name> for names that are no group of the scene, subscribed to refuse them
+        self.sub_unknown_groups: dict[str, Any] = {}
         self.sub_field = self.create_subscription(
             PointCloud2, "velocity_field", self._on_velocity_field, inbound, raw=True)
         self.sub_map = None
@@ -203,7 +214,13 @@ class SweepNode(Node):
 
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
-        self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diag_timer)
+        # on the steady clock: with use_sim_time the node's ROS clock follows /clock, which
+        # stands still while paused (or, without publish_clock, never starts)
+        steady = RosClock(clock_type=ClockType.STEADY_TIME)
+        self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diag_timer,
+                                             clock=steady)
+        self._graph_timer = self.create_timer(graph.GRAPH_PERIOD_S, self._watch_goal_topics,
+                                              clock=steady)
 
         self._publish_walls()
         self._publish_state(force_markers=True)
@@ -238,6 +255,17 @@ class SweepNode(Node):
                                       f"(known: {sorted(params.BY_NAME)})")
         return values
 
+    def _check_name(self, deadline: float) -> None:
+        """Refuses to start while another node with this name and namespace is in the graph
+        (looked for until ``deadline``, time.monotonic() s): services, parameters and commands
+        would reach both."""
+        if graph.wait_for_same_name(self, deadline) > 1:
+            name = self.get_fully_qualified_name()
+            raise StartError([
+                f"another node named {name} is running on this ROS domain; services and "
+                f"commands would reach both (fix: stop it, or give this one another name or "
+                f"namespace: --ros-args -r __node:=NAME or -r __ns:=/NS)"])
+
     def _open_recording(self) -> None:
         meta = run_metadata(self.scene, self.sim, None)
         names = {
@@ -246,6 +274,7 @@ class SweepNode(Node):
             self.pub_markers.topic_name: msgdefs.msgtype_of(MarkerArray),
             self.pub_walls.topic_name: msgdefs.msgtype_of(MarkerArray),
             self.pub_diag.topic_name: msgdefs.msgtype_of(DiagnosticArray),
+            self.pub_results.topic_name: msgdefs.msgtype_of(DiagnosticArray),
             self.pub_navigation.topic_name: cdr.POINT_CLOUD2,
             self.sub_cmd_vel.topic_name: msgdefs.msgtype_of(Twist),
             self.sub_goal.topic_name: msgdefs.msgtype_of(PointStamped),
@@ -257,8 +286,10 @@ class SweepNode(Node):
             names[self.pub_clock.topic_name] = cdr.CLOCK
         if self.sub_map is not None:
             names[self.sub_map.topic_name] = msgdefs.msgtype_of(OccupancyGrid)
-        latched = {self.pub_walls.topic_name, self.pub_navigation.topic_name} | (
-            {self.sub_map.topic_name} if self.sub_map is not None else set())
+        latched = {self.pub_walls.topic_name: 1, self.pub_navigation.topic_name: 1,
+                   self.pub_diag.topic_name: 1, self.pub_results.topic_name: results.DEPTH}
+        if self.sub_map is not None:
+            latched[self.sub_map.topic_name] = 1
         meta.update({
             "node": self.get_fully_qualified_name(),
             "parameters": json.dumps(self._p, sort_keys=True),
@@ -273,7 +304,8 @@ class SweepNode(Node):
                 flush_interval_s=self._p["record_flush_interval_s"])
             for topic, msgtype in names.items():
                 definition = None if msgtype in cdr.SCHEMAS else msgdefs.definition(msgtype)
-                qos = qos_profiles(1, True) if topic in latched else qos_profiles(10)
+                qos = (qos_profiles(latched[topic], True) if topic in latched
+                       else qos_profiles(10))
                 self.recorder.add_channel(topic, msgtype, definition, offered_qos_profiles=qos)
         except (SweepError, msgdefs.MsgDefError) as err:
             if self.recorder is not None:
@@ -355,8 +387,13 @@ class SweepNode(Node):
         counters = self._inbox.counters()
         lost = counters["commands_lost"]
         new_lost = lost - self._lost_reported if isinstance(lost, int) else 0
+        same_name = graph.same_name_count(self)
         if self.failure:
             level, message = "ERROR", f"infeasible, paused: {self.failure}"
+        elif same_name > 1:
+            level, message = "WARN", (f"{same_name} nodes named "
+                                      f"{self.get_fully_qualified_name()} on this ROS domain: "
+                                      "services and commands reach all of them")
         elif rec is not None and rec.error:
             level, message = "WARN", f"recording stopped: {rec.error}"
         elif self._map_problem:
@@ -385,6 +422,7 @@ class SweepNode(Node):
             "min_gap_m": sim.min_gap,
             "drift": sim.drift.kind,
             **counters,
+            "command_results": self._results.published,
             "resets": self._resets,
             "maps_applied": self._maps_applied,
             "map_refused": self._maps_refused,
@@ -497,6 +535,7 @@ class SweepNode(Node):
         arrival = time.monotonic()
         topic = sub.topic_name
         self._inbox.arrived(topic, info)
+        msg = None
         try:
             try:
                 msg = deserialize_message(raw, msg_class)
@@ -506,9 +545,54 @@ class SweepNode(Node):
         except messages.CommandError as err:
             self._inbox.refuse()
             self.get_logger().warning(f"command refused, {err}", throttle_duration_sec=2.0)
+            self._verdict("refused", topic, results.command_id(info, msg), str(err))
             return
-        self._inbox.offer(topic, field, bytes(raw), arrival, group,
-                          built_for if navigation_fields(field) else None)
+        ident = results.command_id(info, msg)
+        if self.paused:  # said before the offer: a step cannot take it before this
+            self._verdict("accepted", topic, ident, "accepted: the node is paused at step "
+                          f"{self.sim.n_steps}; it applies from the next step taken",
+                          paused=True)
+        for old in self._inbox.offer(topic, field, bytes(raw), arrival, group,
+                                     built_for if navigation_fields(field) else None, ident):
+            self._verdict("superseded", old.topic, old.ident,
+                          f"superseded by a newer command on {topic} before a step used it")
+
+    def _verdict(self, verdict: str, topic: str, ident: Any, text: str,
+                 log_ns: int | None = None, **extra: Any) -> None:
+        """Publishes a command's verdict on command_result (:mod:`sweep_ros.results`) at the
+        step the simulation is at (the one a command applies from, for ``applied``)."""
+        self._results.verdict(verdict, topic, ident or results.CommandId(), text,
+                              self.sim.n_steps, self.sim.t, topics.stamp_ns(self.sim.t),
+                              self._last_log_ns if log_ns is None else log_ns, **extra)
+
+    def _on_unknown_group(self, sub: Any, raw: bytes, info: Any) -> None:
+        goal = self.sub_goal.topic_name
+        name = sub.topic_name.rsplit("/", 1)[1]
+        names = self.groups.names if self.groups is not None else ()
+
+        def refuse(msg: Any) -> Field:
+            if names:
+                raise messages.CommandError(sub.topic_name, (
+                    f"no group {name!r} in the scene (its groups: {', '.join(names)}) (fix: "
+                    f"publish on {goal}/<group> for one of them, or on {goal} for every agent)"))
+            raise messages.CommandError(sub.topic_name, (
+                f"no group {name!r}: the scene has no agents.groups (fix: publish on {goal} "
+                "for every agent)"))
+        self._command(sub, PointStamped, raw, info, refuse)
+
+    def _watch_goal_topics(self) -> None:
+        """Subscribes to the goal/<name> topics someone publishes for a name that is no group
+        of the scene, so that their goals get a verdict (refused, naming the groups)."""
+        names = tuple(self.groups.names) if self.groups is not None else ()
+        for topic in graph.foreign_goal_topics(self, self.sub_goal.topic_name, names):
+            if (topic in self.sub_unknown_groups
+                    or len(self.sub_unknown_groups) >= graph.MAX_UNKNOWN_GROUPS):
+                continue
+            box: list[Any] = []
+            box.append(self.create_subscription(
+                PointStamped, topic, lambda raw, info, b=box: self._on_unknown_group(
+                    b[0], raw, info), self._inbound, raw=True))
+            self.sub_unknown_groups[topic] = box[0]
 
     def _apply_command(self, applied: Applied) -> None:
         """Makes a command the drift from the step about to start; records it (the message on
@@ -525,10 +609,14 @@ class SweepNode(Node):
         except (messages.CommandError, SceneError) as err:
             self._inbox.refuse_taken()
             self.get_logger().warning(f"command refused, {err}")
+            self._verdict("refused", cmd.topic, cmd.ident, str(err))
             return
         self.sim.set_drift(drift)
         k = self._inbox.applied
         log_ns = self._log_ns(self.sim.t)
+        self._verdict("applied", cmd.topic, cmd.ident,
+                      f"applied from step {self.sim.n_steps} (t = {self.sim.t:g} s)", log_ns,
+                      latency_ms=f"{1e3 * applied.latency_s:g}")
         self._record(cmd.topic, log_ns, cmd.raw)
         if self.recorder is not None:
             self.recorder.metadata(f"command_{k:06d}", {
@@ -677,7 +765,9 @@ class SweepNode(Node):
         with self._gate.control():
             before = (self.sim.n_steps, self.sim.t)
             self._epoch_ns = self._last_log_ns + self._dt_ns
-            self._inbox.discard()  # a command not yet applied is superseded by the reset
+            for old in self._inbox.discard_all():  # not yet applied: superseded by the reset
+                self._verdict("superseded", old.topic, old.ident,
+                              "superseded by a reset before a step used it")
             self.sim.reset()
             self._apply_sigma()
             self.failure = None
@@ -779,6 +869,7 @@ class SweepNode(Node):
                 return
             self._closed = True
             self._diag_timer.cancel()
+            self._graph_timer.cancel()
             if self.recorder is None:
                 return
             counters = {k: str(v) for k, v in self._inbox.counters().items()}
