@@ -69,7 +69,7 @@ def _namespace(text: str) -> str:
         if ns:
             validate_namespace(ns)
     except InvalidNamespaceException as err:
-        why = str(err).splitlines()[0].removeprefix("Invalid namespace: ")
+        why = str(err).splitlines()[0].removeprefix("Invalid namespace: ").rstrip(": ")
         raise argparse.ArgumentTypeError(
             f"--namespace = {text!r} is not a ROS namespace: {why} (fix: give the node's "
             "namespace, e.g. /crowd)") from None
@@ -216,7 +216,7 @@ class Client:
                                          pub_matched))
         topic, result_topic = pub.topic_name, sub.topic_name
         commanders = self._spin_until(
-            lambda: pub_matched[0] and sub_matched[0] and self._commanders(topic, result_topic),
+            lambda: pub_matched[0] and sub_matched[0] and self.commanders(topic, result_topic),
             f"a sweep_node subscribing to {topic} and publishing {result_topic}")
         gid = self._own_gid(topic)
         msg_stamp = None
@@ -236,7 +236,7 @@ class Client:
         return self._spin_until(mine, f"the node's verdict on {topic}", Unanswered,
                                 "see the node's log; raise --timeout if it is busy")
 
-    def _commanders(self, topic: str, result_topic: str) -> int:
+    def commanders(self, topic: str, result_topic: str) -> int:
         """How many subscriptions to ``topic`` belong to nodes that also publish verdicts."""
         givers = {(e.node_namespace, e.node_name)
                   for e in self.node.get_publishers_info_by_topic(result_topic)}
@@ -283,9 +283,9 @@ def _report(client: Client, verdicts: list[dict[str, str]], what: str) -> int:
     for v in verdicts:
         verdict, message = v["verdict"], v["message"]
         if verdict == "applied":
-            print(f"applied: {what} from step {v['step']} (t = {v['t_s']} s)")
+            print(f"applied: {what} on {v['topic']} from step {v['step']} (t = {v['t_s']} s)")
         elif verdict == "accepted":
-            print(f"accepted: {what}; {message.removeprefix('accepted: ')}")
+            print(f"accepted: {what} on {v['topic']}; {message.removeprefix('accepted: ')}")
         else:
             print(f"{verdict}: {message}")
             code = 1

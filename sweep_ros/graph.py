@@ -7,7 +7,10 @@ so every answer here is "as seen now".
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
+
+from sweep_ros.errors import StartError
 
 #: how often the node looks for goals published to groups it does not have (s)
 GRAPH_PERIOD_S = 0.2
@@ -32,6 +35,17 @@ def wait_for_same_name(node: Any, deadline: float, poll_s: float = 0.05) -> int:
         time.sleep(poll_s)
 
 
+def check_unique_name(node: Any, deadline: float) -> None:
+    """Raises :class:`StartError` if another node with this node's name and namespace shows up
+    in the graph before ``deadline`` (time.monotonic(), s): services, parameters and commands
+    would reach both."""
+    if wait_for_same_name(node, deadline) > 1:
+        raise StartError([
+            f"another node named {node.get_fully_qualified_name()} is running on this ROS "
+            "domain; services and commands would reach both (fix: stop it, or give this one "
+            "another name or namespace: --ros-args -r __node:=NAME or -r __ns:=/NS)"])
+
+
 def foreign_goal_topics(node: Any, goal_topic: str, groups: tuple[str, ...]) -> list[str]:
     """Topics ``<goal_topic>/<name>`` that some publisher (not this node) offers as
     geometry_msgs/PointStamped where ``name`` is not one of the scene's ``groups``."""
@@ -45,5 +59,42 @@ def foreign_goal_topics(node: Any, goal_topic: str, groups: tuple[str, ...]) -> 
     return sorted(out)
 
 
-__all__ = ["GRAPH_PERIOD_S", "MAX_UNKNOWN_GROUPS", "foreign_goal_topics", "same_name_count",
+def unknown_group_problem(name: str, goal_topic: str, groups: tuple[str, ...]) -> str:
+    """Why a goal on ``<goal_topic>/<name>`` is refused: ``name`` is no group of the scene."""
+    if groups:
+        return (f"no group {name!r} in the scene (its groups: {', '.join(groups)}) (fix: "
+                f"publish on {goal_topic}/<group> for one of them, or on {goal_topic} for every "
+                "agent)")
+    return (f"no group {name!r}: the scene has no agents.groups (fix: publish on {goal_topic} "
+            "for every agent)")
+
+
+class UnknownGroups:
+    """Subscriptions to the ``<goal_topic>/<name>`` topics someone publishes for a name that is
+    no group of the scene (found by :meth:`watch`, called on a timer), so that their goals get
+    a verdict; ``on_message(subscription, raw, info)`` takes each message."""
+
+    def __init__(self, node: Any, goal_topic: str, groups: tuple[str, ...], qos: Any,
+                 on_message: Callable[[Any, bytes, Any], None]) -> None:
+        self.node, self.goal_topic, self.groups = node, goal_topic, groups
+        self.qos, self.on_message = qos, on_message
+        self.subscriptions: dict[str, Any] = {}
+
+    def watch(self) -> None:
+        """Subscribes to the new ones (at most :data:`MAX_UNKNOWN_GROUPS` in all)."""
+        from geometry_msgs.msg import PointStamped
+
+        for topic in foreign_goal_topics(self.node, self.goal_topic, self.groups):
+            if (topic in self.subscriptions
+                    or len(self.subscriptions) >= MAX_UNKNOWN_GROUPS):
+                continue
+            box: list[Any] = []
+            box.append(self.node.create_subscription(
+                PointStamped, topic, lambda raw, info, b=box: self.on_message(b[0], raw, info),
+                self.qos, raw=True))
+            self.subscriptions[topic] = box[0]
+
+
+__all__ = ["GRAPH_PERIOD_S", "MAX_UNKNOWN_GROUPS", "UnknownGroups", "check_unique_name",
+           "foreign_goal_topics", "same_name_count", "unknown_group_problem",
            "wait_for_same_name"]

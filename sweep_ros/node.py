@@ -128,7 +128,7 @@ class SweepNode(Node):
                                  solver=params.solver_options(self._p))
         except SceneError as err:
             raise StartError([f"scene {self._p['scene'] or '(bundled default)'}: {err}"]) from err
-        self._check_name(started + self._p["name_check_s"])
+        graph.check_unique_name(self, started + self._p["name_check_s"])
         self._apply_sigma()
         self.frame_id: str = self._p["frame_id"]
         self._dt_ns = topics.stamp_ns(self.sim.dt)
@@ -194,7 +194,10 @@ class SweepNode(Node):
                                      inbound, raw=True)
             for k, name in enumerate(self.groups.names if self.groups is not None else ())]
         #: goal/<name> for names that are no group of the scene, subscribed to refuse them
-        self.sub_unknown_groups: dict[str, Any] = {}
+        self.unknown_groups = graph.UnknownGroups(
+            self, self.sub_goal.topic_name,
+            tuple(self.groups.names) if self.groups is not None else (), inbound,
+            self._on_unknown_group)
         self.sub_field = self.create_subscription(
             PointCloud2, "velocity_field", self._on_velocity_field, inbound, raw=True)
         self.sub_map = None
@@ -219,7 +222,7 @@ class SweepNode(Node):
         steady = RosClock(clock_type=ClockType.STEADY_TIME)
         self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diag_timer,
                                              clock=steady)
-        self._graph_timer = self.create_timer(graph.GRAPH_PERIOD_S, self._watch_goal_topics,
+        self._graph_timer = self.create_timer(graph.GRAPH_PERIOD_S, self.unknown_groups.watch,
                                               clock=steady)
 
         self._publish_walls()
@@ -254,17 +257,6 @@ class SweepNode(Node):
             self.get_logger().warning(f"unknown parameters ignored: {unknown} "
                                       f"(known: {sorted(params.BY_NAME)})")
         return values
-
-    def _check_name(self, deadline: float) -> None:
-        """Refuses to start while another node with this name and namespace is in the graph
-        (looked for until ``deadline``, time.monotonic() s): services, parameters and commands
-        would reach both."""
-        if graph.wait_for_same_name(self, deadline) > 1:
-            name = self.get_fully_qualified_name()
-            raise StartError([
-                f"another node named {name} is running on this ROS domain; services and "
-                f"commands would reach both (fix: stop it, or give this one another name or "
-                f"namespace: --ros-args -r __node:=NAME or -r __ns:=/NS)"])
 
     def _open_recording(self) -> None:
         meta = run_metadata(self.scene, self.sim, None)
@@ -566,33 +558,13 @@ class SweepNode(Node):
                               self._last_log_ns if log_ns is None else log_ns, **extra)
 
     def _on_unknown_group(self, sub: Any, raw: bytes, info: Any) -> None:
-        goal = self.sub_goal.topic_name
-        name = sub.topic_name.rsplit("/", 1)[1]
-        names = self.groups.names if self.groups is not None else ()
+        problem = graph.unknown_group_problem(sub.topic_name.rsplit("/", 1)[1],
+                                              self.sub_goal.topic_name,
+                                              self.unknown_groups.groups)
 
         def refuse(msg: Any) -> Field:
-            if names:
-                raise messages.CommandError(sub.topic_name, (
-                    f"no group {name!r} in the scene (its groups: {', '.join(names)}) (fix: "
-                    f"publish on {goal}/<group> for one of them, or on {goal} for every agent)"))
-            raise messages.CommandError(sub.topic_name, (
-                f"no group {name!r}: the scene has no agents.groups (fix: publish on {goal} "
-                "for every agent)"))
+            raise messages.CommandError(sub.topic_name, problem)
         self._command(sub, PointStamped, raw, info, refuse)
-
-    def _watch_goal_topics(self) -> None:
-        """Subscribes to the goal/<name> topics someone publishes for a name that is no group
-        of the scene, so that their goals get a verdict (refused, naming the groups)."""
-        names = tuple(self.groups.names) if self.groups is not None else ()
-        for topic in graph.foreign_goal_topics(self, self.sub_goal.topic_name, names):
-            if (topic in self.sub_unknown_groups
-                    or len(self.sub_unknown_groups) >= graph.MAX_UNKNOWN_GROUPS):
-                continue
-            box: list[Any] = []
-            box.append(self.create_subscription(
-                PointStamped, topic, lambda raw, info, b=box: self._on_unknown_group(
-                    b[0], raw, info), self._inbound, raw=True))
-            self.sub_unknown_groups[topic] = box[0]
 
     def _apply_command(self, applied: Applied) -> None:
         """Makes a command the drift from the step about to start; records it (the message on

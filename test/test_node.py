@@ -718,6 +718,9 @@ def test_client_module_commands_a_running_node(installed, probe, tmp_path):
         t1 = stamp(probe.agents[-1])
         probe.spin_until(heading_is(probe, [0, 1], 1.3, t1), 10.0, "motion towards the goal",
                          node)
+        # status prints the latest diagnostics (latched, 1 Hz): wait until it counts both
+        probe.spin_until(lambda: diag_value(probe, "commands_applied") == "2", 10.0,
+                         "diagnostics counting both commands", node)
         done = client("status")
         assert done.returncode == 0 and "commands_applied: 2" in done.stdout, done
         done = client("reset")
@@ -1062,14 +1065,14 @@ def test_group_goals_replace_only_their_group(installed, probe, tmp_path):
         probe.spin_until(lambda: moved()[:3].min() > 1.5, 30.0, "group a on its way", node)
         assert moved()[3:].max() < 0.5  # group b: no drift, only noise
 
-        # no such group: the client says which there are; unreachable: refused, counted
-        done = client("--timeout", "5", "goal", "8", "1", "--group", "c")
-        assert done.returncode == 2, done
-        assert done.stderr.strip().splitlines() == [
-            "sweep_client: error: no group 'c': the node takes goals for the groups a, b "
-            "(fix: --group one of them)"]
+        # no such group: the node refuses it, naming its groups; unreachable: refused too
+        done = client("goal", "8", "1", "--group", "c")
+        assert done.returncode == 1, done
+        assert done.stdout.strip() == (
+            "refused: /goal/c: no group 'c' in the scene (its groups: a, b) (fix: publish on "
+            "/goal/<group> for one of them, or on /goal for every agent)"), done
         goal_b.publish(goal(12.0, 3.0))
-        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "1", 10.0,
+        probe.spin_until(lambda: diag_value(probe, "commands_refused") == "2", 10.0,
                          "the unreachable goal of group b refused", node)
         # goals for both groups stack
         goal_b.publish(goal(8.0, 5.0))
