@@ -143,7 +143,8 @@ class Client:
         self._problems: list[str] = []
 
     def _spin_until(self, done: Callable[[], Any], what: str,
-                    fail: type[Exception] = ClientError, fix: str = "") -> Any:
+                    fail: type[Exception] = ClientError, fix: str = "",
+                    problem: str = "") -> Any:
         import rclpy
 
         end = time.monotonic() + self.timeout
@@ -156,7 +157,7 @@ class Client:
             if time.monotonic() >= end:
                 break
             rclpy.spin_once(self.node, timeout_sec=self.POLL_S)
-        raise fail(f"no answer from {what} within {self.timeout:g} s (fix: " + (
+        raise fail((problem or f"no answer from {what}") + f" within {self.timeout:g} s (fix: " + (
             fix or "start sweep_node with the same ROS_DOMAIN_ID, "
             "ROS_AUTOMATIC_DISCOVERY_RANGE and --namespace, or raise --timeout") + ")")
 
@@ -216,7 +217,9 @@ class Client:
                                          pub_matched))
         topic, result_topic = pub.topic_name, sub.topic_name
         commanders = self._spin_until(
-            lambda: pub_matched[0] and sub_matched[0] and self.commanders(topic, result_topic),
+            lambda: ((pub_matched[0] or pub.get_subscription_count())
+                     and (sub_matched[0] or self.node.count_publishers(result_topic))
+                     and self.commanders(topic, result_topic)),
             f"a sweep_node subscribing to {topic} and publishing {result_topic}")
         gid = self._own_gid(topic)
         msg_stamp = None
@@ -233,8 +236,9 @@ class Client:
                         or v.get("paused") == "true"]
             return answered if len(answered) >= commanders else []
         pub.publish(msg)
-        return self._spin_until(mine, f"the node's verdict on {topic}", Unanswered,
-                                "see the node's log; raise --timeout if it is busy")
+        return self._spin_until(mine, "", Unanswered,
+                                "see the node's log; raise --timeout if it is busy",
+                                f"the node gave no verdict on the command on {topic}")
 
     def commanders(self, topic: str, result_topic: str) -> int:
         """How many subscriptions to ``topic`` belong to nodes that also publish verdicts."""
@@ -253,17 +257,21 @@ class Client:
         return ""
 
     def diagnostics(self) -> Any:
-        """The node's latest diagnostics message (latched: at once, or the next one)."""
+        """The node's latest diagnostics message (latched: at once, or the next one); other
+        nodes' messages on the topic (their status is not ``<node>: simulation``) are
+        skipped."""
         from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
         got: list[Any] = []
-        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+
+        def keep(msg: Any) -> None:
+            if len(msg.status) == 1 and msg.status[0].name.endswith(": simulation"):
+                got.append(msg)
+        latched = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        sub = self.node.create_subscription(DiagnosticArray, "diagnostics", got.append, latched)
-        msg = self._spin_until(lambda: got and got[-1], f"topic {sub.topic_name}")
-        self.servers = self.node.count_publishers(sub.topic_name)
-        return msg
+        sub = self.node.create_subscription(DiagnosticArray, "diagnostics", keep, latched)
+        return self._spin_until(lambda: got and got[-1], f"sweep_node on {sub.topic_name}")
 
 
 def _one_server(client: Client, what: str) -> int:
@@ -336,7 +344,7 @@ def run(args: argparse.Namespace, client: Client) -> int:
     print(f"{status.name}: {level} {status.message}")
     for kv in status.values:
         print(f"  {kv.key}: {kv.value}")
-    return _one_server(client, "diagnostics")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
