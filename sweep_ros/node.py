@@ -21,7 +21,11 @@ time, and a state change such as reset takes effect between two steps, never ins
 per message is higher: at 1 kHz of cmd_vel for 10 s it took 1 700 messages against 5 300 with
 this layout, on a loaded 2-core machine; see test/node_load.py.) Commands are
 latest-wins (:mod:`sweep_ros.inbox`): each replaces the drift field at the start of the next
-step; one replaced before a step used it is counted as superseded.
+step; one replaced before a step used it is counted as superseded. Each command gets a verdict
+on ``command_result`` (:mod:`sweep_ros.results`: refused, accepted while paused, superseded,
+applied from step k); goals for group names the scene does not have are found in the ROS graph
+and refused by name (:mod:`sweep_ros.graph`, which also keeps a second node of the same name
+from starting).
 
 Maps (parameter ``map_topic``): each nav_msgs/OccupancyGrid is parsed and its walls built on
 the executor's thread (:meth:`SweepNode._on_map`), then swapped into the simulator between two
@@ -165,8 +169,7 @@ class SweepNode(Node):
 
         # interfaces (relative names: namespaces and remapping apply)
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        self._inbound = inbound = QoSProfile(depth=COMMAND_QUEUE_DEPTH,
-                                             reliability=ReliabilityPolicy.RELIABLE)
+        inbound = QoSProfile(depth=COMMAND_QUEUE_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.pub_poses = self.create_publisher(PoseArray, topics.POSES, reliable)
