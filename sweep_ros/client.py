@@ -216,11 +216,14 @@ class Client:
             event_callbacks=self._events("pub", self.node.resolve_topic_name(name),
                                          pub_matched))
         topic, result_topic = pub.topic_name, sub.topic_name
-        commanders = self._spin_until(
-            lambda: ((pub_matched[0] or pub.get_subscription_count())
-                     and (sub_matched[0] or self.node.count_publishers(result_topic))
-                     and self.commanders(topic, result_topic)),
-            f"a sweep_node subscribing to {topic} and publishing {result_topic}")
+        try:
+            commanders = self._spin_until(
+                lambda: ((pub_matched[0] or pub.get_subscription_count())
+                         and (sub_matched[0] or self.node.count_publishers(result_topic))
+                         and self.commanders(topic, result_topic)),
+                f"a sweep_node subscribing to {topic} and publishing {result_topic}")
+        except ClientError as err:
+            raise ClientError(f"{err}{self._mismatch(topic, msg_type)}") from None
         gid = self._own_gid(topic)
         msg_stamp = None
         if hasattr(msg, "header"):  # a nonce the node echoes as stamp_ns
@@ -246,6 +249,26 @@ class Client:
                   for e in self.node.get_publishers_info_by_topic(result_topic)}
         return sum(1 for e in self.node.get_subscriptions_info_by_topic(topic)
                    if (e.node_namespace, e.node_name) in givers)
+
+    def _mismatch(self, topic: str, msg_type: Any) -> str:
+        """What the graph shows on ``topic`` that is not a sweep_node taking ``msg_type``
+        (appended to the error when none answered), or ""."""
+        from sweep_ros.msgdefs import msgtype_of
+
+        mine = msgtype_of(msg_type)
+        me = (self.node.get_namespace(), self.node.get_name())
+        others = [e for e in self.node.get_subscriptions_info_by_topic(topic)
+                  if (e.node_namespace, e.node_name) != me]
+        wrong = [e for e in others if e.topic_type != mine]
+        if wrong:
+            e = wrong[0]
+            return (f"; {topic} is subscribed to as {e.topic_type} (not {mine}) by "
+                    f"{e.node_namespace.rstrip('/')}/{e.node_name}")
+        if others:
+            names = ", ".join(sorted({f"{e.node_namespace.rstrip('/')}/{e.node_name}"
+                                      for e in others}))
+            return f"; {topic} is subscribed to only by nodes that give no verdicts ({names})"
+        return ""
 
     def _own_gid(self, topic: str) -> str:
         from sweep_ros.results import gid_hex
