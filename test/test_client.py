@@ -291,3 +291,34 @@ def test_command_id_and_parse_round_trip():
         ident.text, "4", str(2 * 10**9 + 5), "false")
     assert msg.header.stamp.nanosec == 40_000_000 and recorded == [("/command_result", 123,
                                                                     sent[0])]
+
+
+def test_client_names_a_subscriber_of_another_type():
+    """A topic taken by a node of another message type: the client's error says so instead of
+    only blaming the domain (no sweep_node runs here)."""
+    import time
+
+    from rclpy.node import Node
+    from std_msgs.msg import String
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    other = Node("string_taker", context=context)
+    other.create_subscription(String, "/cmd_vel", lambda m: None, 10)
+    rclpy.init()
+    client = sweep_client.Client("", 1.0)
+    try:
+        end = time.monotonic() + DISCOVERY_S + 20.0
+        while (not client.node.get_subscriptions_info_by_topic("/cmd_vel")
+               and time.monotonic() < end):
+            time.sleep(0.02)
+        with pytest.raises(sweep_client.ClientError) as err:
+            client.command(Twist, "cmd_vel", Twist())
+        assert str(err.value).endswith(
+            "; /cmd_vel is subscribed to as std_msgs/msg/String (not geometry_msgs/msg/Twist) "
+            "by /string_taker"), err.value
+    finally:
+        client.node.destroy_node()
+        rclpy.try_shutdown()
+        other.destroy_node()
+        rclpy.shutdown(context=context)
