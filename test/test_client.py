@@ -9,6 +9,7 @@ from __future__ import annotations
 import re
 import signal
 import subprocess
+import time
 
 import pytest
 import rclpy
@@ -42,6 +43,23 @@ def client_runner(installed, tmp_path):  # noqa: F811 - the fixture's value
                               env=env,
                               cwd=tmp_path, capture_output=True, text=True, timeout=120)
     return run
+
+
+#: how long a node may take to start (its imports load numba's caches; a loaded 2-core machine)
+START_S = 180.0
+
+
+def connect(probe, node: Running) -> None:  # noqa: F811
+    """Waits for the node's start line in its log (generously), then for discovery both ways
+    and its first state."""
+    end = time.monotonic() + START_S
+    while "] [sweep_node]: scene '" not in node.log:
+        if not node.alive():
+            pytest.fail(f"sweep_node exited at start:\n{node.log}")
+        if time.monotonic() > end:
+            pytest.fail(f"sweep_node not started after {START_S:g} s:\n{node.log}")
+        time.sleep(0.1)
+    probe.connect(node)
 
 
 def verdict_probe(probe) -> list[dict[str, str]]:  # noqa: F811
@@ -79,7 +97,7 @@ def test_client_reports_refusals_and_the_step_a_command_applies_from(installed, 
         "record_flush_interval_s": 0.2})
     client = client_runner(installed, tmp_path)
     try:
-        probe.connect(node)
+        connect(probe, node)
         done = client("goal", "0", "-20")  # on the wall segment from (-20, -20) to (20, -20)
         assert done.returncode == 1, done
         assert done.stdout.startswith(
@@ -124,7 +142,7 @@ def test_verdicts_on_command_result_for_topic_publishers(installed, probe, tmp_p
         "max_speed": 5.0, "publish_markers": False})
     verdicts = verdict_probe(probe)
     try:
-        probe.connect(node)
+        connect(probe, node)
         gid = gid_of(probe, probe.cmd_vel)
 
         def on(seq: int, final: bool = True):
@@ -185,7 +203,7 @@ def test_use_sim_time_keeps_diagnostics(installed, probe, tmp_path):  # noqa: F8
         "scene": str(scene_path), "dt": DT, "rate_hz": 50.0, "use_sim_time": True,
         "publish_markers": False})
     try:
-        probe.connect(node)
+        connect(probe, node)
         probe.spin_until(lambda: len(probe.diagnostics) >= 2, DISCOVERY_S + 20.0,
                          "two diagnostics messages", node)
         done = client_runner(installed, tmp_path)("status")
@@ -208,21 +226,20 @@ def test_second_node_of_the_same_name(installed, probe, tmp_path, capsys):  # no
     rclpy.init()
     client = None
     try:
-        probe.connect(first)
+        connect(probe, first)
         # the check watches the graph for up to 60 s and stops as soon as it sees the first
         second = Running(installed, tmp_path, {**base, "name_check_s": 60.0}, name="second")
-        assert second.proc.wait(timeout=120) == 2, second.log
+        assert second.proc.wait(timeout=START_S + 60.0) == 2, second.log
         assert "sweep_node: error: another node named /sweep_node is running on this ROS " \
                "domain" in second.log and "Traceback" not in second.log, second.log
         third = Running(installed, tmp_path, {**base, "name_check_s": 0.0}, name="third")
         probe.spin_until(lambda: any(
             d.status[0].message.startswith("2 nodes named /sweep_node on this ROS domain")
-            for d in probe.diagnostics), DISCOVERY_S + 20.0, "the duplicate in diagnostics",
-            first)
+            for d in probe.diagnostics), START_S, "the duplicate in diagnostics", first)
         client = sweep_client.Client("", 60.0)
         probe.spin_until(lambda: client.node.count_services("/pause") == 2
                          and client.commanders("/cmd_vel", "/command_result") == 2,
-                         DISCOVERY_S + 20.0, "both nodes seen by the client", third)
+                         START_S, "both nodes seen by the client", third)
         args = sweep_client.build_parser().parse_args(["pause"])
         assert sweep_client.run(args, client) == 1
         err = capsys.readouterr().err
@@ -296,8 +313,6 @@ def test_command_id_and_parse_round_trip():
 def test_client_names_a_subscriber_of_another_type():
     """A topic taken by a node of another message type: the client's error says so instead of
     only blaming the domain (no sweep_node runs here)."""
-    import time
-
     from rclpy.node import Node
     from std_msgs.msg import String
 
