@@ -31,7 +31,8 @@ class Command:
     """A valid command waiting for a step: ``field`` replaces the drift (or, with ``group``
     k, the drift of the scene's group k); ``raw`` is the CDR message as received (recorded
     when applied); ``arrival`` is time.monotonic() (s); ``built_for``: the scene a navigation
-    field was computed for (None when the field does not depend on the walls)."""
+    field was computed for (None when the field does not depend on the walls); ``ident``: what
+    names the message in its verdict (:class:`sweep_ros.results.CommandId`)."""
 
     topic: str
     field: Field
@@ -39,6 +40,7 @@ class Command:
     arrival: float
     group: int | None = None
     built_for: Any = None
+    ident: Any = None
 
 
 @dataclass(frozen=True)
@@ -89,16 +91,18 @@ class CommandInbox:
             self.refused += 1
 
     def offer(self, topic: str, field: Field, raw: bytes, arrival: float,
-              group: int | None = None, built_for: Any = None) -> None:
+              group: int | None = None, built_for: Any = None, ident: Any = None
+              ) -> list[Command]:
         """A valid command: it replaces any command still waiting for a step (with ``group``:
-        any for the same group)."""
-        cmd = Command(topic, field, raw, arrival, group, built_for)
+        any for the same group). Returns the commands it superseded."""
+        cmd = Command(topic, field, raw, arrival, group, built_for, ident)
         with self._lock:
             keep = [c for c in self._pending if group is not None and c.group != group]
-            dropped = len(self._pending) - len(keep)
-            self.superseded += dropped
-            self._superseded_since_applied += dropped
+            dropped = [c for c in self._pending if group is None or c.group == group]
+            self.superseded += len(dropped)
+            self._superseded_since_applied += len(dropped)
             self._pending = keep + [cmd]
+        return dropped
 
     # -- the stepping side -------------------------------------------------------------------
     def take(self) -> Applied | None:
@@ -118,10 +122,13 @@ class CommandInbox:
 
     def discard(self) -> int:
         """Drops the waiting commands (a reset replaces them); returns how many were dropped."""
+        return len(self.discard_all())
+
+    def discard_all(self) -> list[Command]:
+        """Drops the waiting commands (a reset replaces them); returns them."""
         with self._lock:
-            dropped = len(self._pending)
-            self._pending = []
-            self.superseded += dropped
+            dropped, self._pending = self._pending, []
+            self.superseded += len(dropped)
             self._superseded_since_applied = 0
             return dropped
 

@@ -21,7 +21,11 @@ time, and a state change such as reset takes effect between two steps, never ins
 per message is higher: at 1 kHz of cmd_vel for 10 s it took 1 700 messages against 5 300 with
 this layout, on a loaded 2-core machine; see test/node_load.py.) Commands are
 latest-wins (:mod:`sweep_ros.inbox`): each replaces the drift field at the start of the next
-step; one replaced before a step used it is counted as superseded.
+step; one replaced before a step used it is counted as superseded. Each command gets a verdict
+on ``command_result`` (:mod:`sweep_ros.results`: refused, accepted while paused, superseded,
+applied from step k); goals for group names the scene does not have are found in the ROS graph
+and refused by name (:mod:`sweep_ros.graph`, which also keeps a second node of the same name
+from starting).
 
 Maps (parameter ``map_topic``): each nav_msgs/OccupancyGrid is parsed and its walls built on
 the executor's thread (:meth:`SweepNode._on_map`), then swapped into the simulator between two
@@ -61,6 +65,8 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseArray, Twist
 from nav_msgs.msg import OccupancyGrid
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
 from rclpy.exceptions import InvalidTopicNameException, ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -79,7 +85,7 @@ from sweep_core.model.geodesic import navigation_fields
 from sweep_core.model.maps import OccupancyMap, map_from_spec, replace_map
 from sweep_core.model.scene import Scene, load_scene
 from sweep_core.numerics import kernels
-from sweep_ros import messages, msgdefs, params
+from sweep_ros import graph, messages, msgdefs, params, results
 from sweep_ros.errors import StartError
 from sweep_ros.gate import StepGate
 from sweep_ros.inbox import Applied, CommandInbox
@@ -114,6 +120,7 @@ class SweepNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
+        started = time.monotonic()
         self._p = self._declare_parameters()
         self._closed = False
         self.recorder: BackgroundRecorder | None = None
@@ -126,6 +133,7 @@ class SweepNode(Node):
                                  solver=params.solver_options(self._p))
         except SceneError as err:
             raise StartError([f"scene {self._p['scene'] or '(bundled default)'}: {err}"]) from err
+        graph.check_unique_name(self, started + self._p["name_check_s"])
         self._apply_sigma()
         # every kernel a step, a goal's navigation field or a map can call, compiled (first
         # run on this machine) or loaded now: no command waits for a compile once ready
@@ -173,7 +181,11 @@ class SweepNode(Node):
         self.pub_agents = self.create_publisher(PointCloud2, topics.AGENTS, reliable)
         self.pub_markers = self.create_publisher(MarkerArray, "markers", reliable)
         self.pub_walls = self.create_publisher(MarkerArray, "walls", latched)
-        self.pub_diag = self.create_publisher(DiagnosticArray, "diagnostics", reliable)
+        # latched, so that a client reads the last one at once instead of waiting up to 1 s
+        self.pub_diag = self.create_publisher(DiagnosticArray, "diagnostics", latched)
+        self.pub_results = self.create_publisher(DiagnosticArray, results.TOPIC, results.QOS)
+        self._results = results.CommandResults(self.pub_results,
+                                               self.get_fully_qualified_name(), self._record)
         self.pub_navigation = self.create_publisher(PointCloud2, topics.NAVIGATION, latched)
         self.pub_clock = (self.create_publisher(Clock, "clock", reliable)
                           if self._p["publish_clock"] else None)
@@ -189,6 +201,11 @@ class SweepNode(Node):
                                      lambda raw, info, k=k: self._on_group_goal(k, raw, info),
                                      inbound, raw=True)
             for k, name in enumerate(self.groups.names if self.groups is not None else ())]
+        #: goal/<name> for names that are no group of the scene, subscribed to refuse them
+        self.unknown_groups = graph.UnknownGroups(
+            self, self.sub_goal.topic_name,
+            tuple(self.groups.names) if self.groups is not None else (), inbound,
+            self._on_unknown_group)
         self.sub_field = self.create_subscription(
             PointCloud2, "velocity_field", self._on_velocity_field, inbound, raw=True)
         self.sub_map = None
@@ -208,7 +225,13 @@ class SweepNode(Node):
 
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
-        self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diag_timer)
+        # on the steady clock: with use_sim_time the node's ROS clock follows /clock, which
+        # stands still while paused (or, without publish_clock, never starts)
+        steady = RosClock(clock_type=ClockType.STEADY_TIME)
+        self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diag_timer,
+                                             clock=steady)
+        self._graph_timer = self.create_timer(graph.GRAPH_PERIOD_S, self.unknown_groups.watch,
+                                              clock=steady)
 
         self._publish_walls()
         self._publish_state(force_markers=True)
@@ -252,6 +275,7 @@ class SweepNode(Node):
             self.pub_markers.topic_name: msgdefs.msgtype_of(MarkerArray),
             self.pub_walls.topic_name: msgdefs.msgtype_of(MarkerArray),
             self.pub_diag.topic_name: msgdefs.msgtype_of(DiagnosticArray),
+            self.pub_results.topic_name: msgdefs.msgtype_of(DiagnosticArray),
             self.pub_navigation.topic_name: cdr.POINT_CLOUD2,
             self.sub_cmd_vel.topic_name: msgdefs.msgtype_of(Twist),
             self.sub_goal.topic_name: msgdefs.msgtype_of(PointStamped),
@@ -263,8 +287,10 @@ class SweepNode(Node):
             names[self.pub_clock.topic_name] = cdr.CLOCK
         if self.sub_map is not None:
             names[self.sub_map.topic_name] = msgdefs.msgtype_of(OccupancyGrid)
-        latched = {self.pub_walls.topic_name, self.pub_navigation.topic_name} | (
-            {self.sub_map.topic_name} if self.sub_map is not None else set())
+        latched = {self.pub_walls.topic_name: 1, self.pub_navigation.topic_name: 1,
+                   self.pub_diag.topic_name: 1, self.pub_results.topic_name: results.DEPTH}
+        if self.sub_map is not None:
+            latched[self.sub_map.topic_name] = 1
         meta.update({
             "node": self.get_fully_qualified_name(),
             "parameters": json.dumps(self._p, sort_keys=True),
@@ -283,7 +309,8 @@ class SweepNode(Node):
                 other="-p record:=OTHER.mcap", on_error=self._recording_failed)
             for topic, msgtype in names.items():
                 definition = None if msgtype in cdr.SCHEMAS else msgdefs.definition(msgtype)
-                qos = qos_profiles(1, True) if topic in latched else qos_profiles(10)
+                qos = (qos_profiles(latched[topic], True) if topic in latched
+                       else qos_profiles(10))
                 self.recorder.add_channel(topic, msgtype, definition, offered_qos_profiles=qos)
         except (SweepError, msgdefs.MsgDefError) as err:
             if self.recorder is not None:
@@ -371,8 +398,13 @@ class SweepNode(Node):
         counters = self._inbox.counters()
         lost = counters["commands_lost"]
         new_lost = lost - self._lost_reported if isinstance(lost, int) else 0
+        same_name = graph.same_name_count(self)
         if self.failure:
             level, message = "ERROR", f"infeasible, paused: {self.failure}"
+        elif same_name > 1:
+            level, message = "WARN", (f"{same_name} nodes named "
+                                      f"{self.get_fully_qualified_name()} on this ROS domain: "
+                                      "services and commands reach all of them")
         elif rec is not None and rec.error:
             level, message = "WARN", f"recording stopped: {rec.error}"
         elif self._map_problem:
@@ -403,6 +435,7 @@ class SweepNode(Node):
             "compile_s": self.warm_up.seconds,
             "kernels_compiled_late": kernels.compiled_count() - self._compiled_at_start,
             **counters,
+            "command_results": self._results.published,
             "resets": self._resets,
             "maps_applied": self._maps_applied,
             "map_refused": self._maps_refused,
@@ -515,6 +548,7 @@ class SweepNode(Node):
         arrival = time.monotonic()
         topic = sub.topic_name
         self._inbox.arrived(topic, info)
+        msg = None
         try:
             try:
                 msg = deserialize_message(raw, msg_class)
@@ -524,9 +558,34 @@ class SweepNode(Node):
         except messages.CommandError as err:
             self._inbox.refuse()
             self.get_logger().warning(f"command refused, {err}", throttle_duration_sec=2.0)
+            self._verdict("refused", topic, results.command_id(info, msg), str(err))
             return
-        self._inbox.offer(topic, field, bytes(raw), arrival, group,
-                          built_for if navigation_fields(field) else None)
+        ident = results.command_id(info, msg)
+        if self.paused:  # said before the offer: a step cannot take it before this
+            self._verdict("accepted", topic, ident, "accepted: the node is paused at step "
+                          f"{self.sim.n_steps}; it applies from the next step taken",
+                          paused=True)
+        for old in self._inbox.offer(topic, field, bytes(raw), arrival, group,
+                                     built_for if navigation_fields(field) else None, ident):
+            self._verdict("superseded", old.topic, old.ident,
+                          f"superseded by a newer command on {topic} before a step used it")
+
+    def _verdict(self, verdict: str, topic: str, ident: Any, text: str,
+                 log_ns: int | None = None, **extra: Any) -> None:
+        """Publishes a command's verdict on command_result (:mod:`sweep_ros.results`) at the
+        step the simulation is at (the one a command applies from, for ``applied``)."""
+        self._results.verdict(verdict, topic, ident or results.CommandId(), text,
+                              self.sim.n_steps, self.sim.t, topics.stamp_ns(self.sim.t),
+                              self._last_log_ns if log_ns is None else log_ns, **extra)
+
+    def _on_unknown_group(self, sub: Any, raw: bytes, info: Any) -> None:
+        problem = graph.unknown_group_problem(sub.topic_name.rsplit("/", 1)[1],
+                                              self.sub_goal.topic_name,
+                                              self.unknown_groups.groups)
+
+        def refuse(msg: Any) -> Field:
+            raise messages.CommandError(sub.topic_name, problem)
+        self._command(sub, PointStamped, raw, info, refuse)
 
     def _apply_command(self, applied: Applied) -> None:
         """Makes a command the drift from the step about to start; records it (the message on
@@ -543,10 +602,14 @@ class SweepNode(Node):
         except (messages.CommandError, SceneError) as err:
             self._inbox.refuse_taken()
             self.get_logger().warning(f"command refused, {err}")
+            self._verdict("refused", cmd.topic, cmd.ident, str(err))
             return
         self.sim.set_drift(drift)
         k = self._inbox.applied
         log_ns = self._log_ns(self.sim.t)
+        self._verdict("applied", cmd.topic, cmd.ident,
+                      f"applied from step {self.sim.n_steps} (t = {self.sim.t:g} s)", log_ns,
+                      latency_ms=f"{1e3 * applied.latency_s:g}")
         self._record(cmd.topic, log_ns, cmd.raw)
         if self.recorder is not None:
             self.recorder.metadata(f"command_{k:06d}", {
@@ -695,7 +758,9 @@ class SweepNode(Node):
         with self._gate.control():
             before = (self.sim.n_steps, self.sim.t)
             self._epoch_ns = self._last_log_ns + self._dt_ns
-            self._inbox.discard()  # a command not yet applied is superseded by the reset
+            for old in self._inbox.discard_all():  # not yet applied: superseded by the reset
+                self._verdict("superseded", old.topic, old.ident,
+                              "superseded by a reset before a step used it")
             self.sim.reset()
             self._apply_sigma()
             self.failure = None
@@ -797,6 +862,7 @@ class SweepNode(Node):
                 return
             self._closed = True
             self._diag_timer.cancel()
+            self._graph_timer.cancel()
             if self.recorder is None:
                 return
             counters = {k: str(v) for k, v in self._inbox.counters().items()}

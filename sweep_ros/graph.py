@@ -1,0 +1,100 @@
+"""What the node reads from the ROS graph: nodes with its own name, goals for unknown groups.
+
+The graph is the middleware's view of the other participants' nodes and endpoints; it fills in
+as discovery proceeds (on this machine typically within 0.1-0.5 s of a participant's start),
+so every answer here is "as seen now".
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+from sweep_ros.errors import StartError
+
+#: how often the node looks for goals published to groups it does not have (s)
+GRAPH_PERIOD_S = 0.2
+#: at most this many refusing subscriptions for unknown group names (a flood of names must not
+#: grow the node without bound)
+MAX_UNKNOWN_GROUPS = 32
+
+
+def same_name_count(node: Any) -> int:
+    """How many nodes of the graph have this node's name and namespace (itself included)."""
+    me = (node.get_name(), node.get_namespace())
+    return sum(1 for entry in node.get_node_names_and_namespaces() if tuple(entry) == me)
+
+
+def wait_for_same_name(node: Any, deadline: float, poll_s: float = 0.05) -> int:
+    """Watches the graph until time.monotonic() reaches ``deadline`` (s) or a second node with
+    this node's name and namespace shows up; returns the count (1: none but itself)."""
+    while True:
+        count = same_name_count(node)
+        if count > 1 or time.monotonic() >= deadline:
+            return count
+        time.sleep(poll_s)
+
+
+def check_unique_name(node: Any, deadline: float) -> None:
+    """Raises :class:`StartError` if another node with this node's name and namespace shows up
+    in the graph before ``deadline`` (time.monotonic(), s): services, parameters and commands
+    would reach both."""
+    if wait_for_same_name(node, deadline) > 1:
+        raise StartError([
+            f"another node named {node.get_fully_qualified_name()} is running on this ROS "
+            "domain; services and commands would reach both (fix: stop it, or give this one "
+            "another name or namespace: --ros-args -r __node:=NAME or -r __ns:=/NS)"])
+
+
+def foreign_goal_topics(node: Any, goal_topic: str, groups: tuple[str, ...]) -> list[str]:
+    """Topics ``<goal_topic>/<name>`` that some publisher (not this node) offers as
+    geometry_msgs/PointStamped where ``name`` is not one of the scene's ``groups``."""
+    prefix = goal_topic.rstrip("/") + "/"
+    known = {prefix + name for name in groups}
+    out = []
+    for name, types in node.get_topic_names_and_types():
+        if (name.startswith(prefix) and name not in known and "/" not in name[len(prefix):]
+                and "geometry_msgs/msg/PointStamped" in types and node.count_publishers(name)):
+            out.append(name)
+    return sorted(out)
+
+
+def unknown_group_problem(name: str, goal_topic: str, groups: tuple[str, ...]) -> str:
+    """Why a goal on ``<goal_topic>/<name>`` is refused: ``name`` is no group of the scene."""
+    if groups:
+        return (f"no group {name!r} in the scene (its groups: {', '.join(groups)}) (fix: "
+                f"publish on {goal_topic}/<group> for one of them, or on {goal_topic} for every "
+                "agent)")
+    return (f"no group {name!r}: the scene has no agents.groups (fix: publish on {goal_topic} "
+            "for every agent)")
+
+
+class UnknownGroups:
+    """Subscriptions to the ``<goal_topic>/<name>`` topics someone publishes for a name that is
+    no group of the scene (found by :meth:`watch`, called on a timer), so that their goals get
+    a verdict; ``on_message(subscription, raw, info)`` takes each message."""
+
+    def __init__(self, node: Any, goal_topic: str, groups: tuple[str, ...], qos: Any,
+                 on_message: Callable[[Any, bytes, Any], None]) -> None:
+        self.node, self.goal_topic, self.groups = node, goal_topic, groups
+        self.qos, self.on_message = qos, on_message
+        self.subscriptions: dict[str, Any] = {}
+
+    def watch(self) -> None:
+        """Subscribes to the new ones (at most :data:`MAX_UNKNOWN_GROUPS` in all)."""
+        from geometry_msgs.msg import PointStamped
+
+        for topic in foreign_goal_topics(self.node, self.goal_topic, self.groups):
+            if (topic in self.subscriptions
+                    or len(self.subscriptions) >= MAX_UNKNOWN_GROUPS):
+                continue
+            box: list[Any] = []
+            box.append(self.node.create_subscription(
+                PointStamped, topic, lambda raw, info, b=box: self.on_message(b[0], raw, info),
+                self.qos, raw=True))
+            self.subscriptions[topic] = box[0]
+
+
+__all__ = ["GRAPH_PERIOD_S", "MAX_UNKNOWN_GROUPS", "UnknownGroups", "check_unique_name",
+           "foreign_goal_topics", "same_name_count", "unknown_group_problem",
+           "wait_for_same_name"]
