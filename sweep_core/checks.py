@@ -68,6 +68,54 @@ def array(value: Any, field: str, shape: tuple[int | None, ...], what: str = "",
     return arr
 
 
+#: largest |coordinate| (m) accepted for positions, wall ends, obstacles, spawn regions, goals
+#: and map origins, and largest length (m) for radii.
+#:
+#: Why 1e4 m: with every coordinate within L, one ulp of a coordinate is at most L * 2^-52 and
+#: each float operation rounds by at most u = 2^-53 of its result. The distance from a centre
+#: q to a wall segment [a, b] goes through the foot p = a + s (b - a): the product s (b - a)
+#: (size up to 2 L) and the sum (size up to L) round each component by up to 3 L u, so the
+#: distance |q - p| is off by up to sqrt(2) * 3 L u (about 4.2 L u); the linearised row
+#: <e, y> >= <e, p> + r adds the rounding of the products <e, p> and <e, y> (about 2 L u
+#: each): about 10 L u in all (on random segments the distance error measures 0.87 L * 2^-52,
+#: typically). The feasibility check accepts 1e-9 m; keeping the arithmetic's own error a
+#: hundred times below it, 10 L u <= 1e-11 m, gives L <= 9e3 m: 1e4 m, where 10 L u is
+#: 1.1e-11 m. At 1e16 m one ulp is 2 m, and a wall's distance is meaningless.
+COORDINATE_BOUND = 1e4
+
+
+def within_bound(arr: np.ndarray, field: str, what: str = "coordinate") -> np.ndarray:
+    """``arr`` (finite floats) unchanged, or SceneError naming the first entry whose
+    magnitude exceeds :data:`COORDINATE_BOUND`."""
+    if arr.size and float(np.max(np.abs(arr))) > COORDINATE_BOUND:
+        bad = tuple(int(b) for b in np.argwhere(np.abs(arr) > COORDINATE_BOUND)[0])
+        where = f"[{', '.join(str(b) for b in bad)}]" if bad else ""
+        raise SceneError(f"{field}{where}", f"{what} {show(arr[bad])} m is beyond the bound "
+                         f"{COORDINATE_BOUND:g} m within which float64 distances hold to "
+                         "1e-11 m", f"use {what}s within +-{COORDINATE_BOUND:g} m (shift the "
+                         "scene's origin near its centre)")
+    return arr
+
+
+def point(value: Any, field: str) -> np.ndarray:
+    """A finite 2-vector [x, y] (m) within +-COORDINATE_BOUND."""
+    return within_bound(vec2(value, field), field)
+
+
+def points(value: Any, field: str) -> np.ndarray:
+    """Finite points (n, 2) [[x, y], ...] (m) within +-COORDINATE_BOUND."""
+    return within_bound(array(value, field, (None, 2), "as [[x, y], ...]"), field)
+
+
+def length(value: Any, field: str, *, positive: bool = False, nonnegative: bool = False,
+           what: str = "length") -> float:
+    """A finite length or coordinate (m), as :func:`number`, of magnitude at most
+    COORDINATE_BOUND; ``what`` names it in the message."""
+    x = number(value, field, positive=positive, nonnegative=nonnegative)
+    within_bound(np.array(x), field, what)
+    return x
+
+
 def vec2(value: Any, field: str) -> np.ndarray:
     """A finite 2-vector, written [x, y]."""
     return array(value, field, (2,), "as [x, y]", f"write {field} as [x, y], two numbers")
@@ -119,3 +167,15 @@ def kind(value: dict, field: str, kinds: Any, default: str | None = None) -> str
         raise SceneError(f"{field}.kind", f"unknown kind {show(k)}",
                          f"use one of {sorted(kinds)}")
     return str(k)
+
+
+def text(value: Any, field: str, most: int) -> str:
+    """Free text: a string (a number is written as text) of at most ``most`` characters."""
+    if isinstance(value, bool) or not isinstance(value, (str, int, float)):
+        raise SceneError(field, f"must be text, got {type(value).__name__} {show(value)}",
+                         f"write {field} as one string (quote it if it holds ':' or '[')")
+    out = str(value)
+    if len(out) > most:
+        raise SceneError(field, f"has {len(out)} characters, more than {most}",
+                         f"shorten {field} to at most {most} characters")
+    return out

@@ -11,7 +11,8 @@ from sweep_core import checks
 from sweep_core.errors import InfeasibleError, SceneError
 from sweep_core.model.fields import Field
 from sweep_core.model.geodesic import navigation_fields
-from sweep_core.model.geometry import gaps, single_rows
+from sweep_core.model.crossing import crossings
+from sweep_core.model.geometry import SEGMENT, gaps, single_rows
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise
@@ -296,6 +297,12 @@ class Simulator:
                 who = [] if worst is None else (
                     list(worst[:2]) if g.min_pair <= g.min_single else [worst[0]])
                 raise InfeasibleError(t1, who, f"true constraint violated by {-g.min_gap:.3g} m")
+            who, item = crossings(self.scene.geometry, self._q, y, float(r1.max(initial=0.0)))
+            if len(who):
+                raise InfeasibleError(t1, sorted(set(who.tolist())), "the centre of agent "
+                                      f"{int(who[0])} went through "
+                                      f"{self.scene.geometry.describe(SEGMENT, int(item[0]))} "
+                                      "during the step")
             min_gap = g.min_gap
         self._v = (y - self._q) / h
         self._reaction = res.prediction - y
