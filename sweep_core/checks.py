@@ -177,5 +177,5 @@ def text(value: Any, field: str, most: int) -> str:
     out = str(value)
     if len(out) > most:
         raise SceneError(field, f"has {len(out)} characters, more than {most}",
-                         f"shorten {field} to at most {most} characters")
+                         f"write {field} in at most {most} characters")
     return out

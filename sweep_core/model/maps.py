@@ -33,7 +33,7 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import SceneError
-from sweep_core.model.yaml_files import YAMLError, load_yaml, yaml_problem
+from sweep_core.model.yaml_files import YAMLError, load_yaml, yaml_fix, yaml_problem
 
 #: most cells a map may have (a 40 000 x 40 000 grid would be 1.6e9)
 MAX_CELLS = 25_000_000
@@ -218,7 +218,7 @@ def read_map_yaml(path: Path, field: str = "map.yaml") -> OccupancyMap:
                          "give the path of a map_server YAML file") from err
     except YAMLError as err:
         raise SceneError(field, f"{path} is not valid YAML: {yaml_problem(err)}",
-                         "correct the map file's YAML syntax at that line") from err
+                         yaml_fix(err)) from err
     where = f"{field} ({path.name})"
     meta = checks.mapping(meta, where, allowed={"image", "resolution", "origin", "negate",
                                                 "occupied_thresh", "free_thresh", "mode"},

@@ -44,7 +44,7 @@ from sweep_core.model.outlines import chain_points
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
 from sweep_core.model.spawn import spawn
 from sweep_core.model.user import check_constraint, constraint_name
-from sweep_core.model.yaml_files import YAMLError, dump_yaml, load_yaml, yaml_problem
+from sweep_core.model.yaml_files import YAMLError, dump_yaml, load_yaml, yaml_fix, yaml_problem
 
 #: overlap (m) tolerated in a given initial configuration (rounding of touching disks)
 INITIAL_TOLERANCE = 1e-9
@@ -167,7 +167,7 @@ class Scene:
             data = load_yaml(text)
         except YAMLError as err:
             raise SceneError("scene", f"{source} is not valid YAML: {yaml_problem(err)}",
-                             "correct the YAML syntax at that line") from err
+                             yaml_fix(err)) from err
         return cls.from_dict(data if data is not None else {}, name=name, base=base)
 
     @classmethod

@@ -105,7 +105,8 @@ def spawn(value: Any, field: str, geometry: Geometry, grid: OccupancyMap | None
                f"region grown by {lo_r:g} m, with 3 sqrt(n) + 1 for a finite region's spread")
         raise SceneError(f"{field}.count", f"{count} agents of radius {radius} exceed the "
                          f"{most} that the region can hold ({why})",
-                         f"ask for at most {most} agents, smaller radii, or a larger region")
+                         f"set {field}.count to at most {most}, or use smaller radii or a "
+                         "larger region")
     rng = np.random.default_rng(seed)
     kept_q = np.empty((0, 2))
     kept_r = np.empty(0)

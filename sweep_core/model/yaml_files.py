@@ -40,11 +40,21 @@ MAX_ALIAS_NODES = 100_000
 
 class YAMLLimitError(yaml.MarkedYAMLError):
     """The text is valid YAML but exceeds one of the limits above (nesting, aliases, their
-    expansion) or repeats a key; ``problem`` names the limit and ``problem_mark`` the place."""
+    expansion) or repeats a key; ``problem`` names the limit, ``problem_mark`` the place and
+    ``fix`` what to write instead."""
+
+    fix = ""
 
 
-def _refuse(problem: str, mark: Any) -> YAMLLimitError:
-    return YAMLLimitError(problem=problem, problem_mark=mark)
+def _refuse(problem: str, mark: Any, fix: str) -> YAMLLimitError:
+    err = YAMLLimitError(problem=problem, problem_mark=mark)
+    err.fix = fix
+    return err
+
+
+def yaml_fix(err: yaml.YAMLError) -> str:
+    """The fix to print after :func:`yaml_problem`: the limit's own, or correcting the syntax."""
+    return getattr(err, "fix", "") or "correct the YAML syntax at that line"
 
 
 def check_yaml(text: str | bytes) -> None:
@@ -74,7 +84,8 @@ def check_yaml(text: str | bytes) -> None:
             if line is not None:
                 shown = key if len(key) <= 40 else key[:37] + "..."
                 raise _refuse(f"key {shown!r} is given twice in one mapping (first at line "
-                              f"{line}); YAML would keep only the last", event.start_mark)
+                              f"{line}); YAML would keep only the last", event.start_mark,
+                              "remove one of them")
             top[3][key] = event.start_mark.line + 1
         top[2] += 1
 
@@ -82,7 +93,8 @@ def check_yaml(text: str | bytes) -> None:
         if isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
             if len(stack) >= MAX_DEPTH:
                 raise _refuse(f"nesting deeper than {MAX_DEPTH} levels of lists and mappings "
-                              f"(the limit MAX_DEPTH)", event.start_mark)
+                              f"(the limit MAX_DEPTH)", event.start_mark,
+                              "write the data with fewer levels of brackets and indentation")
             keys = {} if isinstance(event, yaml.MappingStartEvent) else None
             stack.append([1, event.anchor, 0, keys])
         elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
@@ -96,11 +108,11 @@ def check_yaml(text: str | bytes) -> None:
             repeated += size
             if aliases > MAX_ALIASES:
                 raise _refuse(f"more than {MAX_ALIASES} aliases (the limit MAX_ALIASES)",
-                              event.start_mark)
+                              event.start_mark, "write the repeated values out")
             if repeated > MAX_ALIAS_NODES:
                 raise _refuse(f"aliases repeat more than {MAX_ALIAS_NODES} nodes (the limit "
                               f"MAX_ALIAS_NODES; *{event.anchor} alone repeats {size})",
-                              event.start_mark)
+                              event.start_mark, "use fewer, smaller aliases")
             done(size, None, event)
         elif isinstance(event, yaml.DocumentStartEvent):
             sizes.clear()
