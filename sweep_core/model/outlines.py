@@ -94,8 +94,8 @@ def first_crossing(points: np.ndarray) -> tuple[int, int] | None:
     turn = orientation(a, b, b[nxt])
     u, v = b - a, b[nxt] - a[nxt]
     ahead = u[:, 0] * v[:, 0] + u[:, 1] * v[:, 1]  # exact sign for parallel u, v
-    for i in np.flatnonzero((turn == 0) & (ahead < 0)):
-        return (int(i), int(nxt[i])) if nxt[i] > i else (int(nxt[i]), int(i))
+    for k in np.flatnonzero((turn == 0) & (ahead < 0)):
+        return (int(k), int(nxt[k])) if nxt[k] > k else (int(nxt[k]), int(k))
     for i in range(m - 2):
         j = np.arange(i + 2, m if i > 0 else m - 1)
         if len(j) == 0:

@@ -89,13 +89,19 @@ def check_yaml(text: str | bytes) -> None:
             top[3][key] = event.start_mark.line + 1
         top[2] += 1
 
+    scalar = yaml.ScalarEvent
     for event in yaml.parse(text, Loader=SAFE_LOADER):
-        if isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
+        if type(event) is scalar and event.anchor is None and stack and stack[-1][3] is None:
+            top = stack[-1]  # the common case, an item of a list: counted and nothing else
+            top[0] += 1
+            top[2] += 1
+        elif isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
             if len(stack) >= MAX_DEPTH:
                 raise _refuse(f"nesting deeper than {MAX_DEPTH} levels of lists and mappings "
                               f"(the limit MAX_DEPTH)", event.start_mark,
                               "write the data with fewer levels of brackets and indentation")
-            keys = {} if isinstance(event, yaml.MappingStartEvent) else None
+            keys: dict[str, int] | None = {} if isinstance(event, yaml.MappingStartEvent) \
+                else None
             stack.append([1, event.anchor, 0, keys])
         elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
             size, anchor, _, _ = stack.pop()

@@ -297,10 +297,11 @@ class Simulator:
                 who = [] if worst is None else (
                     list(worst[:2]) if g.min_pair <= g.min_single else [worst[0]])
                 raise InfeasibleError(t1, who, f"true constraint violated by {-g.min_gap:.3g} m")
-            who, item = crossings(self.scene.geometry, self._q, y, float(r1.max(initial=0.0)))
-            if len(who):
-                raise InfeasibleError(t1, sorted(set(who.tolist())), "the centre of agent "
-                                      f"{int(who[0])} went through "
+            through, item = crossings(self.scene.geometry, self._q, y,
+                                      float(r1.max(initial=0.0)))
+            if len(through):
+                raise InfeasibleError(t1, sorted(set(through.tolist())), "the centre of agent "
+                                      f"{int(through[0])} went through "
                                       f"{self.scene.geometry.describe(SEGMENT, int(item[0]))} "
                                       "during the step")
             min_gap = g.min_gap
