@@ -312,6 +312,35 @@ def test_a_centre_jumping_through_a_wall_is_caught_even_when_its_distance_looks_
     assert np.all(sim.positions[:, 1] <= 5.0)  # kept at the last step before the crossing
 
 
+@pytest.mark.parametrize("wall", [
+    {"kind": "segment", "a": [-5, 1], "b": [5, 1]},
+    {"kind": "polyline", "points": [[-5, 1], [0, 1], [5, 1]], "closed": False}])
+def test_a_step_that_jumps_through_a_thin_wall_is_refused(wall):
+    """A scheme that lands agent 1 on the far side of a wall (0.5 m beyond it, so its end
+    position satisfies every constraint): the straight path of its centre meets the wall, and
+    the step is refused naming the agent and the wall; the state stays at the last step."""
+    from dataclasses import replace
+
+    from sweep_core.numerics.schemes import ProjectedEuler
+
+    class Jumping(ProjectedEuler):
+        def step(self, t, q, h, dB, drift, sigma):
+            res = super().step(t, q, h, dB, drift, sigma)
+            q_new = res.q_new.copy()
+            if t > 0.015:
+                q_new[1, 1] = 1.5  # from y = 0.5 to 1.5, through the wall at y = 1
+            return replace(res, q_new=q_new)
+
+    scene = sc.Scene.from_dict({"agents": {"positions": [[-2, 0.5], [2, 0.5]], "radius": 0.2},
+                                "walls": [wall]})
+    sim = sc.Simulator(scene, dt=0.01, scheme=Jumping)
+    sim.step(2)
+    with pytest.raises(sc.InfeasibleError, match=r"agents \[1\].*centre of agent 1 went "
+                                                  r"through walls\[0\]"):
+        sim.step()
+    assert sim.n_steps == 2 and sim.positions[1, 1] == 0.5
+
+
 try:
     from hypothesis import given, settings
     from hypothesis import strategies as st

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sweep_core.model.geometry import Geometry
+from sweep_core.model.geometry import Gaps, Geometry
 from sweep_core.model.neighbours import segments_within
 from sweep_core.model.outlines import segments_meet
 
@@ -22,29 +22,36 @@ from sweep_core.model.outlines import segments_meet
 DENSE_PAIRS = 1 << 16
 
 
-def crossings(geom: Geometry, q0: np.ndarray, q1: np.ndarray, reach: float = 0.0
-              ) -> tuple[np.ndarray, np.ndarray]:
+def crossings(geom: Geometry, q0: np.ndarray, q1: np.ndarray, r1: np.ndarray,
+              near: Gaps | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(agent, segment) index arrays of the centre paths [q0_i, q1_i] ((N, 2) m each) that
-    meet a static segment of ``geom``, exactly. ``reach`` (m): a distance within which
-    candidates are searched beyond each path's length when there are many pairs (the search
-    index's cell size; any value > 0 works, the largest radius is a good one)."""
-    static = np.flatnonzero(geom.segment_motion < 0)
-    moved = np.flatnonzero(np.any(q0 != q1, axis=1))
+    meet a static segment of ``geom``, decided exactly; r1 (N,): the radii at the end (m).
+
+    ``near``: the post-step check's :func:`gaps` at q1, whose segment pairs within its reach
+    are the candidates of every agent that moved at most reach + r1_i (a path through a
+    segment ends within its length of it, so its value there is at most |q1 - q0| - r1_i);
+    agents that moved farther (or all, without ``near``) are searched here."""
+    static = geom.segment_motion < 0
+    step = np.hypot(q1[:, 0] - q0[:, 0], q1[:, 1] - q0[:, 1])
     empty = np.empty(0, dtype=np.intp)
-    if len(static) == 0 or len(moved) == 0:
+    if not np.any(static) or not np.any(step > 0):
         return empty, empty
-    a, b = geom.segment_a[static], geom.segment_b[static]
-    p0, p1 = q0[moved], q1[moved]
-    if len(moved) * len(static) <= DENSE_PAIRS:
-        i, k = (m.ravel() for m in np.meshgrid(np.arange(len(moved)), np.arange(len(static)),
-                                                indexing="ij"))
-    else:
-        step = np.hypot(p1[:, 0] - p0[:, 0], p1[:, 1] - p0[:, 1])
-        i, k = segments_within(p0, a, b, max(float(step.max()), reach, 1e-6) * 1.001)
+    i, k = (empty, empty) if near is None else (near.near_agent, near.near_segment)
+    far = np.flatnonzero(step > (-1.0 if near is None else near.reach + r1))
+    if len(far):
+        seg = np.flatnonzero(static)
+        if len(far) * len(seg) <= DENSE_PAIRS:
+            fi, fk = (m.ravel() for m in np.meshgrid(np.arange(len(far)), np.arange(len(seg)),
+                                                      indexing="ij"))
+        else:
+            fi, fk = segments_within(q0[far], geom.segment_a[seg], geom.segment_b[seg],
+                                     max(float(step[far].max()), 1e-6) * 1.001)
+        i, k = np.concatenate([i, far[fi]]), np.concatenate([k, seg[fk]])
+    keep = static[k] & (step[i] > 0)
+    i, k = i[keep], k[keep]
+    p0, p1, a, b = q0[i], q1[i], geom.segment_a[k], geom.segment_b[k]
     # bounding boxes overlap (exact comparisons), then the exact test
-    lo, hi = np.minimum(p0[i], p1[i]), np.maximum(p0[i], p1[i])
-    s_lo, s_hi = np.minimum(a[k], b[k]), np.maximum(a[k], b[k])
-    near = np.all((lo <= s_hi) & (s_lo <= hi), axis=1)
-    i, k = i[near], k[near]
-    hit = segments_meet(p0[i], p1[i], a[k], b[k])
-    return moved[i[hit]], static[k[hit]]
+    box = np.all((np.minimum(p0, p1) <= np.maximum(a, b))
+                 & (np.minimum(a, b) <= np.maximum(p0, p1)), axis=1)
+    hit = np.flatnonzero(box)[segments_meet(p0[box], p1[box], a[box], b[box])]
+    return i[hit], k[hit]

@@ -297,8 +297,7 @@ class Simulator:
                 who = [] if worst is None else (
                     list(worst[:2]) if g.min_pair <= g.min_single else [worst[0]])
                 raise InfeasibleError(t1, who, f"true constraint violated by {-g.min_gap:.3g} m")
-            through, item = crossings(self.scene.geometry, self._q, y,
-                                      float(r1.max(initial=0.0)))
+            through, item = crossings(self.scene.geometry, self._q, y, r1, g)
             if len(through):
                 raise InfeasibleError(t1, sorted(set(through.tolist())), "the centre of agent "
                                       f"{int(through[0])} went through "
