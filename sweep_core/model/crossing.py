@@ -8,7 +8,9 @@ straight path [q0_i, q1_i] of each centre is therefore tested against every stat
 segment (walls, polyline pieces, polygon edges, map walls) with exact orientation signs
 (:func:`sweep_core.model.outlines.segments_meet`): a path that meets a segment is a crossing
 (a feasible centre never comes within its radius of a wall). Moving obstacles' edges are not
-tested: their relative path is not a straight segment.
+tested: their relative path is not a straight segment. The candidate pairs are those the
+post-step check found near the end positions, plus a search for the agents that moved farther
+than that check's reach, so the test adds little to it.
 """
 from __future__ import annotations
 
