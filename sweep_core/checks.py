@@ -83,17 +83,29 @@ def array(value: Any, field: str, shape: tuple[int | None, ...], what: str = "",
 #: 1.1e-11 m. At 1e16 m one ulp is 2 m, and a wall's distance is meaningless.
 COORDINATE_BOUND = 1e4
 
+#: largest |coordinate| (m) of an agent's position. Agents need not share the walls' bound: a
+#: centre within a radius of a wall segment lies within COORDINATE_BOUND + r of the origin
+#: anyway, a half-plane's value <n, q> - c rounds by about 2 |q| u, and pair distances are
+#: differences of nearby floats. What bounds a position is its own resolution: one ulp at
+#: 1e6 m is 1.2e-10 m, and <n, q> rounds by 2.2e-10 m there, still below the 1e-9 m tolerance
+#: (rows of agents spread along a wall, 40 m apart, reach 1e5 m).
+POSITION_BOUND = 1e6
 
-def within_bound(arr: np.ndarray, field: str, what: str = "coordinate") -> np.ndarray:
+
+def within_bound(arr: np.ndarray, field: str, what: str = "coordinate",
+                 bound: float = COORDINATE_BOUND) -> np.ndarray:
     """``arr`` (finite floats) unchanged, or SceneError naming the first entry whose
-    magnitude exceeds :data:`COORDINATE_BOUND`."""
-    if arr.size and float(np.max(np.abs(arr))) > COORDINATE_BOUND:
-        bad = tuple(int(b) for b in np.argwhere(np.abs(arr) > COORDINATE_BOUND)[0])
+    magnitude exceeds ``bound`` (:data:`COORDINATE_BOUND`, or :data:`POSITION_BOUND` for
+    agents' positions)."""
+    if arr.size and float(np.max(np.abs(arr))) > bound:
+        bad = tuple(int(b) for b in np.argwhere(np.abs(arr) > bound)[0])
         where = f"[{', '.join(str(b) for b in bad)}]" if bad else ""
+        holds = ("distances to walls hold to 1e-11 m" if bound == COORDINATE_BOUND
+                 else "positions hold to 2.2e-10 m")
         raise SceneError(f"{field}{where}", f"{what} {show(arr[bad])} m is beyond the bound "
-                         f"{COORDINATE_BOUND:g} m within which float64 distances hold to "
-                         "1e-11 m", f"use {what}s within +-{COORDINATE_BOUND:g} m (shift the "
-                         "scene's origin near its centre)")
+                         f"{bound:g} m within which float64 {holds}",
+                         f"use {what}s within +-{bound:g} m (shift the scene's origin near "
+                         "its centre)")
     return arr
 
 

@@ -224,7 +224,7 @@ def _build(data: Any, default_name: str, base: Path | None = None) -> Scene:
                  else checks.array(raw_pos, "agents.positions", (None, 2), "as [[x, y], ...]",
                                           "write agents.positions as [[x, y], ...], one pair "
                                           "of coordinates (m) per agent"))
-    checks.within_bound(positions, "agents.positions")
+    checks.within_bound(positions, "agents.positions", bound=checks.POSITION_BOUND)
     n = len(positions)
     radius = checks.within_bound(checks.per_agent(agents["radius"], n, "agents.radius",
                                                   positive=True), "agents.radius", "radius")
