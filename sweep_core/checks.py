@@ -69,6 +69,66 @@ def array(value: Any, field: str, shape: tuple[int | None, ...], what: str = "",
     return arr
 
 
+#: largest |coordinate| (m) accepted for positions, wall ends, obstacles, spawn regions, goals
+#: and map origins, and largest length (m) for radii.
+#:
+#: Why 1e4 m: with every coordinate within L, one ulp of a coordinate is at most L * 2^-52 and
+#: each float operation rounds by at most u = 2^-53 of its result. The distance from a centre
+#: q to a wall segment [a, b] goes through the foot p = a + s (b - a): the product s (b - a)
+#: (size up to 2 L) and the sum (size up to L) round each component by up to 3 L u, so the
+#: distance |q - p| is off by up to sqrt(2) * 3 L u (about 4.2 L u); the linearised row
+#: <e, y> >= <e, p> + r adds the rounding of the products <e, p> and <e, y> (about 2 L u
+#: each): about 10 L u in all (on random segments the distance error measures 0.87 L * 2^-52,
+#: typically). The feasibility check accepts 1e-9 m; keeping the arithmetic's own error a
+#: hundred times below it, 10 L u <= 1e-11 m, gives L <= 9e3 m: 1e4 m, where 10 L u is
+#: 1.1e-11 m. At 1e16 m one ulp is 2 m, and a wall's distance is meaningless.
+COORDINATE_BOUND = 1e4
+
+#: largest |coordinate| (m) of an agent's position. Agents need not share the walls' bound: a
+#: centre within a radius of a wall segment lies within COORDINATE_BOUND + r of the origin
+#: anyway, a half-plane's value <n, q> - c rounds by about 2 |q| u, and pair distances are
+#: differences of nearby floats. What bounds a position is its own resolution: one ulp at
+#: 1e6 m is 1.2e-10 m, and <n, q> rounds by 2.2e-10 m there, still below the 1e-9 m tolerance
+#: (rows of agents spread along a wall, 40 m apart, reach 1e5 m).
+POSITION_BOUND = 1e6
+
+
+def within_bound(arr: np.ndarray, field: str, what: str = "coordinate",
+                 bound: float = COORDINATE_BOUND) -> np.ndarray:
+    """``arr`` (finite floats) unchanged, or SceneError naming the first entry whose
+    magnitude exceeds ``bound`` (:data:`COORDINATE_BOUND`, or :data:`POSITION_BOUND` for
+    agents' positions)."""
+    if arr.size and float(np.max(np.abs(arr))) > bound:
+        bad = tuple(int(b) for b in np.argwhere(np.abs(arr) > bound)[0])
+        where = f"[{', '.join(str(b) for b in bad)}]" if bad else ""
+        holds = ("distances to walls hold to 1e-11 m" if bound == COORDINATE_BOUND
+                 else "positions hold to 2.2e-10 m")
+        raise SceneError(f"{field}{where}", f"{what} {show(arr[bad])} m is beyond the bound "
+                         f"{bound:g} m within which float64 {holds}",
+                         f"use {what}s within +-{bound:g} m (shift the scene's origin near "
+                         "its centre)")
+    return arr
+
+
+def point(value: Any, field: str) -> np.ndarray:
+    """A finite 2-vector [x, y] (m) within +-COORDINATE_BOUND."""
+    return within_bound(vec2(value, field), field)
+
+
+def points(value: Any, field: str) -> np.ndarray:
+    """Finite points (n, 2) [[x, y], ...] (m) within +-COORDINATE_BOUND."""
+    return within_bound(array(value, field, (None, 2), "as [[x, y], ...]"), field)
+
+
+def length(value: Any, field: str, *, positive: bool = False, nonnegative: bool = False,
+           what: str = "length") -> float:
+    """A finite length or coordinate (m), as :func:`number`, of magnitude at most
+    COORDINATE_BOUND; ``what`` names it in the message."""
+    x = number(value, field, positive=positive, nonnegative=nonnegative)
+    within_bound(np.array(x), field, what)
+    return x
+
+
 def vec2(value: Any, field: str) -> np.ndarray:
     """A finite 2-vector, written [x, y]."""
     return array(value, field, (2,), "as [x, y]", f"write {field} as [x, y], two numbers")
@@ -134,3 +194,15 @@ def file_kind(mode: int) -> str:
         if test(mode):
             return name
     return "not a regular file"
+
+
+def text(value: Any, field: str, most: int) -> str:
+    """Free text: a string (a number is written as text) of at most ``most`` characters."""
+    if isinstance(value, bool) or not isinstance(value, (str, int, float)):
+        raise SceneError(field, f"must be text, got {type(value).__name__} {show(value)}",
+                         f"write {field} as one string (quote it if it holds ':' or '[')")
+    out = str(value)
+    if len(out) > most:
+        raise SceneError(field, f"has {len(out)} characters, more than {most}",
+                         f"write {field} in at most {most} characters")
+    return out

@@ -31,6 +31,7 @@ from sensor_msgs.msg import PointField
 from visualization_msgs.msg import Marker, MarkerArray
 
 from sweep_core import SceneError, grid_field
+from sweep_core.checks import COORDINATE_BOUND
 from sweep_core.errors import show
 from sweep_core.model.fields import Goal, Grid, Uniform
 from sweep_core.model.geometry import Geometry
@@ -38,8 +39,9 @@ from sweep_core.model.maps import OccupancyMap
 
 #: largest grid (points) a velocity_field command may carry
 MAX_GRID_POINTS = 1_000_000
-#: goals farther than this from the origin (m) are refused as absurd
-MAX_COORDINATE = 1e6
+#: goals farther than this from the origin (m) are refused: the scene's coordinate bound, within
+#: which float64 distances hold (sweep_core.checks.COORDINATE_BOUND)
+MAX_COORDINATE = COORDINATE_BOUND
 #: relative tolerance on grid node spacing (float32 clouds carry rounding of ~1e-7 relative)
 GRID_TOLERANCE = 1e-4
 #: field names a velocity_field cloud must have

@@ -31,7 +31,7 @@ from sweep_core import SceneError, SolverOptions
 from sweep_core.errors import show
 from sweep_core.io.limits import DT_MAX, DT_MIN
 from sweep_core.model import geodesic
-from sweep_core.model.yaml_files import SAFE_LOADER, YAMLError, yaml_problem
+from sweep_core.model.yaml_files import SAFE_LOADER, YAMLError, compose_yaml, yaml_fix, yaml_problem
 
 _INT64_MAX = 2**63 - 1
 
@@ -377,10 +377,10 @@ def check_params_file(path: str, fqn: str = "/sweep_node") -> str | None:
     except UnicodeDecodeError as err:
         return f"{head}: is not UTF-8 text (byte {err.start}) (fix: give a YAML text file)"
     try:
-        root = yaml.compose(text, Loader=SAFE_LOADER)
+        root = compose_yaml(text)  # within the nesting and alias limits, no key twice
         yaml.load(text, Loader=SAFE_LOADER)  # tags and values construct as plain data
     except YAMLError as err:
-        return f"{head} {yaml_problem(err)} (fix: correct the YAML syntax at that line)"
+        return f"{head} {yaml_problem(err)} (fix: {yaml_fix(err)})"
     example = f"(fix: start the file with '/**:' or '{fqn.rsplit('/', 1)[-1]}:' and indent " \
               f"'{PARAMS_KEY}:' under it)"
     if root is None:

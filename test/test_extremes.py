@@ -292,3 +292,97 @@ def test_1e5_steps_keep_the_barycentre_of_two_equal_disks():
     assert worst_gap >= -TOL
     assert worst_bary < 1e-9
     assert pushed > 10  # the contact really was active along the run
+
+
+def test_a_centre_jumping_through_a_wall_is_caught_even_when_its_distance_looks_fine():
+    """A wall from x = -1e16 to 1e16 (where one ulp is 2 m, so its distances are meaningless;
+    scenes refuse it, the geometry is put in directly here): agents driven at it went through
+    and ended on the far side with 'status completed'. The path of each centre is tested
+    against the walls exactly, so the step that crosses is refused."""
+    import dataclasses
+
+    scene = sc.Scene.from_dict({"agents": {"positions": [[1, 4], [3, 4]], "radius": 0.3},
+                                "walls": [{"kind": "segment", "a": [-100, 5], "b": [100, 5]}],
+                                "drift": {"kind": "uniform", "velocity": [0, 1]}})
+    far = dataclasses.replace(scene.geometry, segment_a=np.array([[-1e16, 5.0]]),
+                              segment_b=np.array([[1e16, 5.0]]))
+    sim = sc.Simulator(dataclasses.replace(scene, geometry=far), dt=0.01)
+    with pytest.raises(sc.InfeasibleError, match=r"went through walls\[0\] \(segment\)"):
+        sim.run(3.0)
+    assert np.all(sim.positions[:, 1] <= 5.0)  # kept at the last step before the crossing
+
+
+@pytest.mark.parametrize("wall", [
+    {"kind": "segment", "a": [-5, 1], "b": [5, 1]},
+    {"kind": "polyline", "points": [[-5, 1], [0, 1], [5, 1]], "closed": False}])
+def test_a_step_that_jumps_through_a_thin_wall_is_refused(wall):
+    """A scheme that lands agent 1 on the far side of a wall (0.5 m beyond it, so its end
+    position satisfies every constraint): the straight path of its centre meets the wall, and
+    the step is refused naming the agent and the wall; the state stays at the last step."""
+    from dataclasses import replace
+
+    from sweep_core.numerics.schemes import ProjectedEuler
+
+    class Jumping(ProjectedEuler):
+        def step(self, t, q, h, dB, drift, sigma):
+            res = super().step(t, q, h, dB, drift, sigma)
+            q_new = res.q_new.copy()
+            if t > 0.015:
+                q_new[1, 1] = 1.5  # from y = 0.5 to 1.5, through the wall at y = 1
+            return replace(res, q_new=q_new)
+
+    scene = sc.Scene.from_dict({"agents": {"positions": [[-2, 0.5], [2, 0.5]], "radius": 0.2},
+                                "walls": [wall]})
+    sim = sc.Simulator(scene, dt=0.01, scheme=Jumping)
+    sim.step(2)
+    with pytest.raises(sc.InfeasibleError, match=r"agents \[1\].*centre of agent 1 went "
+                                                  r"through walls\[0\]"):
+        sim.step()
+    assert sim.n_steps == 2 and sim.positions[1, 1] == 0.5
+
+
+try:
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+except ImportError:  # pragma: no cover - hypothesis is in requirements-dev.txt
+    given = None
+
+if given is not None:
+    @settings(max_examples=30, deadline=None, derandomize=True)
+    @given(angle=st.floats(0.0, 2 * math.pi), half=st.floats(100.0, 2e4),
+           cx=st.floats(-50.0, 50.0), cy=st.floats(-50.0, 50.0),
+           speed=st.floats(0.5, 10.0), push=st.floats(-0.9, 0.9))
+    def test_agents_driven_at_a_long_wall_stay_on_their_side(angle, half, cx, cy, speed, push):
+        """A segment wall through (cx, cy) at least 100 m long each way, its ends as far as the
+        coordinate bound allows (beyond the agents' reach in 20 steps), three
+        agents 0.5 m from it driven into it (at an angle: push along the wall): after every
+        step each centre is on its starting side (exact orientation sign) and its float
+        distance to the wall is at least its radius - 1e-9 m."""
+        from sweep_core.checks import COORDINATE_BOUND
+        from sweep_core.model.outlines import orientation
+
+        d = np.array([math.cos(angle), math.sin(angle)])
+        n = np.array([-d[1], d[0]])
+        c = np.array([cx, cy])
+        # ends within the bound: shorten the half-length until both fit
+        lim = min((COORDINATE_BOUND - abs(c[k])) / max(abs(d[k]), 1e-300) for k in range(2))
+        half = min(half, lim)
+        a, b = c - half * d, c + half * d
+        r = 0.3
+        q0 = np.array([c + n * (r + 0.5) + d * s for s in (-1.5, 0.0, 1.5)])
+        scene = sc.Scene.from_dict({"agents": {"positions": q0.tolist(), "radius": r},
+                                    "walls": [{"kind": "segment", "a": a.tolist(),
+                                               "b": b.tolist()}],
+                                    "drift": {"kind": "uniform",
+                                              "velocity": (speed * (push * d - n)).tolist()}})
+        a, b = scene.geometry.segment_a[0], scene.geometry.segment_b[0]
+        side = orientation(a, b, scene.positions)
+        assert np.all(side == 1)
+        sim = sc.Simulator(scene, dt=0.05, seed=0)
+        for _ in range(20):
+            sim.step()
+            q = sim.positions
+            assert np.array_equal(orientation(a, b, q), side)
+            s = np.clip((q - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
+            dist = np.linalg.norm(q - (a + s[:, None] * (b - a)), axis=1)
+            assert dist.min() >= r - TOL

@@ -220,3 +220,25 @@ def test_malformed_occupancy_grids_are_refused(kwargs: dict, words: str) -> None
     with pytest.raises(SceneError) as err:
         OccupancyMap.from_occupancy_grid(**args)
     assert words in str(err.value) and err.value.fix
+
+
+@pytest.mark.parametrize("count, words", [
+    ("-1", "argument --count: -1 is not > 0"), ("0", "argument --count: 0 is not > 0"),
+    ("100000", "--count: 100000 agents of radius 0.15 m exceed the")])
+def test_sweep_map_refuses_a_starter_count_that_cannot_be_spawned(
+        tmp_path: Path, capsys: pytest.CaptureFixture, count: str, words: str) -> None:
+    """A count <= 0 was written into the starter scene (which then failed to load); a count
+    beyond the spawn bound is refused before the file is written."""
+    from sweep_core.cli import main
+
+    path = write_map(tmp_path)
+    scene_file = tmp_path / "scene.yaml"
+    try:
+        code = main(["map", str(path), "--scene", str(scene_file), "--count", count,
+                     "--radius", "0.15"])
+    except SystemExit as stop:  # argparse's usage error
+        code = stop.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err, err
+    assert not scene_file.exists()

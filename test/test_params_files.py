@@ -30,12 +30,19 @@ BROKEN = [
      "no ros__parameters applies to node /sweep_node (its entries are for ['/other_node'])"),
     ("python tag", "/**:\n  ros__parameters:\n    dt: !!python/object:os.system x\n",
      "line 3 column 9: could not determine a constructor"),
+    ("deep nesting", "/**:\n  ros__parameters:\n    dt: " + "[" * 100 + "]" * 100 + "\n",
+     "line 3 column 70: nesting deeper than 64 levels"),
+    ("key twice", "/**:\n  ros__parameters:\n    dt: 0.01\n    seed: 1\n    dt: 0.02\n",
+     "line 5 column 5: key 'dt' is given twice in one mapping (first at line 3)"),
+    ("alias bomb", "/**:\n  ros__parameters:\n    b0: &b0 [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n"
+     + "".join(f"    b{k}: &b{k} [{', '.join([f'*b{k - 1}'] * 10)}]\n" for k in range(1, 7)),
+     "aliases repeat more than 100000 nodes"),
 ]
 
 #: what rcl itself does with each broken file (True: rclpy.init raises)
 RCL_REFUSES = {"syntax", "bad indentation", "tab", "missing", "top-level list",
                "no ros__parameters", "ros__parameters not a mapping",
-               "value after ros__parameters", "mixed list"}
+               "value after ros__parameters", "mixed list", "alias bomb"}
 
 
 def write(tmp_path, name, text):

@@ -170,3 +170,49 @@ def test_moving_circle_into_a_pinned_agent_is_refused_with_time_and_agent() -> N
     with pytest.raises(sc.InfeasibleError) as err:
         sim.step(300)
     assert "0" in str(err.value) and 1.4 < err.value.t < 1.6
+
+
+def test_collinear_vertices_are_accepted_and_true_crossings_refused() -> None:
+    """Extra vertices on one side of a room (collinear edges) were refused as crossing edges;
+    crossing, touching and folded-back outlines are still refused, decided exactly."""
+    from sweep_core.model.outlines import chain_points
+
+    room = [[0, 0], [3, 0], [6, 0], [10, 0], [10, 10], [0, 10]]
+    scene = sc.Scene.from_dict({"agents": {"positions": [[5, 5]], "radius": 0.2},
+                                "walls": [{"kind": "polyline", "points": room, "closed": True}],
+                                "obstacles": [{"kind": "polygon",
+                                               "points": [[1, 1], [2, 1], [3, 1], [3, 2]]}]})
+    assert len(scene.spec["walls"][0]["points"]) == 6
+    for bad, words in [([[0, 0], [4, 0], [0, 3], [4, 3]], "edges 1 and 3 cross or touch"),
+                       ([[0, 0], [4, 0], [4, 4], [2, 0], [0, 4]], "edges 0 and 2 cross or touch"),
+                       ([[0, 0], [3, 0], [1, 0], [1, 5]], "edges 0 and 1 fold back"),
+                       ([[0, 0], [6, 0], [6, 2], [3, 0.0], [0, 2]], "cross or touch")]:
+        with pytest.raises(SceneError, match=words):
+            chain_points(bad, "walls[0].points", True, 3)
+
+
+def test_orientation_is_exact_where_the_float_determinant_is_not() -> None:
+    """Points on the line y = x at coordinates whose float products round: the sign is the
+    exact one (0 on the line, +-1 one ulp off it), as rational arithmetic gives."""
+    from fractions import Fraction
+
+    from sweep_core.model.outlines import orientation
+
+    rng = np.random.default_rng(3)
+    p = rng.uniform(-100, 100, (2000, 2))
+    q = rng.uniform(-100, 100, (2000, 2))
+    t = rng.uniform(-2, 3, (2000, 1))
+    r = p + t * (q - p)  # near the line pq, off it by rounding
+    r[::3] = np.nextafter(r[::3], np.inf)
+    got = orientation(p, q, r)
+
+    def exact(p, q, r):
+        (px, py), (qx, qy), (rx, ry) = ([Fraction(x) for x in v] for v in (p, q, r))
+        d = (qx - px) * (ry - py) - (qy - py) * (rx - px)
+        return (d > 0) - (d < 0)
+
+    want = np.array([exact(*v) for v in zip(p.tolist(), q.tolist(), r.tolist())])
+    naive = np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1])
+                    - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
+    assert np.any(naive != want)  # the float determinant alone gets some wrong
+    assert np.array_equal(got, want)

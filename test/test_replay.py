@@ -210,6 +210,30 @@ def test_not_a_sweep_recording_is_refused(tmp_path, capsys):
     assert "does not describe the run" in capsys.readouterr().err
 
 
+def test_hostile_recorded_metadata_is_refused_not_expanded(tmp_path, capsys):
+    """A recording whose scene holds an alias bomb in its description (600 bytes standing for
+    3.5e9 numbers) hung `sweep replay`; a command 100 000 lists deep raised RecursionError.
+    Both are named as problems of the metadata, and replay exits 2 with one line."""
+    bomb = ["l0: &a0 [1, 1, 1, 1, 1, 1, 1, 1, 1]"] + [
+        f"l{k}: &a{k} [{', '.join([f'*a{k - 1}'] * 9)}]" for k in range(1, 10)]
+    f = tmp_path / "hostile.mcap"
+    sim = sc.Simulator(SCENE, dt=DT, seed=SEED)
+    meta = run_metadata(SCENE, sim, None, 1)
+    meta["scene"] = meta["scene"] + "description: {" + ", ".join(bomb) + "}\n"
+    with Recorder(f, metadata=meta) as rec:
+        rec.add_channel("/poses", "geometry_msgs/msg/PoseArray")
+        rec.write("/poses", 0, topics.encode_state(sim.state)["poses"])
+        rec.add_metadata("command_000000", {"topic": "cmd", "step": "0", "log_time_ns": "0",
+                                            "field": "[" * 100_000})
+    meta_read = load_run(f)
+    shown = " ".join(meta_read.problems)
+    assert "aliases repeat more than 100000 nodes" in shown, shown
+    assert "nested too deep" in shown, shown
+    assert main(["replay", str(f), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+
+
 # ---------------------------------------------------------------------------------------------
 # fine Brownian paths
 # ---------------------------------------------------------------------------------------------

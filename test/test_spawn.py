@@ -49,7 +49,10 @@ def test_spec_holds_the_positions() -> None:
 def test_too_many_agents_are_refused_with_the_count_that_fits() -> None:
     with pytest.raises(SceneError) as err:
         scene(2000, 0.3)  # 2000 x 0.28 m^2 is far more than the 56 m^2 of free floor
-    assert err.value.field == "agents.spawn.count" and "of 2000 agents" in str(err.value)
+    assert err.value.field == "agents.spawn.count" and "exceed the 171" in str(err.value)
+    with pytest.raises(SceneError) as err:
+        scene(165, 0.3)  # under the bound, which ignores the pillar, but more than fits
+    assert err.value.field == "agents.spawn.count" and "of 165 agents" in str(err.value)
 
 
 @pytest.mark.parametrize("spawn, field", [
@@ -64,3 +67,59 @@ def test_bad_spawn_is_refused(spawn: dict, field: str) -> None:
     with pytest.raises(SceneError) as err:
         sc.Scene.from_dict({"agents": {"spawn": spawn}})
     assert err.value.field == field and err.value.fix
+
+
+def test_a_count_beyond_the_jamming_bound_is_refused_before_any_draw(monkeypatch) -> None:
+    """10^8 agents of 0.2 m in a 9 x 4 m rectangle exhausted the memory (batches of 4x the
+    count); 10 000 took minutes. Both are refused before anything is drawn, naming the bound
+    and its source: 0.547 x the area grown by r (41.33 m^2) / (pi r^2) = 179.9, plus
+    3 sqrt(n) + 1 = 221."""
+    def no_draws(*args, **kwargs):
+        raise AssertionError("a random generator was made")
+
+    monkeypatch.setattr(np.random, "default_rng", no_draws)
+    for count in (100_000_000, 10_000, 222):
+        with pytest.raises(SceneError) as err:
+            sc.Scene.from_dict({"agents": {"spawn": {
+                "region": {"kind": "rectangle", "min": [0.5, 0.5], "max": [9.5, 4.5]},
+                "count": count, "radius": 0.2}}})
+        msg = str(err.value)
+        assert err.value.field == "agents.spawn.count", msg
+        assert f"{count} agents of radius 0.2 m exceed the 221 that the region can hold" in msg
+        assert "jams at 0.547" in msg and "Feder 1980" in msg and "\n" not in msg
+
+
+def test_a_range_of_radii_is_bounded_by_the_area() -> None:
+    """With radii in [0.1, 0.2] m the bound is the grown area over the smallest disk:
+    (9 x 4 + 26 x 0.2 + pi 0.04) / (pi 0.01) = 1315."""
+    with pytest.raises(SceneError, match="1316 agents of radius \\[0.1, 0.2\\] exceed the 1315"):
+        sc.Scene.from_dict({"agents": {"spawn": {
+            "region": {"kind": "rectangle", "min": [0.5, 0.5], "max": [9.5, 4.5]},
+            "count": 1316, "radius": [0.1, 0.2]}}})
+
+
+def test_a_count_that_passes_the_bound_but_does_not_fit_ends_after_bounded_draws(
+        monkeypatch) -> None:
+    """The bound ignores walls and obstacles: a count under it that the free floor cannot take
+    is refused after at most DRAWS x count candidates, with the count that fitted."""
+    from sweep_core.model import spawn as spawn_module
+    drawn = []
+    make = np.random.default_rng
+
+    class Counted:
+        def __init__(self, seed):
+            self.rng = make(seed)
+
+        def random(self, size):
+            drawn.append(int(np.prod(size)))
+            return self.rng.random(size)
+
+    monkeypatch.setattr(np.random, "default_rng", Counted)
+    pillar = {"kind": "polygon", "points": [[0.4, 0.4], [9.6, 0.4], [9.6, 4.6], [0.4, 4.6]]}
+    with pytest.raises(SceneError) as err:
+        sc.Scene.from_dict({"obstacles": [pillar], "agents": {"spawn": {
+            "region": {"kind": "rectangle", "min": [0, 0], "max": [10, 5]},
+            "count": 150, "radius": 0.2}}})
+    assert "only " in str(err.value) and "of 150 agents" in str(err.value)
+    # positions (2 per candidate) and nothing else: equal radii are not drawn
+    assert sum(drawn) <= 2 * spawn_module.DRAWS * 150

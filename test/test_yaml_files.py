@@ -113,3 +113,95 @@ def test_binary_scene_file_is_refused(tmp_path):
     bad.write_bytes(b"\x89PNG\r\n\x1a\n\xff\xfe")
     with pytest.raises(sc.SceneError, match="is not UTF-8 text"):
         sc.Scene.from_yaml(bad)
+
+
+def alias_bomb(levels: int, width: int = 9) -> str:
+    """A description of nested aliases: level k repeats level k - 1 ``width`` times, so the
+    last stands for width^levels numbers in a few hundred bytes."""
+    rows = [f"l0: &a0 [{', '.join(['1'] * width)}]"]
+    rows += [f"l{k}: &a{k} [{', '.join([f'*a{k - 1}'] * width)}]" for k in range(1, levels)]
+    return "agents: {positions: [[0, 0]], radius: 0.2}\ndescription: {" + ", ".join(rows) + "}\n"
+
+
+def test_alias_bomb_is_refused_before_it_is_expanded():
+    """10 levels of 9 aliases stand for 9^10 (3.5e9) numbers in 600 bytes; the refusal names
+    the limit and the line, and comes before anything is composed."""
+    text = alias_bomb(10)
+    assert len(text) < 700
+    with pytest.raises(yaml_files.YAMLLimitError) as err:
+        load_yaml(text)
+    assert "aliases repeat more than 100000 nodes" in yaml_problem(err.value)
+    with pytest.raises(sc.SceneError) as err:
+        sc.Scene.from_yaml_text(text, source="bomb.yaml")
+    msg = str(err.value)
+    assert msg.startswith("scene: bomb.yaml is not valid YAML: line 2 column ") and "\n" not in msg
+    assert "(the limit MAX_ALIAS_NODES" in msg and "(fix: use fewer, smaller aliases)" in msg
+
+
+def test_few_small_aliases_still_load():
+    text = ("agents: {positions: [[0, 0], [1, 0]], radius: &r 0.2}\n"
+            "walls: [{kind: segment, a: &a [-2, 1], b: [2, 1]}, {kind: segment, a: *a, "
+            "b: [-2, 3]}]\nobstacles: [{kind: circle, center: [3, 3], radius: *r}]\n")
+    scene = sc.Scene.from_yaml_text(text)
+    assert scene.spec["walls"][1]["a"] == [-2.0, 1.0] and scene.spec["obstacles"][0]["radius"] == 0.2
+
+
+def test_more_aliases_than_the_limit_are_refused():
+    text = "a: &a 1\nb: [" + ", ".join(["*a"] * (yaml_files.MAX_ALIASES + 1)) + "]\n"
+    with pytest.raises(yaml_files.YAMLLimitError, match="more than 1000 aliases"):
+        load_yaml(text)
+
+
+@pytest.mark.parametrize("depth", [yaml_files.MAX_DEPTH + 1, 1000])
+def test_deep_nesting_is_refused_with_its_line(depth):
+    text = "agents: {positions: [[0, 0]], radius: 0.2}\ndescription: " + "[" * depth + \
+        "]" * depth + "\n"
+    with pytest.raises(sc.SceneError) as err:
+        sc.Scene.from_yaml_text(text)
+    msg = str(err.value)
+    assert "line 2 column 77: nesting deeper than 64 levels of lists and mappings" in msg, msg
+    assert "(fix: write the data with fewer levels" in msg
+
+
+def test_nesting_within_the_limit_loads():
+    inner = "[" * (yaml_files.MAX_DEPTH - 1) + "1" + "]" * (yaml_files.MAX_DEPTH - 1)
+    assert load_yaml(f"x: {inner}\n")["x"] is not None
+
+
+def test_5000_nested_brackets_in_sweep_run_are_one_line_not_a_crash(tmp_path):
+    """The loader composes recursively: 50 000 nested brackets crashed the process (SIGSEGV)
+    and 1000 gave a RecursionError traceback. In a subprocess: exit code 2, one line."""
+    import subprocess
+    import sys
+    scene = tmp_path / "deep.yaml"
+    scene.write_text("agents: {positions: [[0, 0]], radius: 0.2}\ndescription: "
+                     + "[" * 5000 + "]" * 5000 + "\n")
+    proc = subprocess.run([sys.executable, "-m", "sweep_core.cli", "run", str(scene), "--t-end",
+                           "0.1", "--out", str(tmp_path / "out.mcap")],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 2, (proc.returncode, proc.stderr[-2000:])
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "nesting deeper than 64 levels" in lines[0], proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr and not (tmp_path / "out.mcap").exists()
+
+
+@pytest.mark.parametrize("text, where, key", [
+    ("agents: {positions: [[0, 0]], radius: 0.2}\nname: a\nname: b\n", "line 3 column 1", "name"),
+    ("agents:\n  positions: [[0, 0]]\n  radius: 0.2\n  radius: 0.3\n", "line 4 column 3",
+     "radius"),
+    ("agents: {positions: [[0, 0]], radius: 0.2}\nwalls:\n  - {kind: segment, a: [0, 1], "
+     "b: [1, 1], a: [0, 2]}\n", "line 3 column 43", "a"),
+])
+def test_a_key_given_twice_is_refused_with_its_line(text, where, key):
+    with pytest.raises(sc.SceneError) as err:
+        sc.Scene.from_yaml_text(text)
+    msg = str(err.value)
+    assert f"{where}: key '{key}' is given twice in one mapping (first at line" in msg, msg
+    assert msg.endswith("(fix: remove one of them)")
+
+
+def test_the_same_key_in_different_mappings_is_fine():
+    scene = sc.Scene.from_yaml_text("agents: {positions: [[0, 0]], radius: 0.2}\nwalls:\n"
+                                    "  - {kind: segment, a: [-1, 1], b: [1, 1]}\n"
+                                    "  - {kind: segment, a: [-1, 2], b: [1, 2]}\n")
+    assert len(scene.spec["walls"]) == 2

@@ -146,8 +146,8 @@ def _json(text: str | None, what: str, problems: list[str]) -> Any:
         return None
     try:
         return json.loads(text)
-    except ValueError:
-        problems.append(f"metadata {what} is not JSON")
+    except (ValueError, RecursionError):  # RecursionError: nested past the decoder's depth
+        problems.append(f"metadata {what} is not JSON (or nested too deep)")
         return None
 
 
@@ -249,7 +249,7 @@ def load_run(path: str | Path) -> RunMeta:
         try:
             change = ParameterChange(k, rec["name"], json.loads(rec["value"]), int(rec["step"]),
                                      int(rec["log_time_ns"]), 0)
-        except (KeyError, ValueError):
+        except (KeyError, ValueError, RecursionError):
             problems.append(f"metadata parameter_{k:06d} is incomplete (name, value, step, "
                             "log_time_ns)")
             continue

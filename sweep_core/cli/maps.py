@@ -3,12 +3,16 @@ map image, and a starter scene file that uses it."""
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from sweep_core.errors import SceneError
 from sweep_core.io.outputs import check_output, replacing, write_text
 from sweep_core.model.maps import OccupancyMap, read_map_yaml
+from sweep_core.model.spawn import capacity, grown_area
 from sweep_core.model.yaml_files import dump_yaml
 
 __all__ = ["register"]
@@ -89,6 +93,15 @@ def _map(args: argparse.Namespace) -> int:
         plot(grid, walls, str(png), inputs)
         print(f"{'png':<{width}}{png}")
     if scene is not None:
+        spawn_spec = starter_scene(grid, "", args.count, args.radius)["agents"]["spawn"]
+        box = np.array([spawn_spec["region"]["min"], spawn_spec["region"]["max"]])
+        corners = np.array([box[0], [box[1, 0], box[0, 1]], box[1], [box[0, 0], box[1, 1]]])
+        most = capacity(grown_area(corners, args.radius), args.radius, args.radius)
+        if args.count > most:
+            raise SceneError("--count", f"{args.count} agents of radius {args.radius:g} m "
+                             f"exceed the {most} that the map's free cells' bounding box can "
+                             "hold (random sequential addition jams at 0.547 coverage)",
+                             f"give --count {most} or less, or a smaller --radius")
         rel = Path(args.map).resolve()
         try:
             rel = rel.relative_to(scene.resolve().parent)
@@ -98,6 +111,20 @@ def _map(args: argparse.Namespace) -> int:
                    inputs, other="--scene OTHER.yaml")
         print(f"{'scene':<{width}}{scene}")
     return 0
+
+
+def _positive(kind: type) -> Any:
+    """An argparse type: a number of ``kind`` > 0 (finite), else a one-line usage error."""
+    def parse(text: str) -> Any:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not (0 < value < math.inf):
+            raise argparse.ArgumentTypeError(f"{text} is not > 0 (give a positive number)")
+        return value
+    parse.__name__ = kind.__name__
+    return parse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -110,6 +137,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("map", help="map_server YAML file")
     p.add_argument("--png", help="write the walls over the map to this PNG")
     p.add_argument("--scene", help="write a starter scene (map + agents.spawn) to this YAML")
-    p.add_argument("--count", type=int, default=50, help="agents of the starter scene (50)")
-    p.add_argument("--radius", type=float, default=0.25, help="their radius, m (0.25)")
+    p.add_argument("--count", type=_positive(int), default=50,
+                   help="agents of the starter scene (50)")
+    p.add_argument("--radius", type=_positive(float), default=0.25,
+                   help="their radius, m (0.25)")
     p.set_defaults(func=_map)

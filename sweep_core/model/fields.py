@@ -221,8 +221,10 @@ def grid_cell(nodes: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 def grid_field(x: np.ndarray, y: np.ndarray, vx: np.ndarray, vy: np.ndarray,
                field: str = "drift") -> Grid:
     """Validate and build a :class:`Grid` field (see its docstring for shapes)."""
-    x = checks.array(x, f"{field}.x", (None,), "", f"write {field}.x as a list of numbers (m)")
-    y = checks.array(y, f"{field}.y", (None,), "", f"write {field}.y as a list of numbers (m)")
+    x = checks.within_bound(checks.array(x, f"{field}.x", (None,), "",
+                                         f"write {field}.x as a list of numbers (m)"), f"{field}.x")
+    y = checks.within_bound(checks.array(y, f"{field}.y", (None,), "",
+                                         f"write {field}.y as a list of numbers (m)"), f"{field}.y")
     for name, nodes in (("x", x), ("y", y)):
         if nodes.size < 1:
             raise SceneError(f"{field}.{name}", "is empty []",
@@ -299,7 +301,7 @@ def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift",
     if kind == "uniform":
         return Uniform(velocity=checks.vec2(spec["velocity"], f"{field}.velocity"))
     if kind == "goal":
-        return Goal(goal=checks.vec2(spec["goal"], f"{field}.goal"),
+        return Goal(goal=checks.point(spec["goal"], f"{field}.goal"),
                     speed=checks.number(spec["speed"], f"{field}.speed", nonnegative=True),
                     slow_radius=checks.number(spec.get("slow_radius", 0.5), f"{field}.slow_radius",
                                               positive=True))

@@ -261,7 +261,7 @@ def _target(spec: dict, field: str, weighted: bool) -> Target:
     if weighted:
         weight = checks.number(spec.get("weight", 1.0), f"{field}.weight", positive=True)
     if "goal" in spec:
-        g = checks.vec2(spec["goal"], f"{field}.goal")
+        g = checks.point(spec["goal"], f"{field}.goal")
         out["goal"] = g.tolist()
         target = Target(g[None], False, out, weight)
     else:
@@ -269,7 +269,7 @@ def _target(spec: dict, field: str, weighted: bool) -> Target:
         region = checks.mapping(spec["region"], rf)
         if checks.kind(region, rf, ("rectangle", "polygon")) == "rectangle":
             checks.mapping(region, rf, allowed={"kind", "min", "max"}, required={"min", "max"})
-            lo, hi = checks.vec2(region["min"], f"{rf}.min"), checks.vec2(region["max"], f"{rf}.max")
+            lo, hi = checks.point(region["min"], f"{rf}.min"), checks.point(region["max"], f"{rf}.max")
             if np.any(hi <= lo):
                 raise SceneError(rf, f"min {show(lo)} is not below max {show(hi)}",
                                  "give the lower-left corner as min and the upper-right as max")

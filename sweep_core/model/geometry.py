@@ -263,7 +263,9 @@ class Gaps:
 
     min_pair, min_single: smallest gap (inf if none); contacts: number of constraints with
     gap <= contact_tol; worst_pair: (i, j, gap) or None; worst_single: (agent, kind, item, gap)
-    or None.
+    or None. near_agent, near_segment: the (agent, segment) pairs whose value is within
+    ``reach`` (m), the distance searched (for the crossing check of
+    :mod:`sweep_core.model.crossing`).
     """
 
     min_pair: float
@@ -274,6 +276,9 @@ class Gaps:
     pair_i: np.ndarray
     pair_j: np.ndarray
     pair_gap: np.ndarray
+    near_agent: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.intp))
+    near_segment: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.intp))
+    reach: float = 0.0
 
     @property
     def min_gap(self) -> float:
@@ -294,6 +299,7 @@ def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
         min_pair = float(pg[w])
         worst_pair = (int(i[w]), int(j[w]), min_pair)
     min_single, worst_single = np.inf, None
+    reach, near = 0.0, (np.empty(0, dtype=np.intp), np.empty(0, dtype=np.intp))
     if not geom.is_empty and len(q):
         # the smallest value over all (agent, item): searched within a reach that doubles
         # until something is found (what is not found is larger than what is)
@@ -303,6 +309,7 @@ def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
             if any(len(a) for a, _, _, _, _ in rows) or reach > 1e12:
                 break
             reach *= 8.0
+        near = rows[SEGMENT][0], rows[SEGMENT][1]
         for kind, (a, k, g, _, _) in enumerate(rows):
             if len(g) == 0:
                 continue
@@ -311,4 +318,5 @@ def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
             if g[w] < min_single:
                 min_single = float(g[w])
                 worst_single = (int(a[w]), kind, int(k[w]), min_single)
-    return Gaps(min_pair, min_single, contacts, worst_pair, worst_single, i, j, pg)
+    return Gaps(min_pair, min_single, contacts, worst_pair, worst_single, i, j, pg, near[0],
+                near[1], reach)

@@ -58,6 +58,12 @@ class OccupancyMap:
     #: the image file it was read from ("" when not read from files)
     image: str = ""
 
+    def __post_init__(self) -> None:
+        h, w = self.shape
+        corners = self.to_world(np.array([[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]])
+                                * self.resolution)
+        checks.within_bound(corners, "map corners", "coordinate")
+
     @property
     def shape(self) -> tuple[int, int]:
         return int(self.blocked.shape[0]), int(self.blocked.shape[1])
@@ -372,4 +378,5 @@ def _origin(value: Any, field: str) -> tuple[float, float, float]:
     arr = checks.array(value, field, (None,), "as [x, y, yaw]")
     if len(arr) not in (2, 3):
         raise SceneError(field, f"has {len(arr)} numbers", "give [x, y, yaw] (m, m, rad)")
+    checks.within_bound(arr[:2], field)
     return float(arr[0]), float(arr[1]), float(arr[2]) if len(arr) == 3 else 0.0

@@ -2,6 +2,7 @@
 Coordinates in m, points (M, 2)."""
 from __future__ import annotations
 
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -13,8 +14,9 @@ from sweep_core.errors import SceneError
 def chain_points(value: Any, field: str, closed: bool, least: int) -> np.ndarray:
     """The vertices (M, 2) of a polyline or polygon, checked: at least ``least`` points, no
     edge of zero length, and for a closed chain no two edges crossing (a closed chain given
-    with its first point repeated at the end is accepted without the repeat)."""
-    points = checks.array(value, field, (None, 2), "as [[x, y], ...]")
+    with its first point repeated at the end is accepted without the repeat); coordinates within
+    +-checks.COORDINATE_BOUND."""
+    points = checks.points(value, field)
     if closed and len(points) > 1 and np.array_equal(points[0], points[-1]):
         points = points[:-1]
     if len(points) < least:
@@ -32,30 +34,73 @@ def chain_points(value: Any, field: str, closed: bool, least: int) -> np.ndarray
         crossing = first_crossing(points)
         if crossing is not None:
             i, j = crossing
-            raise SceneError(field, f"edges {i} and {j} cross (the outline is not simple)",
+            how = "fold back on each other" if (j - i) % len(points) in (1, len(points) - 1) \
+                else "cross or touch"
+            raise SceneError(field, f"edges {i} and {j} {how} (the outline is not simple)",
                              "give the vertices in order around the outline, or split it into "
                              "several polygons")
     return points
 
 
+#: Shewchuk's bound on the relative error of the float orientation determinant: when
+#: |det| > ORIENT_BOUND * (|t1| + |t2|) its sign is the exact sign (J. R. Shewchuk, Adaptive
+#: precision floating-point arithmetic and fast robust geometric predicates, 1997, ccwerrboundA)
+ORIENT_BOUND = (3.0 + 16.0 * 2.0 ** -53) * 2.0 ** -53
+
+
+def orientation(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The exact sign (-1, 0, 1, int array) of the turn p -> q -> r for float points (..., 2)
+    broadcast together: +1 counter-clockwise, 0 collinear. The float determinant decides when
+    its error bound allows; the rare others are evaluated in exact rational arithmetic."""
+    p, q, r = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (p, q, r)))
+    shape = p.shape[:-1]
+    p, q, r = (v.reshape(-1, 2) for v in (p, q, r))
+    t1 = (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1])
+    t2 = (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
+    det = t1 - t2
+    sign = np.sign(det).astype(np.int64)
+    unsure = np.abs(det) <= ORIENT_BOUND * (np.abs(t1) + np.abs(t2))
+    for at in np.flatnonzero(unsure):
+        (px, py), (qx, qy), (rx, ry) = (map(Fraction, v[at].tolist()) for v in (p, q, r))
+        exact = (qx - px) * (ry - py) - (qy - py) * (rx - px)
+        sign[at] = (exact > 0) - (exact < 0)
+    return sign.reshape(shape)
+
+
+def segments_meet(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """bool (...): the closed segments [a, b] and [c, d] (points (..., 2), broadcast) share
+    a point, decided exactly (:func:`orientation`; a collinear pair meets when they overlap)."""
+    a, b, c, d = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (a, b, c, d)))
+    o1, o2 = orientation(a, b, c), orientation(a, b, d)
+    o3, o4 = orientation(c, d, a), orientation(c, d, b)
+
+    def within(p: np.ndarray, s: np.ndarray, e: np.ndarray) -> np.ndarray:
+        # p collinear with [s, e]: inside its bounding box (exact comparisons)
+        return np.all((np.minimum(s, e) <= p) & (p <= np.maximum(s, e)), axis=-1)
+
+    return (((o1 * o2 < 0) & (o3 * o4 < 0))
+            | ((o1 == 0) & within(c, a, b)) | ((o2 == 0) & within(d, a, b))
+            | ((o3 == 0) & within(a, c, d)) | ((o4 == 0) & within(b, c, d)))
+
+
 def first_crossing(points: np.ndarray) -> tuple[int, int] | None:
-    """The first pair of non-adjacent edges of a closed chain that intersect, or None."""
+    """The first pair of edges of a closed chain that meet other than at their shared
+    vertex (i, j), or None: two non-adjacent edges sharing a point, or two adjacent edges
+    folding back on each other (collinear, opposite directions). Collinear vertices (an edge
+    continuing in the same direction) are fine; decided exactly."""
     a, b = points, np.roll(points, -1, axis=0)
     m = len(points)
-
-    def orient(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
-        return np.sign((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1])
-                       - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
-
+    nxt = np.roll(np.arange(m), -1)
+    turn = orientation(a, b, b[nxt])
+    u, v = b - a, b[nxt] - a[nxt]
+    ahead = u[:, 0] * v[:, 0] + u[:, 1] * v[:, 1]  # exact sign for parallel u, v
+    for k in np.flatnonzero((turn == 0) & (ahead < 0)):
+        return (int(k), int(nxt[k])) if nxt[k] > k else (int(nxt[k]), int(k))
     for i in range(m - 2):
         j = np.arange(i + 2, m if i > 0 else m - 1)
         if len(j) == 0:
             continue
-        o1 = orient(a[i], b[i], a[j])
-        o2 = orient(a[i], b[i], b[j])
-        o3 = orient(a[j], b[j], a[i])
-        o4 = orient(a[j], b[j], b[i])
-        hit = (o1 * o2 <= 0) & (o3 * o4 <= 0)
+        hit = segments_meet(a[i], b[i], a[j], b[j])
         if np.any(hit):
             return i, int(j[np.argmax(hit)])
     return None

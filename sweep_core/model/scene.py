@@ -3,7 +3,7 @@
 A scene is validated completely when it is built; nothing steps an invalid scene. Units:
 metres and seconds. The keys are a public contract, documented in the README:
 
-    name, description                      free text
+    name, description                      free text (at most 200 and 10 000 characters)
     horizon                                optional end time (s) the scene is meant for
     agents.positions   [[x, y], ...]       centres at t = 0
     agents.spawn       {region, count, radius, seed} instead of positions and radius (spawn.py)
@@ -44,13 +44,15 @@ from sweep_core.model.outlines import chain_points
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
 from sweep_core.model.spawn import spawn
 from sweep_core.model.user import check_constraint, constraint_name
-from sweep_core.model.yaml_files import YAMLError, dump_yaml, load_yaml, yaml_problem
+from sweep_core.model.yaml_files import YAMLError, dump_yaml, load_yaml, yaml_fix, yaml_problem
 
 #: overlap (m) tolerated in a given initial configuration (rounding of touching disks)
 INITIAL_TOLERANCE = 1e-9
 
 #: largest scene file read (bytes); a scene of 1e5 agents is about 5 MB
 MAX_SCENE_BYTES = 256 << 20
+#: longest scene name and description (characters)
+MAX_NAME, MAX_DESCRIPTION = 200, 10_000
 
 _TOP_KEYS = {"name", "description", "horizon", "agents", "walls", "obstacles", "map", "drift",
              "noise", "constraints"}
@@ -166,7 +168,7 @@ class Scene:
             data = load_yaml(text)
         except YAMLError as err:
             raise SceneError("scene", f"{source} is not valid YAML: {yaml_problem(err)}",
-                             "correct the YAML syntax at that line") from err
+                             yaml_fix(err)) from err
         return cls.from_dict(data if data is not None else {}, name=name, base=base, files=files)
 
     @classmethod
@@ -194,9 +196,9 @@ def _compact(values: np.ndarray, given: Any) -> float | list:
 
 def _build(data: Any, default_name: str, base: Path | None = None, files: bool = True) -> Scene:
     checks.mapping(data, "scene", allowed=_TOP_KEYS, required={"agents"})
-    spec: dict = {"name": str(data.get("name", default_name))}
+    spec: dict = {"name": checks.text(data.get("name", default_name), "name", MAX_NAME)}
     if "description" in data:
-        spec["description"] = str(data["description"])
+        spec["description"] = checks.text(data["description"], "description", MAX_DESCRIPTION)
     horizon = None
     if data.get("horizon") is not None:
         horizon = checks.number(data["horizon"], "horizon", positive=True)
@@ -224,8 +226,10 @@ def _build(data: Any, default_name: str, base: Path | None = None, files: bool =
                  else checks.array(raw_pos, "agents.positions", (None, 2), "as [[x, y], ...]",
                                           "write agents.positions as [[x, y], ...], one pair "
                                           "of coordinates (m) per agent"))
+    checks.within_bound(positions, "agents.positions", bound=checks.POSITION_BOUND)
     n = len(positions)
-    radius = checks.per_agent(agents["radius"], n, "agents.radius", positive=True)
+    radius = checks.within_bound(checks.per_agent(agents["radius"], n, "agents.radius",
+                                                  positive=True), "agents.radius", "radius")
     law = radius_law_from_spec(agents.get("radius_law"))
     speed = checks.number(agents.get("speed", DEFAULT_SPEED), "agents.speed", nonnegative=True)
     spec["agents"] = {"positions": positions.tolist(), "radius": _compact(radius, agents["radius"]),
@@ -301,7 +305,7 @@ def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, l
             if norm < 1e-12:
                 raise SceneError(f"{field}.normal", f"is the zero vector {show(normal)}",
                                  "give the direction pointing into the free side, e.g. [1, 0]")
-            offset = checks.number(wall["offset"], f"{field}.offset")
+            offset = checks.length(wall["offset"], f"{field}.offset", what="offset")
             velocity = checks.number(wall.get("velocity", 0.0), f"{field}.velocity")
             hp_n.append(normal / norm)
             hp_c.append(offset)
@@ -311,7 +315,7 @@ def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, l
                                "velocity": velocity})
         else:
             checks.mapping(wall, field, allowed={"kind", "a", "b"}, required={"a", "b"})
-            a, b = checks.vec2(wall["a"], f"{field}.a"), checks.vec2(wall["b"], f"{field}.b")
+            a, b = checks.point(wall["a"], f"{field}.a"), checks.point(wall["b"], f"{field}.b")
             if np.hypot(*(b - a)) < 1e-12:
                 raise SceneError(field, f"has a == b = {show(a)} (a segment of zero length)",
                                  "for a round obstacle use obstacles: [{kind: circle, ...}]")
@@ -328,7 +332,7 @@ def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, l
             return -1, {}
         v = checks.vec2(obs.get("velocity", [0.0, 0.0]), f"{field}.velocity")
         w = checks.number(obs.get("angular_velocity", 0.0), f"{field}.angular_velocity")
-        pivot = checks.vec2(obs["pivot"], f"{field}.pivot") if "pivot" in obs else centre
+        pivot = checks.point(obs["pivot"], f"{field}.pivot") if "pivot" in obs else centre
         mv_v.append(v)
         mv_w.append(w)
         mv_p.append(pivot)
@@ -350,8 +354,8 @@ def _geometry(data: dict, grid: OccupancyMap | None = None) -> tuple[Geometry, l
             continue
         checks.mapping(obs, field, allowed={"kind", "center", "radius"} | moving,
                        required={"center", "radius"})
-        center = checks.vec2(obs["center"], f"{field}.center")
-        radius = checks.number(obs["radius"], f"{field}.radius", nonnegative=True)
+        center = checks.point(obs["center"], f"{field}.center")
+        radius = checks.length(obs["radius"], f"{field}.radius", nonnegative=True)
         cc.append(center)
         cr.append(radius)
         c_i.append(k)

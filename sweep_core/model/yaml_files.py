@@ -1,10 +1,18 @@
 """YAML text <-> Python data, the one place sweep parses and writes YAML (scenes, recorded
-scenes, the node's parameter files).
+scenes, maps, the node's parameter files).
 
 libyaml's ``CSafeLoader`` / ``CSafeDumper`` are used when PyYAML was built with libyaml (on a
 scene of 1e5 agents, 4.9 MB, loading takes about a third of the pure-Python ``SafeLoader``'s
 time and dumping a third of ``SafeDumper``'s), otherwise the pure-Python classes; both give the
 same data and both mark errors with their line and column.
+
+Before a document is composed, its event stream (which both parsers produce without recursion)
+is checked against limits that keep hostile or careless text from exhausting the stack or the
+memory (:func:`check_yaml`): nesting deeper than :data:`MAX_DEPTH`, more than
+:data:`MAX_ALIASES` aliases, aliases that would repeat more than :data:`MAX_ALIAS_NODES` nodes
+in all (a few hundred bytes of nested aliases can stand for billions of nodes), and a key
+given twice in one mapping (YAML loaders otherwise keep the last silently) are refused with
+their line and column.
 """
 from __future__ import annotations
 
@@ -21,14 +29,119 @@ SAFE_DUMPER: type = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 #: the errors load_yaml can raise
 YAMLError = yaml.YAMLError
 
+#: deepest nesting of sequences and mappings accepted (a scene uses 5, a parameters file 4)
+MAX_DEPTH = 64
+#: aliases (``*name``) accepted in one document
+MAX_ALIASES = 1000
+#: nodes that aliases may repeat in one document, counted as composed (an alias of a list of
+#: 3 numbers repeats 4 nodes)
+MAX_ALIAS_NODES = 100_000
 
-def load_yaml(text: str | bytes) -> Any:
-    """Parse one YAML document with :data:`SAFE_LOADER` (plain data only: no Python tags).
+
+class YAMLLimitError(yaml.MarkedYAMLError):
+    """The text is valid YAML but exceeds one of the limits above (nesting, aliases, their
+    expansion) or repeats a key; ``problem`` names the limit, ``problem_mark`` the place and
+    ``fix`` what to write instead."""
+
+    fix = ""
+
+
+def _refuse(problem: str, mark: Any, fix: str) -> YAMLLimitError:
+    err = YAMLLimitError(problem=problem, problem_mark=mark)
+    err.fix = fix
+    return err
+
+
+def yaml_fix(err: yaml.YAMLError) -> str:
+    """The fix to print after :func:`yaml_problem`: the limit's own, or correcting the syntax."""
+    return getattr(err, "fix", "") or "correct the YAML syntax at that line"
+
+
+def check_yaml(text: str | bytes) -> None:
+    """Walk the YAML events of ``text`` (no recursion, nothing composed) and refuse what
+    :func:`load_yaml` must not compose.
 
     Raises:
-        yaml.YAMLError: the text is not valid YAML; :func:`yaml_problem` describes it.
+        YAMLLimitError: nesting deeper than MAX_DEPTH, more than MAX_ALIASES aliases, aliases
+            repeating more than MAX_ALIAS_NODES nodes, or a mapping key given twice.
+        yaml.YAMLError: the text is not valid YAML.
     """
+    # one frame per open collection: [nodes inside so far, anchor, children, keys seen or None]
+    stack: list[list[Any]] = []
+    sizes: dict[str, int] = {}  # anchor -> composed node count of what it names
+    aliases = repeated = 0
+
+    def done(size: int, anchor: str | None, event: Any) -> None:
+        if anchor is not None:
+            sizes[anchor] = size
+        if not stack:
+            return
+        top = stack[-1]
+        top[0] += size
+        if top[3] is not None and top[2] % 2 == 0 and isinstance(event, yaml.ScalarEvent):
+            key = event.value
+            line = top[3].get(key)
+            if line is not None:
+                shown = key if len(key) <= 40 else key[:37] + "..."
+                raise _refuse(f"key {shown!r} is given twice in one mapping (first at line "
+                              f"{line}); YAML would keep only the last", event.start_mark,
+                              "remove one of them")
+            top[3][key] = event.start_mark.line + 1
+        top[2] += 1
+
+    scalar = yaml.ScalarEvent
+    for event in yaml.parse(text, Loader=SAFE_LOADER):
+        if type(event) is scalar and event.anchor is None and stack and stack[-1][3] is None:
+            top = stack[-1]  # the common case, an item of a list: counted and nothing else
+            top[0] += 1
+            top[2] += 1
+        elif isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
+            if len(stack) >= MAX_DEPTH:
+                raise _refuse(f"nesting deeper than {MAX_DEPTH} levels of lists and mappings "
+                              f"(the limit MAX_DEPTH)", event.start_mark,
+                              "write the data with fewer levels of brackets and indentation")
+            keys: dict[str, int] | None = {} if isinstance(event, yaml.MappingStartEvent) \
+                else None
+            stack.append([1, event.anchor, 0, keys])
+        elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+            size, anchor, _, _ = stack.pop()
+            done(size, anchor, event)
+        elif isinstance(event, yaml.ScalarEvent):
+            done(1, event.anchor, event)
+        elif isinstance(event, yaml.AliasEvent):
+            aliases += 1
+            size = sizes.get(event.anchor, 1)  # an unknown anchor: the loader names it
+            repeated += size
+            if aliases > MAX_ALIASES:
+                raise _refuse(f"more than {MAX_ALIASES} aliases (the limit MAX_ALIASES)",
+                              event.start_mark, "write the repeated values out")
+            if repeated > MAX_ALIAS_NODES:
+                raise _refuse(f"aliases repeat more than {MAX_ALIAS_NODES} nodes (the limit "
+                              f"MAX_ALIAS_NODES; *{event.anchor} alone repeats {size})",
+                              event.start_mark, "use fewer, smaller aliases")
+            done(size, None, event)
+        elif isinstance(event, yaml.DocumentStartEvent):
+            sizes.clear()
+            aliases = repeated = 0
+
+
+def load_yaml(text: str | bytes) -> Any:
+    """Parse one YAML document with :data:`SAFE_LOADER` (plain data only: no Python tags),
+    after :func:`check_yaml`.
+
+    Raises:
+        yaml.YAMLError: the text is not valid YAML, or exceeds a limit (YAMLLimitError);
+            :func:`yaml_problem` describes it.
+    """
+    check_yaml(text)
     return yaml.load(text, Loader=SAFE_LOADER)
+
+
+def compose_yaml(text: str | bytes) -> Any:
+    """The node tree (``yaml.Node``, with line marks) of one document, after
+    :func:`check_yaml`; raises as :func:`load_yaml`."""
+    check_yaml(text)
+    return yaml.compose(text, Loader=SAFE_LOADER)
 
 
 def dump_yaml(data: Any) -> str:

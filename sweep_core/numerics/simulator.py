@@ -9,9 +9,10 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import InfeasibleError, SceneError
+from sweep_core.model.crossing import crossings
 from sweep_core.model.fields import Field
 from sweep_core.model.geodesic import navigation_fields
-from sweep_core.model.geometry import gaps, single_rows
+from sweep_core.model.geometry import SEGMENT, gaps, single_rows
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise
@@ -296,6 +297,12 @@ class Simulator:
                 who = [] if worst is None else (
                     list(worst[:2]) if g.min_pair <= g.min_single else [worst[0]])
                 raise InfeasibleError(t1, who, f"true constraint violated by {-g.min_gap:.3g} m")
+            through, item = crossings(self.scene.geometry, self._q, y, r1, g)
+            if len(through):
+                raise InfeasibleError(t1, sorted(set(through.tolist())), "the centre of agent "
+                                      f"{int(through[0])} went through "
+                                      f"{self.scene.geometry.describe(SEGMENT, int(item[0]))} "
+                                      "during the step")
             min_gap = g.min_gap
         self._v = (y - self._q) / h
         self._reaction = res.prediction - y

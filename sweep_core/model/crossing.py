@@ -1,0 +1,59 @@
+"""Centre paths through walls: the check that no agent's centre went through a wall segment
+during a step, decided exactly.
+
+The post-step check (:func:`sweep_core.model.geometry.gaps`) evaluates the constraints at the
+step's end; an agent whose centre jumped through a thin wall in one step ends on the far side
+with a positive distance, which that check alone cannot tell from a feasible position. The
+straight path [q0_i, q1_i] of each centre is therefore tested against every static wall
+segment (walls, polyline pieces, polygon edges, map walls) with exact orientation signs
+(:func:`sweep_core.model.outlines.segments_meet`): a path that meets a segment is a crossing
+(a feasible centre never comes within its radius of a wall). Moving obstacles' edges are not
+tested: their relative path is not a straight segment. The candidate pairs are those the
+post-step check found near the end positions, plus a search for the agents that moved farther
+than that check's reach, so the test adds little to it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from sweep_core.model.geometry import Gaps, Geometry
+from sweep_core.model.neighbours import segments_within
+from sweep_core.model.outlines import segments_meet
+
+#: agent x segment pairs up to which candidates are found by direct bounding-box comparison
+DENSE_PAIRS = 1 << 16
+
+
+def crossings(geom: Geometry, q0: np.ndarray, q1: np.ndarray, r1: np.ndarray,
+              near: Gaps | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(agent, segment) index arrays of the centre paths [q0_i, q1_i] ((N, 2) m each) that
+    meet a static segment of ``geom``, decided exactly; r1 (N,): the radii at the end (m).
+
+    ``near``: the post-step check's :func:`gaps` at q1, whose segment pairs within its reach
+    are the candidates of every agent that moved at most reach + r1_i (a path through a
+    segment ends within its length of it, so its value there is at most |q1 - q0| - r1_i);
+    agents that moved farther (or all, without ``near``) are searched here."""
+    static = geom.segment_motion < 0
+    step = np.hypot(q1[:, 0] - q0[:, 0], q1[:, 1] - q0[:, 1])
+    empty = np.empty(0, dtype=np.intp)
+    if not np.any(static) or not np.any(step > 0):
+        return empty, empty
+    i, k = (empty, empty) if near is None else (near.near_agent, near.near_segment)
+    far = np.flatnonzero(step > (-1.0 if near is None else near.reach + r1))
+    if len(far):
+        seg = np.flatnonzero(static)
+        if len(far) * len(seg) <= DENSE_PAIRS:
+            fi, fk = (m.ravel() for m in np.meshgrid(np.arange(len(far)), np.arange(len(seg)),
+                                                      indexing="ij"))
+        else:
+            fi, fk = segments_within(q0[far], geom.segment_a[seg], geom.segment_b[seg],
+                                     max(float(step[far].max()), 1e-6) * 1.001)
+        i, k = np.concatenate([i, far[fi]]), np.concatenate([k, seg[fk]])
+    keep = static[k] & (step[i] > 0)
+    i, k = i[keep], k[keep]
+    p0, p1, a, b = q0[i], q1[i], geom.segment_a[k], geom.segment_b[k]
+    # bounding boxes overlap (exact comparisons), then the exact test
+    box = np.all((np.minimum(p0, p1) <= np.maximum(a, b))
+                 & (np.minimum(a, b) <= np.maximum(p0, p1)), axis=1)
+    hit = np.flatnonzero(box)[segments_meet(p0[box], p1[box], a[box], b[box])]
+    return i[hit], k[hit]
