@@ -7,7 +7,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from sweep_core.numerics.constraints import Rows
-from sweep_core.numerics.projection.exact import ldp
+from sweep_core.numerics.projection import active
 from sweep_core.numerics.projection.interior import solve_clarabel
 from sweep_core.numerics.projection.options import ROW_TOLERANCE, SolverOptions
 from sweep_core.numerics.projection.proxqp import solve_proxsuite
@@ -75,6 +75,21 @@ def solve_qp(target: np.ndarray, c: sp.csc_matrix, b: np.ndarray, opts: SolverOp
     return x, lam, True, by_backend
 
 
+def solve_active(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, bool]:
+    """One cluster by the compiled dual active-set solver (:mod:`.active`): x, multipliers and
+    whether it solved the QP (False: no feasible point, or its step cap, 3 steps a row plus one
+    per variable, was reached)."""
+    csr = sp.csr_matrix(c)
+    csr.sort_indices()
+    x, lam, status, _ = active.solve(np.ascontiguousarray(target, dtype=float),
+                                     csr.indptr.astype(np.int64), csr.indices.astype(np.int64),
+                                     np.ascontiguousarray(csr.data, dtype=float),
+                                     np.ascontiguousarray(b, dtype=float),
+                                     3 * len(b) + len(target))
+    return x, lam, status == active.SOLVED
+
+
 def solve_cluster(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: SolverOptions
                    ) -> tuple[np.ndarray, np.ndarray, bool] | None:
     """Solve one cluster: clusters of up to ``exact_vars`` variables by the exact active-set
@@ -83,7 +98,7 @@ def solve_cluster(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: Sol
     to ROW_TOLERANCE. Returns x, multipliers and whether the exact solver produced them; None
     if no attempt gives an answer whose rows hold."""
     n = c.shape[1]
-    exact = (True, lambda: ldp(target, c.toarray(), b))
+    exact = (True, lambda: solve_active(target, c, b))
     backend = (False, lambda: (solve_proxsuite(target, c.tocsc(), b, opts)
                                if opts.backend == "proxsuite" else solve_clarabel(target, c, b, opts)))
     attempts = ([exact, backend] if n <= opts.exact_vars

@@ -36,21 +36,24 @@ class SolverOptions:
         answer within their tolerance still satisfies the untightened row.
     max_iter: proxsuite's iteration cap (backend "proxsuite").
     dense_fallback: clusters of up to this many variables (2 per agent) are retried with the
-        active-set NNLS solver when the backend fails.
+        exact active-set solver when the backend fails. 512 (256 agents): its cost grows as
+        the cube of the cluster's size (about 0.2 s at 512 variables, seconds at 2000), so a
+        larger cluster keeps the backend's reduced-accuracy answer (its bound is reported).
     backend: "clarabel" (default: interior point, robust in dense jams) or "proxsuite"
         (proxsuite 0.8.0 can stall inside its solve on degenerate jam QPs; see README).
     exact_vars: clusters of up to this many variables (2 per agent) that reach the cluster
         solvers are solved first by the exact active-set solver
-        (:func:`sweep_core.numerics.projection.exact.ldp`), the backend only if it fails.
-        256 (128 agents): there the exact solver costs at most about 2.5 times the
-        interior point (10 ms against 4 ms at 120 agents of a hexagonal jam, 40 ms against 6
-        at 180), and it gives degenerate clusters, which the certified rounds leave, an
-        answer certified to the tolerance instead of Clarabel's 1e-5 to 1e-4 m.
+        (:func:`sweep_core.numerics.projection.active.solve`, steps capped at 3 per row plus
+        one per variable), the backend only if it fails or hits the cap. 256 (128 agents):
+        there it costs a few times the interior point (4-7 ms against 8 at 64 agents of a
+        hexagonal jam, 35-50 ms against 11 at 120, on a loaded 2-core machine), and it gives
+        degenerate clusters, which the certified rounds leave, an answer certified to the
+        tolerance instead of Clarabel's 1e-5 to 1e-4 m.
     """
 
     eps_abs: float = 1e-10
     max_iter: int = 1000
-    dense_fallback: int = 4000
+    dense_fallback: int = 512
     backend: str = "clarabel"
     exact_vars: int = 256
     tol: float = 1e-6
