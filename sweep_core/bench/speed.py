@@ -174,11 +174,12 @@ def _external(worker: Worker, name: str, qps: list[dict], build: list[float], dt
 
 def measure(n: int, scene: str, steps: int, warmup: int, baseline: bool,
             worker: Worker | None = None, limit_s: float = 30.0,
-            cromosim: bool = False, tol: float | None = None) -> dict:
+            cromosim: bool = False, tol: float | None = None, backend: str = "clarabel"
+            ) -> dict:
     """One row of the table (see the module docstring and COLUMNS); tol: the projection's
     certified tolerance (m; None: the default)."""
     make, dt = SCENES[scene]
-    solver = projection.SolverOptions() if tol is None else projection.SolverOptions(tol=tol)
+    solver = projection.SolverOptions(backend=backend, **({} if tol is None else {"tol": tol}))
     sim = Simulator(make(n), dt=dt, seed=0, solver=solver)
     start_run = time.perf_counter()
     sim.step(warmup)
@@ -263,6 +264,7 @@ def _cell(value: Any, width: int) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    args.backend = projection.SolverOptions.from_values(backend=args.backend).backend
     baseline = not args.no_baseline
     missing = cromosim_missing() if baseline else "baselines off"
     if missing:
@@ -291,7 +293,7 @@ def run(args: argparse.Namespace) -> int:
                 r = measure(n, scene, args.evacuation_steps if evac else args.steps,
                             args.evacuation_warmup if evac else args.warmup,
                             baseline and tol is None, worker, args.timeout,
-                            cromosim=missing is None, tol=tol)
+                            cromosim=missing is None, tol=tol, backend=args.backend)
                 qps = r.pop("qps")
                 results.append(r)
                 print(" ".join(_cell(r[c], w) for c, _, w in _SHOWN), flush=True)
@@ -366,6 +368,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="evacuation steps before measuring (default 400: 8 s, the jam formed)")
     p.add_argument("--evacuation-steps", type=int, default=100, metavar="STEPS",
                    help="measured evacuation steps (default 100)")
+    p.add_argument("--backend", default="clarabel", metavar="NAME",
+                   help="QP solver of the clusters the exact solver does not take, in the "
+                        "measured steps: any installed one (default clarabel)")
     p.add_argument("--backend-qps", type=int, default=3, metavar="K",
                    help="QPs of each jam (its first K measured steps) every installed backend "
                         "solves for the backend table (default 3; 0: no table)")

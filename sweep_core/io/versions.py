@@ -8,7 +8,8 @@ from importlib import metadata
 def versions() -> dict[str, str]:
     """Name -> version of sweep_ros and the libraries that shape its results."""
     out = {"python": platform.python_version()}
-    for dist in ("sweep_ros", "numpy", "scipy", "proxsuite", "clarabel", "mcap", "PyYAML"):
+    for dist in ("sweep_ros", "numpy", "scipy", "proxsuite", "clarabel", "qpsolvers", "mcap",
+                 "PyYAML"):
         try:
             out[dist] = metadata.version(dist)
         except metadata.PackageNotFoundError:

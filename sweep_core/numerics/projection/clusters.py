@@ -2,15 +2,16 @@
 solved in closed form (one row), exactly (active set) or by a backend (interior point)."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from sweep_core.numerics.constraints import Rows
 from sweep_core.numerics.projection import active
-from sweep_core.numerics.projection.interior import solve_clarabel
-from sweep_core.numerics.projection.options import ROW_TOLERANCE, SolverOptions
-from sweep_core.numerics.projection.proxqp import solve_proxsuite
+from sweep_core.numerics.projection.backends import solve_backend
+from sweep_core.numerics.projection.options import ROW_TOLERANCE, SolverOptions, check_backend
 
 
 def row_matrix(rows: Rows, loc: np.ndarray, m: int) -> tuple[sp.csc_matrix, np.ndarray]:
@@ -94,15 +95,20 @@ def solve_cluster(target: np.ndarray, c: sp.csr_matrix, b: np.ndarray, opts: Sol
                    ) -> tuple[np.ndarray, np.ndarray, bool] | None:
     """Solve one cluster: clusters of up to ``exact_vars`` variables by the exact active-set
     solver first, then the backend; larger ones by the backend first, then (up to
-    ``dense_fallback`` variables) the exact solver. An answer is taken only if every row holds
-    to ROW_TOLERANCE. Returns x, multipliers and whether the exact solver produced them; None
-    if no attempt gives an answer whose rows hold."""
+    ``dense_fallback`` variables) the exact solver; Clarabel last when the backend is another
+    solver. An answer is taken only if every row holds to ROW_TOLERANCE. Returns x,
+    multipliers and whether the exact solver produced them; None if no attempt gives an
+    answer whose rows hold."""
     n = c.shape[1]
     exact = (True, lambda: solve_active(target, c, b))
-    backend = (False, lambda: (solve_proxsuite(target, c.tocsc(), b, opts)
-                               if opts.backend == "proxsuite" else solve_clarabel(target, c, b, opts)))
+    backend = (False, lambda: solve_backend(target, c, b, opts))
     attempts = ([exact, backend] if n <= opts.exact_vars
                 else [backend] + ([exact] if n <= opts.dense_fallback else []))
+    if check_backend(opts.backend) != "clarabel":
+        # a solver that fails on a jam (HiGHS ends some with a solve error) hands it to
+        # Clarabel rather than stopping the run
+        attempts.append((False, lambda: solve_backend(target, c, b, replace(opts,
+                                                                            backend="clarabel"))))
     last_resort = None
     for is_exact, attempt in attempts:
         x, lam, ok = attempt()

@@ -4,12 +4,35 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import qpsolvers
 
 from sweep_core import checks
 from sweep_core.errors import SceneError
 
 #: largest row violation (m) accepted from the QP solver
 ROW_TOLERANCE = 1e-9
+
+
+#: other names of backends: proxsuite's QP solver is qpsolvers' "proxqp"
+ALIASES = {"proxsuite": "proxqp"}
+
+
+def available_backends() -> list[str]:
+    """The QP solvers installed here that can be the backend (qpsolvers' names, sorted;
+    clarabel is a dependency, so always there)."""
+    return sorted(set(qpsolvers.available_solvers) | {"clarabel"})
+
+
+def check_backend(name: object, field: str = "solver.backend") -> str:
+    """The backend's qpsolvers name if it is installed (aliases resolved); SceneError naming
+    the field, the value and the installed solvers if not."""
+    names = available_backends()
+    key = ALIASES.get(name, name) if isinstance(name, str) else name
+    if not isinstance(key, str) or key not in names:
+        raise SceneError(field, f"{name!r} is not an installed QP solver",
+                         f"use one of {', '.join(names)} (or pip install another solver "
+                         "that qpsolvers supports)")
+    return key
 
 
 #: methods of the projection: the certified compiled solver, or the cluster solvers alone
@@ -34,13 +57,17 @@ class SolverOptions:
         "clusters" (the cluster solvers alone: closed form, active set, interior point).
     eps_abs: skin (m) the interior-point and proxsuite backends tighten every row by, so an
         answer within their tolerance still satisfies the untightened row.
-    max_iter: proxsuite's iteration cap (backend "proxsuite").
+    max_iter: proxqp's iteration cap (backend "proxqp").
     dense_fallback: clusters of up to this many variables (2 per agent) are retried with the
         exact active-set solver when the backend fails. 512 (256 agents): its cost grows as
         the cube of the cluster's size (about 0.2 s at 512 variables, seconds at 2000), so a
         larger cluster keeps the backend's reduced-accuracy answer (its bound is reported).
-    backend: "clarabel" (default: interior point, robust in dense jams) or "proxsuite"
-        (proxsuite 0.8.0 can stall inside its solve on degenerate jam QPs; see README).
+    backend: the QP solver of the clusters the exact solver does not take (larger than
+        ``exact_vars``, or past its step cap), through qpsolvers: any installed solver
+        (:func:`available_backends`; "proxsuite" is read as "proxqp"). "clarabel" (default,
+        interior point): in ``sweep bench speed``'s backend table it solves the jams' QPs to
+        about 1e-8 m of the certified answer in tens of ms; see README (Performance) for the
+        others.
     exact_vars: clusters of up to this many variables (2 per agent) that reach the cluster
         solvers are solved first by the exact active-set solver
         (:func:`sweep_core.numerics.projection.active.solve`, steps capped at 3 per row plus
@@ -75,9 +102,7 @@ class SolverOptions:
         if not 1e-12 <= tol_ <= 1.0:
             raise SceneError("solver.tol", f"{tol_:g} m is outside [1e-12, 1] m",
                              "use e.g. 1e-6 (the default) or 1e-4 for speed")
-        if backend not in ("clarabel", "proxsuite"):
-            raise SceneError("solver.backend", f"unknown backend {backend!r}",
-                             "use 'clarabel' or 'proxsuite'")
+        backend = check_backend(backend)
         if method not in METHODS:
             raise SceneError("solver.method", f"unknown method {method!r}",
                              f"use one of {list(METHODS)}")
