@@ -6,6 +6,7 @@ or of the whole start-up set as ``"name: problem (fix: ...)"`` strings, reusing 
 validators; :func:`check_live` turns a set-parameters request into a ``SetParametersResult``.
 :func:`check_params_files` checks the ``--params-file`` files of a command line before rclpy
 parses them (rcl's own parser stops the process with a traceback). Nothing here touches a node.
+Longer than 400 lines because it is one table (the specs) and the checks that read it.
 """
 from __future__ import annotations
 

@@ -59,9 +59,10 @@ class SolverOptions:
         answer within their tolerance still satisfies the untightened row.
     max_iter: proxqp's iteration cap (backend "proxqp").
     dense_fallback: clusters of up to this many variables (2 per agent) are retried with the
-        exact active-set solver when the backend fails. 512 (256 agents): its cost grows as
-        the cube of the cluster's size (about 0.2 s at 512 variables, seconds at 2000), so a
-        larger cluster keeps the backend's reduced-accuracy answer (its bound is reported).
+        exact active-set solver when the backend fails. Its cost grows as the cube of the
+        cluster's size (about 0.2 s at 512 variables, 1 to 5 s at 2000), so above 512
+        variables it runs only when the backend gave no answer whose rows hold (a feasible
+        reduced-accuracy answer is kept, its bound reported).
     backend: the QP solver of the clusters the exact solver does not take (larger than
         ``exact_vars``, or past its step cap), through qpsolvers: any installed solver
         (:func:`available_backends`; "proxsuite" is read as "proxqp"). "clarabel" (default,
@@ -80,7 +81,7 @@ class SolverOptions:
 
     eps_abs: float = 1e-10
     max_iter: int = 1000
-    dense_fallback: int = 512
+    dense_fallback: int = 4000
     backend: str = "clarabel"
     exact_vars: int = 256
     tol: float = 1e-6
