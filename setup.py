@@ -23,6 +23,7 @@ setup(
         "scipy>=1.10",
         "proxsuite>=0.6",
         "clarabel>=0.9",
+        "qpsolvers>=4.0",
         "PyYAML>=6",
         "mcap>=1.6",
         "tqdm>=4.60",

@@ -6,6 +6,7 @@ or of the whole start-up set as ``"name: problem (fix: ...)"`` strings, reusing 
 validators; :func:`check_live` turns a set-parameters request into a ``SetParametersResult``.
 :func:`check_params_files` checks the ``--params-file`` files of a command line before rclpy
 parses them (rcl's own parser stops the process with a traceback). Nothing here touches a node.
+Longer than 400 lines because it is one table (the specs) and the checks that read it.
 """
 from __future__ import annotations
 
@@ -32,6 +33,7 @@ from sweep_core.errors import show
 from sweep_core.io.limits import DT_MAX, DT_MIN
 from sweep_core.model import geodesic
 from sweep_core.model.yaml_files import SAFE_LOADER, YAMLError, compose_yaml, yaml_fix, yaml_problem
+from sweep_core.numerics.projection.options import check_backend
 
 _INT64_MAX = 2**63 - 1
 
@@ -117,6 +119,10 @@ SPECS: tuple[ParamSpec, ...] = (
               "many variables (2 per agent) are solved exactly by the active-set solver; larger "
               "ones by the interior-point backend (about 1e-6 m in degenerate jams).",
               False, 0, 100000),
+    ParamSpec("solver_backend", _DEFAULT_SOLVER.backend, "QP solver (through qpsolvers) of "
+              "the contact clusters too large for the exact active-set solver: any installed "
+              "one (clarabel, piqp, osqp, proxqp, ...).", False,
+              constraints="the name of an installed QP solver"),
     ParamSpec("solver_tol", _DEFAULT_SOLVER.tol, "Certified accuracy of each projection, m: "
               "every step's distance to the exact projection is proved below it (reported as "
               "'bound' in diagnostics).", False, 1e-12, 1.0),
@@ -194,6 +200,11 @@ def check_value(name: str, value: Any) -> str | None:
         except InvalidTopicNameException:
             return (f"{name}: {value!r} is not a valid topic name (fix: letters, digits, '_' "
                     "and '/', e.g. 'map', or '' for no map subscription)")
+    if name == "solver_backend":
+        try:
+            check_backend(value, name)
+        except SceneError as err:
+            return str(err)
     if name == "scene" and value and not os.path.isfile(os.path.expanduser(value)):
         return f"{name}: no file {value!r} (fix: give a scene YAML path, or '' for the default)"
     return None
@@ -202,6 +213,7 @@ def check_value(name: str, value: Any) -> str | None:
 def solver_options(values: Mapping[str, Any]) -> SolverOptions:
     """SolverOptions from the solver_* parameters (raises SceneError naming solver.*)."""
     return SolverOptions.from_values(values["solver_eps_abs"], values["solver_max_iter"],
+                                     backend=values["solver_backend"],
                                      exact_vars=values["solver_exact_vars"],
                                      tol=values["solver_tol"],
                                      max_rounds=values["solver_max_rounds"])

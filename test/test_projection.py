@@ -139,13 +139,13 @@ def test_almost_solved_is_a_last_resort(monkeypatch):
     q, t1 = sim.positions, sim.t + sim.dt
     sim.step()
     pred, want = sim.last.prediction, sim.last.projection.y
-    real = clusters.solve_clarabel
+    real = clusters.solve_backend
 
     def almost(target, c, b, opts):
         x, lam, _ = real(target, c, b, opts)
         return x, lam, None
 
-    monkeypatch.setattr(clusters, "solve_clarabel", almost)
+    monkeypatch.setattr(clusters, "solve_backend", almost)
     opts = sc.SolverOptions(exact_vars=0, method="clusters")
     got = projection.project(scene.geometry, t1, q, pred, scene.radii(t1), opts)
     assert got.backend_agents == 0  # the exact fallback answered

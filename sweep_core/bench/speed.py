@@ -31,34 +31,39 @@ import argparse
 import contextlib
 import io
 import math
-import multiprocessing
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from sweep_core.bench.evacuation import DT as EVACUATION_DT
+from sweep_core.bench.evacuation import evacuation
 from sweep_core.bench.tables import write_csv
+from sweep_core.bench.worker import Worker
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import projection
 from sweep_core.numerics.constraints import Rows, linearise
+from sweep_core.numerics.projection import backends
 from sweep_core.numerics.projection.clusters import row_matrix
 from sweep_core.numerics.projection.interior import solve_clarabel
-from sweep_core.numerics.projection.proxqp import solve_proxsuite
 from sweep_core.numerics.simulator import Simulator
 
-COLUMNS = ("N", "scene", "tol", "contacts", "bound_max_m", "clarabel_dist_m", "clarabel_solved",
-           "floor_median_ms",
-           "step_median_ms", "step_min_ms",
-           "step_max_ms", "step_over_floor", "clarabel_median_ms", "step_over_clarabel",
+COLUMNS = ("N", "scene", "tol", "contacts", "bound_max_m", "certified_share",
+           "clarabel_dist_m", "clarabel_solved", "floor_median_ms",
+           "step_median_ms", "step_min_ms", "step_p99_ms",
+           "step_max_ms", "max_over_median", "run_s", "step_over_floor", "clarabel_median_ms",
+           "step_over_clarabel",
            "proxsuite_median_ms", "step_over_proxsuite", "proxsuite_solved",
            "proxsuite_max_dist_m", "cromosim_median_ms", "step_over_cromosim",
            "cromosim_solved", "cromosim_max_dist_m", "notes")
 #: table header and width of each column printed
 _SHOWN = (("N", "N", 6), ("scene", "scene", 10), ("tol", "tol", 6),
           ("contacts", "contacts", 8), ("bound_max_m", "bound", 8),
+          ("certified_share", "cert", 5),
           ("floor_median_ms", "floor", 8), ("step_median_ms", "step", 9),
-          ("step_min_ms", "min", 9), ("step_max_ms", "max", 9),
+          ("step_min_ms", "min", 9), ("step_p99_ms", "p99", 9), ("step_max_ms", "max", 9),
+          ("run_s", "run_s", 7),
           ("step_over_floor", "/floor", 7), ("clarabel_median_ms", "clarabel", 9),
           ("step_over_clarabel", "/clar", 6), ("clarabel_dist_m", "clar_dist", 9),
           ("clarabel_solved", "solved", 6),
@@ -87,7 +92,10 @@ def disordered(n: int, seed: int = 0) -> Scene:
 #: scene name -> (scene of n agents, dt in s)
 SCENES = {"hex": (lambda n: crowd(n, True), 0.01),
           "disordered": (disordered, 0.02),
-          "free": (lambda n: crowd(n, False), 0.01)}
+          "free": (lambda n: crowd(n, False), 0.01),
+          "evacuation": (evacuation, EVACUATION_DT)}
+#: the jams (the backends are compared on their QPs)
+JAMS = ("hex", "disordered", "evacuation")
 
 
 def crowd(n: int, jammed: bool, sigma: float = 0.1) -> Scene:
@@ -101,90 +109,6 @@ def crowd(n: int, jammed: bool, sigma: float = 0.1) -> Scene:
              if jammed else {"kind": "uniform", "velocity": [1.0, 0.2]})
     return Scene.from_dict({"agents": {"positions": pos.tolist(), "radius": 0.24},
                             "drift": drift, "noise": {"sigma": sigma}})
-
-
-# -- solvers run in the worker process (each returns seconds, converged, answer) ---------------
-
-def _solve_proxsuite(target: np.ndarray, c: Any, b: np.ndarray,
-                     opts: projection.SolverOptions) -> tuple[float, bool, np.ndarray]:
-    if len(b) == 0:
-        return 0.0, True, target
-    start = time.perf_counter()
-    x, _, ok = solve_proxsuite(target, c, b, opts)
-    return time.perf_counter() - start, ok, x
-
-
-def _solve_cromosim(dt: float, xyrv: np.ndarray, contacts: np.ndarray, vd: np.ndarray
-                    ) -> tuple[float, bool, np.ndarray]:
-    """cromosim's velocity-form projection; its fallback to Uzawa (announced on stdout) and
-    a negative ``info`` count as not converged."""
-    said = io.StringIO()
-    with contextlib.redirect_stdout(said):  # its import and its solver talk on stdout
-        from cromosim.micro import projection as cromosim_projection
-
-        start = time.perf_counter()
-        info, _, u, _, _ = cromosim_projection(dt, xyrv, contacts, vd)
-        seconds = time.perf_counter() - start
-    return seconds, info >= 0 and "failed" not in said.getvalue(), np.asarray(u)
-
-
-_SOLVERS = {"proxsuite": _solve_proxsuite, "cromosim": _solve_cromosim}
-
-
-def _serve(conn: Any) -> None:
-    """Worker loop: (solver name, args) in, ("ok", result) or ("error", text) out."""
-    while (task := conn.recv()) is not None:
-        name, args = task
-        try:
-            conn.send(("ok", _SOLVERS[name](*args)))
-        except Exception as err:  # noqa: BLE001 - reported in the table's notes
-            conn.send(("error", f"{type(err).__name__}: {err}"))
-
-
-class _Worker:
-    """A spawned process that runs solver calls one at a time, each under a wall-clock limit;
-    a call past the limit kills the process (a new one is started for the next batch)."""
-
-    def __init__(self) -> None:
-        self._proc: Any = None
-        self._conn: Any = None
-
-    def run(self, name: str, tasks: list[tuple], limit_s: float) -> tuple[list, str]:
-        """Results of the tasks up to the first failure or solve longer than limit_s seconds,
-        and a note saying why it stopped ("" when every task was done)."""
-        if self._proc is None:
-            ctx = multiprocessing.get_context("spawn")
-            self._conn, child = ctx.Pipe()
-            self._proc = ctx.Process(target=_serve, args=(child,), daemon=True)
-            self._proc.start()
-            child.close()
-        results: list = []
-        for k, task in enumerate(tasks):
-            self._conn.send((name, task))
-            try:
-                if not self._conn.poll(limit_s):
-                    self.close(kill=True)
-                    return results, (f"{name} n/a: solve {k + 1} of {len(tasks)} still running "
-                                     f"after {limit_s:g} s, killed")
-                status, value = self._conn.recv()
-            except (EOFError, OSError) as err:
-                self.close(kill=True)
-                return results, f"{name} n/a: worker died in solve {k + 1} ({err!r})"
-            if status == "error":
-                return results, f"{name} n/a: {value}"
-            results.append(value)
-        return results, ""
-
-    def close(self, kill: bool = False) -> None:
-        if self._proc is None:
-            return
-        if kill:
-            self._proc.kill()
-        else:
-            self._conn.send(None)
-        self._proc.join()
-        self._conn.close()
-        self._proc = self._conn = None
 
 
 # -- measuring ----------------------------------------------------------------------------------
@@ -222,7 +146,7 @@ def _distance(qp: dict, x: np.ndarray) -> float:
     return float(np.sqrt(((y - qp["y"]) ** 2).sum(axis=1)).max(initial=0.0))
 
 
-def _external(worker: _Worker, name: str, qps: list[dict], build: list[float], dt: float,
+def _external(worker: Worker, name: str, qps: list[dict], build: list[float], dt: float,
               limit_s: float, opts: projection.SolverOptions) -> dict:
     """Median ms (assembly + solve), solved count and largest distance to the step's answer."""
     if name == "proxsuite":
@@ -249,14 +173,17 @@ def _external(worker: _Worker, name: str, qps: list[dict], build: list[float], d
 
 
 def measure(n: int, scene: str, steps: int, warmup: int, baseline: bool,
-            worker: _Worker | None = None, limit_s: float = 30.0,
-            cromosim: bool = False, tol: float | None = None) -> dict:
+            worker: Worker | None = None, limit_s: float = 30.0,
+            cromosim: bool = False, tol: float | None = None, backend: str = "clarabel"
+            ) -> dict:
     """One row of the table (see the module docstring and COLUMNS); tol: the projection's
     certified tolerance (m; None: the default)."""
     make, dt = SCENES[scene]
-    solver = projection.SolverOptions() if tol is None else projection.SolverOptions(tol=tol)
+    solver = projection.SolverOptions(backend=backend, **({} if tol is None else {"tol": tol}))
     sim = Simulator(make(n), dt=dt, seed=0, solver=solver)
+    start_run = time.perf_counter()
     sim.step(warmup)
+    run_s = time.perf_counter() - start_run
     floor, step, build, clarabel, qps, bounds = [], [], [], [], [], []
     clarabel_dist = 0.0
     clarabel_ok = clarabel_posed = 0
@@ -291,14 +218,18 @@ def measure(n: int, scene: str, steps: int, warmup: int, baseline: bool,
     ms = {k: 1e3 * np.array(v) for k, v in (("floor", floor), ("step", step),
                                              ("clarabel", clarabel))}
     out: dict[str, Any] = {"N": n, "scene": scene, "tol": solver.tol,
-                           "contacts": sim.contacts, "notes": "",
+                           "contacts": sim.contacts, "notes": "", "qps": qps,
                            "bound_max_m": float(max(bounds)),
+                           "certified_share": float(np.mean(np.array(bounds) <= solver.tol)),
+                           "run_s": run_s + float(np.sum(step)),
                            "clarabel_dist_m": clarabel_dist if clarabel_ok else math.nan,
                            "clarabel_solved": (f"{clarabel_ok}/{clarabel_posed}"
                                                if clarabel_posed else "")}
     for k, v in ms.items():
         out[f"{k}_median_ms"] = float(np.median(v)) if len(v) else math.nan
     out["step_min_ms"], out["step_max_ms"] = float(ms["step"].min()), float(ms["step"].max())
+    out["step_p99_ms"] = float(np.percentile(ms["step"], 99))
+    out["max_over_median"] = out["step_max_ms"] / out["step_median_ms"]
     notes = []
     for name in ("proxsuite", "cromosim"):
         res = {"median_ms": math.nan, "solved": "", "max_dist_m": math.nan, "note": ""}
@@ -333,6 +264,7 @@ def _cell(value: Any, width: int) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    args.backend = projection.SolverOptions.from_values(backend=args.backend).backend
     baseline = not args.no_baseline
     missing = cromosim_missing() if baseline else "baselines off"
     if missing:
@@ -343,27 +275,81 @@ def run(args: argparse.Namespace) -> int:
               "method) on the same rows, every agent of the crowd")
     print("times in ms (median over the steps unless min/max), dist in m; /X = step / X")
     print(" ".join(f"{head:>{w}}" for _, head, w in _SHOWN), flush=True)
-    worker = _Worker() if baseline else None
-    results = []
+    worker = Worker() if baseline else None
+    results: list[dict] = []
+    compared: list[dict] = []
+    plan = [(n, scene) for n in args.sizes for scene in args.scenes if scene != "evacuation"]
+    if "evacuation" in args.scenes:
+        plan += [(n, "evacuation") for n in args.evacuation_sizes]
     try:
-        for n in args.sizes:
-            for scene in args.scenes:
-                # the Pareto of step time against tolerance on the jams; one row at the
-                # default tolerance (with the baselines) for free flow
-                tols = [None] + ([t for t in args.tols] if scene != "free" else [])
-                for tol in tols:
-                    r = measure(n, scene, args.steps, args.warmup, baseline and tol is None,
-                                worker, args.timeout, cromosim=missing is None, tol=tol)
-                    results.append(r)
-                    print(" ".join(_cell(r[c], w) for c, _, w in _SHOWN), flush=True)
-                    if r["notes"]:
-                        print(f"{'':>14}{r['notes']}", flush=True)
+        for n, scene in plan:
+            evac = scene == "evacuation"
+            # the Pareto of step time against tolerance on the jams; one row at the default
+            # tolerance (with the baselines) for free flow and the evacuation (its warm-up
+            # is long)
+            tols = [None] + ([t for t in args.tols] if scene not in ("free", "evacuation")
+                             else [])
+            for tol in tols:
+                r = measure(n, scene, args.evacuation_steps if evac else args.steps,
+                            args.evacuation_warmup if evac else args.warmup,
+                            baseline and tol is None, worker, args.timeout,
+                            cromosim=missing is None, tol=tol, backend=args.backend)
+                qps = r.pop("qps")
+                results.append(r)
+                print(" ".join(_cell(r[c], w) for c, _, w in _SHOWN), flush=True)
+                if r["notes"]:
+                    print(f"{'':>14}{r['notes']}", flush=True)
+                if worker is not None and tol is None and scene in JAMS and args.backend_qps:
+                    for row in compare_backends(worker, qps[: args.backend_qps],
+                                                args.backend_timeout):
+                        compared.append({"N": n, "scene": scene, **row})
+                        print(f"{'':>14}backend {row['backend']:<9} {_cell(row['median_ms'], 9)}"
+                              f" ms  solved {row['solved']:<5} dist {_cell(row['max_dist_m'], 9)}"
+                              f" m  {row['note']}", flush=True)
     finally:
         if worker is not None:
             worker.close()
     write_csv(Path(args.csv), results, COLUMNS)
     print(f"csv: {args.csv}")
+    if compared:
+        path = Path(args.csv).with_name(Path(args.csv).stem + "_backends.csv")
+        write_csv(path, compared, ("N", "scene", "backend", "median_ms", "solved",
+                                   "max_dist_m", "note"))
+        print(f"csv: {path}")
     return 0
+
+
+def compare_backends(worker: Worker, qps: list[dict], limit_s: float) -> list[dict]:
+    """Each installed backend (:func:`backends.available`) on the cluster QP of whole steps,
+    posed as the projection poses it (displacement coordinates, rows tightened by eps_abs):
+    median solve time (ms), solved count and the largest distance (m) of an agent to the
+    step's certified answer."""
+    opts = projection.SolverOptions()
+    rows_out = []
+    for name in backends.available():
+        tasks, posed = [], []
+        for qp in qps:
+            if not len(qp["b"]):
+                continue
+            _, _, _, h = qp["rows"].displacement_rows(qp["q"])
+            target = (qp["pred"] - qp["q"])[qp["agents"]].ravel()
+            tasks.append((name, target, qp["c"], h, opts))
+            posed.append(qp)
+        results, note = worker.run("backend", tasks, limit_s)
+        dist, solved = 0.0, 0
+        for (_, ok, x), qp in zip(results, posed):
+            solved += ok
+            if ok:
+                y = qp["pred"].copy()
+                y[qp["agents"]] = qp["q"][qp["agents"]] + np.reshape(x, (-1, 2))
+                dist = max(dist, float(np.sqrt(((y - qp["y"]) ** 2).sum(axis=1)).max()))
+        done = len(results) == len(tasks) and not note
+        rows_out.append({"backend": name, "note": note,
+                         "median_ms": (float(np.median([1e3 * t for t, _, _ in results]))
+                                       if done and results else math.nan),
+                         "solved": f"{solved}/{len(tasks)}",
+                         "max_dist_m": dist if solved else math.nan})
+    return rows_out
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -372,7 +358,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 4000, 10000])
     p.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES),
                    help="hex: hexagonal jam pushed to its centre; disordered: polydisperse "
-                        "jam (radii 0.20-0.27 m, sigma 0.08, dt 0.02); free: free flow")
+                        "jam (radii 0.20-0.27 m, sigma 0.08, dt 0.02); free: free flow; "
+                        "evacuation: equal radii 0.25 m jammed at the 1.2 m door of a 23 m "
+                        "room (dt 0.02, sigma 0.05; its own sizes, warm-up and steps)")
+    p.add_argument("--evacuation-sizes", type=int, nargs="+", default=[1000], metavar="N",
+                   help="sizes of the evacuation scene (default 1000; 5000 is about 10 times "
+                        "longer)")
+    p.add_argument("--evacuation-warmup", type=int, default=400, metavar="STEPS",
+                   help="evacuation steps before measuring (default 400: 8 s, the jam formed)")
+    p.add_argument("--evacuation-steps", type=int, default=100, metavar="STEPS",
+                   help="measured evacuation steps (default 100)")
+    p.add_argument("--backend", default="clarabel", metavar="NAME",
+                   help="QP solver of the clusters the exact solver does not take, in the "
+                        "measured steps: any installed one (default clarabel)")
+    p.add_argument("--backend-qps", type=int, default=3, metavar="K",
+                   help="QPs of each jam (its first K measured steps) every installed backend "
+                        "solves for the backend table (default 3; 0: no table)")
+    p.add_argument("--backend-timeout", type=float, default=20.0, metavar="S",
+                   help="wall-clock limit of one backend solve, s (default 20)")
     p.add_argument("--tols", type=float, nargs="*", default=[1e-4, 1e-8], metavar="M",
                    help="further tolerances (m) the jams are run at, for the Pareto of step "
                         "time against certified bound (default 1e-4 1e-8)")

@@ -81,7 +81,7 @@ def _run(args: argparse.Namespace) -> int:
     t_end = checks.number(args.t_end, "--t-end", nonnegative=True)
     solver = SolverOptions.from_values(args.eps_abs, args.max_iter, exact_vars=args.exact_vars,
                                        tol=args.tol, max_rounds=args.max_rounds,
-                                       method=args.method)
+                                       method=args.method, backend=args.backend)
     sim = Simulator(scene, dt=dt, seed=args.seed, scheme=args.scheme, solver=solver)
     scene.check_horizon(t_end)
     if args.path_dt:
@@ -211,7 +211,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--eps-abs", type=float, default=SolverOptions.eps_abs,
                         help="QP tolerance, m (default %(default)g)")
     parser.add_argument("--max-iter", type=int, default=SolverOptions.max_iter,
-                        help="iteration cap of the proxsuite backend")
+                        help="iteration cap of the proxqp backend")
+    parser.add_argument("--backend", default=SolverOptions.backend, metavar="NAME",
+                        help="QP solver (through qpsolvers) of the clusters too large for the "
+                             "exact active-set solver: any installed one, e.g. clarabel "
+                             "(default), piqp, osqp, proxqp; an unknown name lists them")
     parser.add_argument("--exact-vars", type=int, default=SolverOptions.exact_vars, metavar="V",
                         help="contact clusters of up to V variables (2 per agent) are solved exactly "
                              "by the active-set solver, larger ones by the interior-point backend "

@@ -8,7 +8,8 @@ from importlib import metadata
 from pathlib import Path
 
 #: the libraries whose versions can change a run's floats
-SHAPING = ("numpy", "scipy", "numba", "llvmlite", "cvxopt", "proxsuite", "clarabel")
+SHAPING = ("numpy", "scipy", "numba", "llvmlite", "cvxopt", "proxsuite", "clarabel",
+           "qpsolvers")
 #: the CPU features that select a different code path in one of them (numpy's SIMD kernels,
 #: OpenBLAS's, the C library's FMA variants, numba's target)
 CPU_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512dq", "avx512bw", "avx512vl")

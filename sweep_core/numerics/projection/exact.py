@@ -1,4 +1,6 @@
-"""The exact solver: the cluster QP as a least-distance program through NNLS (active set)."""
+"""An independent exact reference: the cluster QP as a least-distance program through scipy's
+NNLS (Lawson-Hanson). The tests compare the solvers with it; the projection uses
+:mod:`.active` (compiled, bounded, deterministic) instead."""
 from __future__ import annotations
 
 import numpy as np

@@ -4,12 +4,35 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import qpsolvers
 
 from sweep_core import checks
 from sweep_core.errors import SceneError
 
 #: largest row violation (m) accepted from the QP solver
 ROW_TOLERANCE = 1e-9
+
+
+#: other names of backends: proxsuite's QP solver is qpsolvers' "proxqp"
+ALIASES = {"proxsuite": "proxqp"}
+
+
+def available_backends() -> list[str]:
+    """The QP solvers installed here that can be the backend (qpsolvers' names, sorted;
+    clarabel is a dependency, so always there)."""
+    return sorted(set(qpsolvers.available_solvers) | {"clarabel"})
+
+
+def check_backend(name: object, field: str = "solver.backend") -> str:
+    """The backend's qpsolvers name if it is installed (aliases resolved); SceneError naming
+    the field, the value and the installed solvers if not."""
+    names = available_backends()
+    key = ALIASES.get(name, name) if isinstance(name, str) else name
+    if not isinstance(key, str) or key not in names:
+        raise SceneError(field, f"{name!r} is not an installed QP solver",
+                         f"use one of {', '.join(names)} (or pip install another solver "
+                         "that qpsolvers supports)")
+    return key
 
 
 #: methods of the projection: the certified compiled solver, or the cluster solvers alone
@@ -34,18 +57,26 @@ class SolverOptions:
         "clusters" (the cluster solvers alone: closed form, active set, interior point).
     eps_abs: skin (m) the interior-point and proxsuite backends tighten every row by, so an
         answer within their tolerance still satisfies the untightened row.
-    max_iter: proxsuite's iteration cap (backend "proxsuite").
+    max_iter: proxqp's iteration cap (backend "proxqp").
     dense_fallback: clusters of up to this many variables (2 per agent) are retried with the
-        active-set NNLS solver when the backend fails.
-    backend: "clarabel" (default: interior point, robust in dense jams) or "proxsuite"
-        (proxsuite 0.8.0 can stall inside its solve on degenerate jam QPs; see README).
+        exact active-set solver when the backend fails. Its cost grows as the cube of the
+        cluster's size (about 0.2 s at 512 variables, 1 to 5 s at 2000), so above 512
+        variables it runs only when the backend gave no answer whose rows hold (a feasible
+        reduced-accuracy answer is kept, its bound reported).
+    backend: the QP solver of the clusters the exact solver does not take (larger than
+        ``exact_vars``, or past its step cap), through qpsolvers: any installed solver
+        (:func:`available_backends`; "proxsuite" is read as "proxqp"). "clarabel" (default,
+        interior point): in ``sweep bench speed``'s backend table it solves the jams' QPs to
+        about 1e-8 m of the certified answer in tens of ms; see README (Performance) for the
+        others.
     exact_vars: clusters of up to this many variables (2 per agent) that reach the cluster
         solvers are solved first by the exact active-set solver
-        (:func:`sweep_core.numerics.projection.exact.ldp`), the backend only if it fails.
-        256 (128 agents): there the exact solver costs at most about 2.5 times the
-        interior point (10 ms against 4 ms at 120 agents of a hexagonal jam, 40 ms against 6
-        at 180), and it gives degenerate clusters, which the certified rounds leave, an
-        answer certified to the tolerance instead of Clarabel's 1e-5 to 1e-4 m.
+        (:func:`sweep_core.numerics.projection.active.solve`, steps capped at 3 per row plus
+        one per variable), the backend only if it fails or hits the cap. 256 (128 agents):
+        there it costs a few times the interior point (4-7 ms against 8 at 64 agents of a
+        hexagonal jam, 35-50 ms against 11 at 120, on a loaded 2-core machine), and it gives
+        degenerate clusters, which the certified rounds leave, an answer certified to the
+        tolerance instead of Clarabel's 1e-5 to 1e-4 m.
     """
 
     eps_abs: float = 1e-10
@@ -72,9 +103,7 @@ class SolverOptions:
         if not 1e-12 <= tol_ <= 1.0:
             raise SceneError("solver.tol", f"{tol_:g} m is outside [1e-12, 1] m",
                              "use e.g. 1e-6 (the default) or 1e-4 for speed")
-        if backend not in ("clarabel", "proxsuite"):
-            raise SceneError("solver.backend", f"unknown backend {backend!r}",
-                             "use 'clarabel' or 'proxsuite'")
+        backend = check_backend(backend)
         if method not in METHODS:
             raise SceneError("solver.method", f"unknown method {method!r}",
                              f"use one of {list(METHODS)}")

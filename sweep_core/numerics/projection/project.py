@@ -143,10 +143,12 @@ def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
         agents = sub.agents()
         loc = np.full(n, -1, dtype=np.intp)
         loc[agents] = np.arange(len(agents))
-        c, b = row_matrix(sub, loc, len(agents))
-        # tightened by the skin, so that an answer exact up to rounding holds every true row
-        xs, lam_sub, ok, by_backend = solve_qp(pred[agents].ravel(), c, b + res.skin, opts)
+        c, _ = row_matrix(sub, loc, len(agents))
         picked = np.concatenate([pick_p, pick_s])
+        # in displacement coordinates (the rows' bounds h, small numbers), tightened by the
+        # skin, so that an answer exact up to rounding holds every true row
+        xs, lam_sub, ok, by_backend = solve_qp(d[agents].ravel(), c, h[picked] + res.skin,
+                                               opts)
         lam = lam.copy()
         lam[picked] = lam_sub
         x = dual.apply_multipliers(d, ri, rj, re, lam)
@@ -154,7 +156,7 @@ def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
         # (an interior point's multipliers do not reproduce its x exactly), is kept with the
         # residual term 1/2 |r|^2 of the certificate
         r = np.zeros_like(d)
-        r[agents] = xs.reshape(-1, 2) - q[agents] - x[agents]
+        r[agents] = xs.reshape(-1, 2) - x[agents]
         x[agents] += r[agents]
         fallback = len(agents)
         gap, _, _, _ = certified.certify(x, ri, rj, re, h, lam, res.label, res.clusters,
