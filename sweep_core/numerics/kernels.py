@@ -21,12 +21,14 @@ from pathlib import Path
 from types import ModuleType
 
 import numpy as np
+import scipy.sparse as sp
 from numba.core.registry import CPUDispatcher
 
 from sweep_core.model import neighbours
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import schemes
 from sweep_core.numerics.projection import dual
+from sweep_core.numerics.projection.clusters import solve_active
 from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
@@ -119,6 +121,9 @@ def _exercise() -> None:
     schemes.log_each(v)
     one = np.zeros(1, dtype=np.int64)
     dual.slacks(np.zeros((2, 2)), one, one - 1, np.ones((1, 2)), np.zeros(1))
+    # the exact path of small clusters: two agents pressed together against a wall
+    rows = sp.csr_matrix(np.array([[1.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0]]))
+    solve_active(np.array([0.1, -0.2, -0.1, 0.0]), rows, np.array([0.05, 0.0]))
 
 
 def warm_up(notify: Callable[[str], None] | None = None) -> WarmUp:
