@@ -133,7 +133,8 @@ class SweepNode(Node):
                                  solver=params.solver_options(self._p))
         except SceneError as err:
             raise StartError([f"scene {self._p['scene'] or '(bundled default)'}: {err}"]) from err
-        graph.check_unique_name(self, started + self._p["name_check_s"])
+        if self._p["name_check_s"] > 0:  # 0: do not look
+            graph.check_unique_name(self, started + self._p["name_check_s"])
         self._apply_sigma()
         # every kernel a step, a goal's navigation field or a map can call, compiled (first
         # run on this machine) or loaded now: no command waits for a compile once ready
