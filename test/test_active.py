@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from scenes import hex_jam
+from test_projection import reference
 
 import sweep_core as sc
 from sweep_core.numerics import projection
@@ -96,16 +97,6 @@ def door(n: int, side: float = 5.0, r: float = 0.25) -> dict:
     return {"agents": {"positions": pos.tolist(), "radius": r}, "walls": walls,
             "drift": {"kind": "geodesic", "goal": [side + 3.0, 0.5 * side], "speed": 1.3},
             "noise": {"sigma": 0.05}}
-
-
-def reference(scene: sc.Scene, t1: float, q: np.ndarray, pred: np.ndarray) -> np.ndarray:
-    """The exact projection onto every row (no cutoff), by NNLS (Lawson-Hanson)."""
-    rows = linearise(scene.geometry, t1, q, scene.radii(t1), np.inf)
-    n = len(q)
-    c, b = clusters.row_matrix(rows, np.arange(n), n)
-    x, _, ok = exact.ldp(pred.ravel(), c.toarray(), b)
-    assert ok
-    return x.reshape(-1, 2)
 
 
 def dependent_rows(scene: sc.Scene, t1: float, q: np.ndarray, y: np.ndarray) -> int:

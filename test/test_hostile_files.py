@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
+from test_faults import SCENE
 
 from sweep_core.cli import main
 from sweep_core.errors import OutputError
@@ -26,12 +27,6 @@ from sweep_core.io import cdr
 from sweep_core.io.recording import BackgroundRecorder, Recorder, read_metadata
 
 REPO = Path(__file__).resolve().parents[1]
-SCENE = """
-agents: {positions: [[0.0, 0.0], [0.6, 0.0], [1.2, 0.0]], radius: 0.25}
-walls: [{kind: halfplane, normal: [1, 0], offset: -0.5}]
-drift: {kind: uniform, velocity: [-1.0, 0.0]}
-noise: {sigma: 0.05}
-"""
 #: a line no error message may quote
 SECRET = "SECRET-LINE-4711: do not print me"
 
