@@ -216,12 +216,18 @@ class Client:
             event_callbacks=self._events("pub", self.node.resolve_topic_name(name),
                                          pub_matched))
         topic, result_topic = pub.topic_name, sub.topic_name
+        def ready() -> int:
+            """The nodes that take the command, once every one of them is matched both ways
+            (a command published before a second node's subscription matched would never
+            reach it, and its verdict never come)."""
+            n = self.commanders(topic, result_topic)
+            heard = sub_matched[0] or self.node.count_publishers(result_topic)
+            if n and max(pub_matched[0], pub.get_subscription_count()) >= n and heard >= n:
+                return n
+            return 0
         try:
             commanders = self._spin_until(
-                lambda: ((pub_matched[0] or pub.get_subscription_count())
-                         and (sub_matched[0] or self.node.count_publishers(result_topic))
-                         and self.commanders(topic, result_topic)),
-                f"a sweep_node subscribing to {topic} and publishing {result_topic}")
+                ready, f"a sweep_node subscribing to {topic} and publishing {result_topic}")
         except ClientError as err:
             raise ClientError(f"{err}{self._mismatch(topic, msg_type)}") from None
         gid = self._own_gid(topic)
