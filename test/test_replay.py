@@ -145,8 +145,11 @@ def test_one_ulp_is_a_divergence_with_its_step_and_agent(tmp_path, capsys):
     assert not res.identical and (d.step, d.agent, d.agents_differing) == (50, 3, 1)
     assert 0 < d.distance_m < 1e-12 and res.frames_compared == 50
     assert d.recorded[0] == np.nextafter(d.replayed[0], np.inf)
+    # the replay goes on to the end: one ulp at one frame is no departure beyond 1e-9 m
+    assert d.frames_after == 11 and d.departure_step is None and 0 < d.departure_max_m < 1e-12
     assert main(["replay", str(f), "--quiet"]) == 1
-    assert "DIVERGED at step 50" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "DIVERGED at step 50" in out and "never beyond 1e-9 m" in out
     assert main(["replay", str(f), "--quiet", "--json"]) == 1
     assert json.loads(capsys.readouterr().out)["divergence"]["agent"] == 3
 
