@@ -8,7 +8,8 @@ step. No ROS import anywhere in this package. See the README for the scene schem
 from __future__ import annotations
 
 from sweep_core.errors import InfeasibleError, RecordingError, SceneError, SweepError
-from sweep_core.model.fields import FIELD_KINDS, Field, field_from_spec, grid_field
+from sweep_core.model.drift import field_from_spec
+from sweep_core.model.fields import FIELD_KINDS, Field, grid_field
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.projection import SolverOptions
 from sweep_core.numerics.schemes import SCHEMES, Scheme

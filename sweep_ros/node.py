@@ -80,7 +80,8 @@ from sweep_core import InfeasibleError, SceneError, Simulator, SweepError
 from sweep_core.io import cdr, topics
 from sweep_core.io.metadata import STATUS_RECORD, run_metadata, status_metadata
 from sweep_core.io.recording import BackgroundRecorder, qos_profiles
-from sweep_core.model.fields import Field, Goal, Groups, field_from_spec
+from sweep_core.model.drift import field_from_spec
+from sweep_core.model.fields import Field, Goal, Groups
 from sweep_core.model.geodesic import navigation_fields
 from sweep_core.model.maps import OccupancyMap, map_from_spec, replace_map
 from sweep_core.model.scene import Scene, load_scene

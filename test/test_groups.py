@@ -17,7 +17,8 @@ from sweep_core.errors import SceneError
 from sweep_core.io import topics
 from sweep_core.io.metadata import run_metadata
 from sweep_core.io.recording import Recorder
-from sweep_core.model.fields import Goal, Groups, Uniform, field_from_spec
+from sweep_core.model.drift import field_from_spec
+from sweep_core.model.fields import Goal, Groups, Uniform
 
 CORRIDOR = [{"kind": "polyline", "closed": True, "points": [[0, 0], [20, 0], [20, 3], [0, 3]]}]
 EAST = {"kind": "rectangle", "min": [16.5, 0.0], "max": [20.0, 3.0]}

@@ -922,7 +922,7 @@ def test_goal_builds_a_geodesic_field_round_the_wall(installed, probe, tmp_path)
     refused with a warning and counted; a command without a field publishes an empty cloud;
     the recording reads with rosbags and replays bit for bit."""
     from sweep_core.cli import main as sweep_main
-    from sweep_core.model.fields import field_from_spec
+    from sweep_core.model.drift import field_from_spec
     from sweep_core.model.scene import Scene
     from sweep_ros import messages
 
@@ -1013,7 +1013,7 @@ def test_group_goals_replace_only_their_group(installed, probe, tmp_path):
     carries a grid per field with its group; an unknown group and an unreachable group goal are
     refused (the latter counted); the recording reads with rosbags and replays bit for bit."""
     from sweep_core.cli import main as sweep_main
-    from sweep_core.model.fields import field_from_spec
+    from sweep_core.model.drift import field_from_spec
     from sweep_core.model.scene import Scene
 
     clouds = navigation_probe(probe)

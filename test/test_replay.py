@@ -20,7 +20,7 @@ from sweep_core.cli import main
 from sweep_core.io import topics
 from sweep_core.io.metadata import run_metadata
 from sweep_core.io.recording import Recorder
-from sweep_core.model.fields import field_from_spec
+from sweep_core.model.drift import field_from_spec
 from sweep_core.numerics import paths
 
 DT, SEED = 0.01, 11

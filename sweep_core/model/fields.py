@@ -266,36 +266,20 @@ _OPTIONAL = {"goal": {"slow_radius"}, "linear": {"offset"}}
 #: navigation fields, built against the scene's geometry (:mod:`sweep_core.model.geodesic`)
 NAVIGATION_KINDS = ("geodesic", "exits")
 FIELD_KINDS = tuple(_KEYS) + NAVIGATION_KINDS + ("groups",)
+#: the plain kinds (built here)
+PLAIN_KINDS = tuple(_KEYS)
 #: the kinds that take a speed: a group's speed fills it in when the group's drift omits it
 SPEED_KINDS = ("goal",) + NAVIGATION_KINDS
 #: preferred speed (m/s) of agents and groups when the scene gives none
 DEFAULT_SPEED = 1.3
 
 
-def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift",
-                    geometry: Any = None, grid: Any = None,
-                    positions: np.ndarray | None = None,
-                    speed: float = DEFAULT_SPEED) -> Field:
-    """Build a drift field from its scene dict (see the README's scene schema). The
-    navigation kinds (geodesic, exits) need the scene's geometry (a
-    :class:`~sweep_core.model.geometry.Geometry`), its map (an
-    :class:`~sweep_core.model.maps.OccupancyMap` or None) and the agents' positions (N, 2) m.
-    speed: the preferred speed (m/s) of a group that gives none (the scene's agents.speed)."""
-    if spec is None:
-        return NoDrift()
-    checks.mapping(spec, field)
-    kind = checks.kind(spec, field, FIELD_KINDS, default="none")
-    if kind == "groups":
-        checks.mapping(spec, field, allowed={"kind", "groups", "rest"}, required={"groups"})
-        from sweep_core.model.groups import groups_from_spec  # it builds on Groups
-
-        return groups_from_spec(spec["groups"], spec.get("rest"), n_agents, f"{field}.groups",
-                                f"{field}.rest", geometry, grid, positions, speed)
-    if kind in NAVIGATION_KINDS:
-        from sweep_core.model.geodesic import navigation_from_spec  # it builds on Field
-
-        return navigation_from_spec(spec, field, geometry, grid,
-                                    np.empty((0, 2)) if positions is None else positions)
+def plain_field_from_spec(spec: dict, kind: str, n_agents: int, field: str = "drift") -> Field:
+    """Build a field of a plain ``kind`` (none, uniform, goal, linear, per_agent, grid) from
+    its scene dict ``spec`` (a mapping whose kind has been read); the navigation kinds are
+    built by :mod:`sweep_core.model.geodesic`, the groups and the dispatch over every kind by
+    :func:`sweep_core.model.drift.field_from_spec`. n_agents: the agents it drives (a
+    per_agent field gives one velocity per agent)."""
     checks.mapping(spec, field, allowed={"kind"} | _KEYS[kind] | _OPTIONAL.get(kind, set()),
                    required=_KEYS[kind])
     if kind == "uniform":

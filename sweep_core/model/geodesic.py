@@ -26,9 +26,10 @@ they are at k s, the first time a step falls in it (so a run and its replay see 
 fields; about 15 ms for a 20 x 10 m room at 0.1 m); a goal then covered by an obstacle gives
 U = 0 until it is free again. A moving half-plane counts where it is at t = 0, always.
 
-Longer than 400 lines because it is one model: the field classes, the validation of their
-specs and the grid solve they share (free nodes, the graph, Dijkstra from the goal's seeds,
-the descent direction, the agents' reachability); the solve's helpers are private to it.
+The field classes and their specs are here; the targets (goal points, regions, exits) are
+:mod:`sweep_core.model.targets`, the grid solve they share (free nodes, the graph, Dijkstra
+from the goal's seeds, the descent direction, the agents' reachability)
+:mod:`sweep_core.model.travel`.
 
 Metrication error: a path on the 16-neighbour graph is made of steps in 16 directions, so in
 open space T is the Euclidean distance times a factor between 1 and 1.0275 (the worst case,
@@ -64,74 +65,32 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import ndimage
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.fields import Field, Groups, grid_cell
-from sweep_core.model.geometry import Geometry, single_rows
+from sweep_core.model.geometry import Geometry
 from sweep_core.model.maps import OccupancyMap
-from sweep_core.model.outlines import chain_points, points_in_polygon
+from sweep_core.model.targets import Target, navigation_targets, target_from_spec
+from sweep_core.model.travel import (
+    CELL,
+    DIRECTION_ERROR,
+    MAX_NODES,
+    METRICATION,
+    NEIGHBOURS,
+    SLOW_RADIUS,
+    STENCILS,
+    WALL_BUFFER,
+    buffer_cells,
+    check_agents,
+    check_target,
+    grid_nodes,
+    solve_grid,
+)
 
-#: most grid nodes a navigation field may have (building one takes about 1.2 s and 0.5 GB at
-#: this size)
-MAX_NODES = 1_000_000
-#: the steps of the grid graph for each choice of ``neighbours``, in cells (with their
-#: opposites)
-STENCILS = {
-    8: ((1, 0), (0, 1), (1, 1), (1, -1)),
-    16: ((1, 0), (0, 1), (1, 1), (1, -1), (2, 1), (1, 2), (2, -1), (1, -2)),
-    32: ((1, 0), (0, 1), (1, 1), (1, -1), (2, 1), (1, 2), (2, -1), (1, -2),
-         (3, 1), (1, 3), (3, -1), (1, -3), (3, 2), (2, 3), (3, -2), (2, -3)),
-}
-#: worst relative excess of a stencil path over the straight distance
-METRICATION = {8: 0.0824, 16: 0.0275, 32: 0.0131}
-#: worst angle (degrees) between the descent direction and the true one, in open space
-#: (measured: test/test_geodesic.py)
-DIRECTION_ERROR = {8: 21.0, 16: 13.0, 32: 9.0}
-#: defaults (m, m, m, neighbours)
-CELL, WALL_BUFFER, SLOW_RADIUS, NEIGHBOURS = 0.1, 0.3, 0.5, 16
-
-
-def buffer_cells(neighbours: int) -> float:
-    """wall_buffer must be at least this many cells: half the stencil's longest step."""
-    return max(math.hypot(*step) for step in STENCILS[neighbours]) / 2.0
-
-
-@dataclass(frozen=True, eq=False)
-class Target:
-    """A goal point (``points`` of one row) or a goal region (a closed outline), normalised
-    spec and weight."""
-
-    points: np.ndarray
-    is_region: bool
-    spec: dict
-    weight: float = 1.0
-
-    def nearest(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Distance (M,) m from q (M, 2) to the target (0 inside a region) and the nearest
-        point of the target (M, 2)."""
-        if not self.is_region:
-            d = q - self.points[0]
-            return np.hypot(d[:, 0], d[:, 1]), np.broadcast_to(self.points[0], q.shape).copy()
-        a, b = self.points, np.roll(self.points, -1, axis=0)
-        ab = b - a
-        rel = q[:, None, :] - a[None]
-        s = np.clip(np.einsum("mkc,kc->mk", rel, ab) / np.einsum("kc,kc->k", ab, ab), 0.0, 1.0)
-        foot = a[None] + s[..., None] * ab[None]
-        dist = np.hypot(*(q[:, None, :] - foot).transpose(2, 0, 1))
-        k = np.argmin(dist, axis=1)
-        rows = np.arange(len(q))
-        d, p = dist[rows, k], foot[rows, k]
-        inside = points_in_polygon(q, self.points)
-        return np.where(inside, 0.0, d), np.where(inside[:, None], q, p)
-
-    def arrived(self, q: np.ndarray, radius: float) -> np.ndarray:
-        """(N,) bool: q (N, 2) is within radius m of the goal point, or inside the region."""
-        d, _ = self.nearest(q)
-        return d <= (0.0 if self.is_region else radius)
+__all__ = ["CELL", "DIRECTION_ERROR", "MAX_NODES", "METRICATION", "NEIGHBOURS", "SLOW_RADIUS",
+           "STENCILS", "WALL_BUFFER", "Exits", "Geodesic", "Target", "buffer_cells",
+           "navigation_fields", "navigation_from_spec", "navigation_targets"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,7 +150,7 @@ class Geodesic(Field):
             return self.direction, self.distance
         if self.cache.get("epoch") != epoch:
             geometry, grid, targets, cell, buffer, neighbours = self.source
-            sol = _solve(geometry.at(epoch * self.update_every), grid, targets,
+            sol = solve_grid(geometry.at(epoch * self.update_every), grid, targets,
                          [""] * len(targets), self.x, self.y, cell, buffer, neighbours,
                          strict=False)
             self.cache.update(epoch=epoch, arrays=(sol[0], sol[1]))
@@ -232,59 +191,6 @@ def navigation_fields(drift: Field) -> list[tuple[int, Geodesic]]:
     return []
 
 
-def navigation_targets(spec: dict, field: str = "drift") -> list[tuple[str, Target]]:
-    """The goals of a ``geodesic`` or ``exits`` drift spec, named for reports: [("goal" or
-    "region", target)] or [("exits[k]", target), ...] (for arrivals per exit: see
-    :meth:`Target.arrived`)."""
-    if spec.get("kind") == "exits":
-        raw = spec.get("exits")
-        if not isinstance(raw, list):
-            raise SceneError(f"{field}.exits", f"must be a list, got {show(raw)}",
-                             f"write {field}.exits as a list of {{goal: [x, y]}} items")
-        return [(f"exits[{k}]", _target(checks.mapping(e, f"{field}.exits[{k}]"),
-                                        f"{field}.exits[{k}]", True))
-                for k, e in enumerate(raw)]
-    target = _target(spec, field, False)
-    return [("region" if target.is_region else "goal", target)]
-
-
-def _target(spec: dict, field: str, weighted: bool) -> Target:
-    keys = {"goal", "region"} | ({"weight"} if weighted else set())
-    if ("goal" in spec) == ("region" in spec):
-        raise SceneError(field, f"gives {'both' if 'goal' in spec else 'neither'} goal and region",
-                         f"give {field}.goal: [x, y] or {field}.region: {{kind: rectangle, "
-                         "min: [x, y], max: [x, y]}")
-    if weighted:
-        checks.mapping(spec, field, allowed=keys)
-    weight = 1.0
-    out: dict = {}
-    if weighted:
-        weight = checks.number(spec.get("weight", 1.0), f"{field}.weight", positive=True)
-    if "goal" in spec:
-        g = checks.point(spec["goal"], f"{field}.goal")
-        out["goal"] = g.tolist()
-        target = Target(g[None], False, out, weight)
-    else:
-        rf = f"{field}.region"
-        region = checks.mapping(spec["region"], rf)
-        if checks.kind(region, rf, ("rectangle", "polygon")) == "rectangle":
-            checks.mapping(region, rf, allowed={"kind", "min", "max"}, required={"min", "max"})
-            lo, hi = checks.point(region["min"], f"{rf}.min"), checks.point(region["max"], f"{rf}.max")
-            if np.any(hi <= lo):
-                raise SceneError(rf, f"min {show(lo)} is not below max {show(hi)}",
-                                 "give the lower-left corner as min and the upper-right as max")
-            points = np.array([lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]])
-            out["region"] = {"kind": "rectangle", "min": lo.tolist(), "max": hi.tolist()}
-        else:
-            checks.mapping(region, rf, allowed={"kind", "points"}, required={"points"})
-            points = chain_points(region["points"], f"{rf}.points", True, 3)
-            out["region"] = {"kind": "polygon", "points": points.tolist()}
-        target = Target(points, True, out, weight)
-    if weighted:
-        out["weight"] = weight
-    return target
-
-
 def navigation_from_spec(spec: dict, field: str, geometry: Geometry | None,
                          grid: OccupancyMap | None, positions: np.ndarray) -> Geodesic:
     """Validate and build a ``geodesic`` or ``exits`` drift (module docstring) for a scene's
@@ -302,13 +208,13 @@ def navigation_from_spec(spec: dict, field: str, geometry: Geometry | None,
             raise SceneError(f"{field}.exits", f"must be a non-empty list, got {show(raw)}",
                              f"write {field}.exits as a list of {{goal: [x, y]}} or "
                              "{region: ...} items, one per exit")
-        targets = [_target(checks.mapping(e, f"{field}.exits[{k}]"), f"{field}.exits[{k}]",
+        targets = [target_from_spec(checks.mapping(e, f"{field}.exits[{k}]"), f"{field}.exits[{k}]",
                            True) for k, e in enumerate(raw)]
         names = [f"{field}.exits[{k}]" for k in range(len(targets))]
     else:
         checks.mapping(spec, field, allowed={"kind", "goal", "region"} | common,
                        required={"speed"})
-        targets = [_target(spec, field, False)]
+        targets = [target_from_spec(spec, field, False)]
         names = [field]
     speed = checks.number(spec["speed"], f"{field}.speed", nonnegative=True)
     cell = checks.number(spec.get("cell", CELL), f"{field}.cell", positive=True)
@@ -337,12 +243,12 @@ def navigation_from_spec(spec: dict, field: str, geometry: Geometry | None,
                              f"remove {field}.update_every (the field is computed once)")
     moving = geometry
     geometry = geometry.at(0.0)
-    x, y = _nodes(geometry, grid, positions, targets, cell, buffer, field)
+    x, y = grid_nodes(geometry, grid, positions, targets, cell, buffer, field)
     for t, name in zip(targets, names):
-        _check_target(geometry, grid, t, name)
-    direction, own, travel, free, choice = _solve(geometry, grid, targets, names, x, y, cell,
+        check_target(geometry, grid, t, name)
+    direction, own, travel, free, choice = solve_grid(geometry, grid, targets, names, x, y, cell,
                                                   buffer, neighbours)
-    _check_agents(positions, x, y, free, travel, field, buffer)
+    check_agents(positions, x, y, free, travel, field, buffer)
     out: dict[str, Any] = {"kind": kind}
     if kind == "exits":
         out["exits"] = [t.spec for t in targets]
@@ -357,238 +263,3 @@ def navigation_from_spec(spec: dict, field: str, geometry: Geometry | None,
                speed=speed, slow_radius=slow, spec=out, update_every=every,
                source=(moving, grid, targets, cell, buffer, neighbours) if every is not None
                else (), choice=choice)
-
-
-def _solve(geometry: Geometry, grid: OccupancyMap | None, targets: list[Target],
-           names: list[str], x: np.ndarray, y: np.ndarray, cell: float, buffer: float,
-           neighbours: int = NEIGHBOURS, strict: bool = True
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Direction (H, W, 2), the followed exit's distance (H, W) (both filled at nodes not
-    reached), travel min_k w_k T_k (H, W) (inf where not reached), free (H, W) and the
-    followed exit's index (H, W) (filled too) for a static geometry. strict: refuse a target
-    no free node sees (else that target is unreachable, and where no target is, the field is
-    0)."""
-    nodes = np.stack(np.meshgrid(x, y), axis=-1).reshape(-1, 2)
-    free = _free(geometry, grid, nodes, buffer).reshape(len(y), len(x))
-    graph, index = _graph(free, cell, STENCILS[neighbours])
-    dists = [_travel(geometry, t, name, nodes, free, graph, index, cell, buffer, strict)
-             for t, name in zip(targets, names)]
-    weighted = np.stack([t.weight * d for t, d in zip(targets, dists)])
-    which = np.argmin(weighted, axis=0)
-    travel = np.take_along_axis(weighted, which[None], 0)[0]
-    own = np.take_along_axis(np.stack(dists), which[None], 0)[0]
-    direction = _descent(travel, cell)
-    reached = np.isfinite(travel)
-    if not np.any(reached):
-        return direction, np.zeros_like(own), travel, free, which
-    if np.any(~reached):  # nearest reached node's direction, distance and exit
-        _, (iy, ix) = ndimage.distance_transform_edt(~reached, return_indices=True)
-        direction = direction[iy, ix]
-        own = own[iy, ix]
-        which = which[iy, ix]
-    return direction, own, travel, free, which
-
-
-def _nodes(geometry: Geometry, grid: OccupancyMap | None, positions: np.ndarray,
-           targets: list[Target], cell: float, buffer: float, field: str
-           ) -> tuple[np.ndarray, np.ndarray]:
-    """Node coordinates (m) covering the scene, with a margin of wall_buffer + 2 cells."""
-    pts = [positions.reshape(-1, 2), geometry.segment_a, geometry.segment_b]
-    pts += [t.points for t in targets]
-    r = geometry.circle_radius[:, None]
-    pts += [geometry.circle_center - r, geometry.circle_center + r]
-    if grid is not None:
-        h, w = grid.shape
-        pts.append(grid.to_world(np.array([[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]])
-                                 * grid.resolution))
-    allp = np.concatenate(pts)
-    margin = buffer + 2.0 * cell
-    lo, hi = allp.min(axis=0) - margin, allp.max(axis=0) + margin
-    size = np.ceil((hi - lo) / cell).astype(np.int64) + 1
-    count = int(size[0]) * int(size[1])
-    if count > MAX_NODES:
-        need = cell * math.sqrt(count / MAX_NODES) * 1.01
-        raise SceneError(f"{field}.cell", f"{cell:g} m makes a grid of {int(size[0])} x "
-                         f"{int(size[1])} = {count} nodes over the scene's "
-                         f"[{lo[0]:g}, {hi[0]:g}] x [{lo[1]:g}, {hi[1]:g}] m, more than "
-                         f"{MAX_NODES}", f"set {field}.cell to at least {need:.3g} m")
-    return lo[0] + cell * np.arange(size[0]), lo[1] + cell * np.arange(size[1])
-
-
-def _free(geometry: Geometry, grid: OccupancyMap | None, q: np.ndarray, buffer: float,
-          chunk: int = 16384) -> np.ndarray:
-    """(M,) bool: the point is at least buffer m from every wall and obstacle and not in a
-    blocked map cell (values at t = 0, radius 0)."""
-    ok = np.ones(len(q), dtype=bool) if grid is None else ~grid.is_blocked(q)
-    if geometry.is_empty:
-        return ok
-    for s in range(0, len(q), chunk):
-        part = q[s:s + chunk]
-        for a, _, g, _, _ in single_rows(geometry, 0.0, part, np.zeros(len(part)), buffer):
-            ok[s + a[g < buffer]] = False
-    return ok
-
-
-def _check_target(geometry: Geometry, grid: OccupancyMap | None, target: Target,
-                  name: str) -> None:
-    """Refuse a goal point inside a wall, an obstacle or a blocked map cell."""
-    if target.is_region:
-        return
-    g = target.points
-    where = None
-    if grid is not None and grid.is_blocked(g)[0]:
-        where = "a blocked (occupied or unknown) cell of the map"
-    elif not geometry.is_empty:
-        for kind, (_, k, v, _, _) in enumerate(single_rows(geometry, 0.0, g, np.zeros(1), 0.0)):
-            if len(v) and float(v.min()) < 1e-9:
-                where = geometry.describe(kind, int(k[int(np.argmin(v))]))
-                break
-    if where is not None:
-        raise SceneError(f"{name}.goal", f"{show(g[0])} lies in or on {where}",
-                         f"move {name}.goal into the free space")
-
-
-def _graph(free: np.ndarray, cell: float, stencil: tuple) -> tuple[Any, np.ndarray]:
-    """The grid graph (steps ``stencil`` and their opposites) over free nodes (CSR, one extra
-    node last for the sources) and the graph index of each grid node (-1: not free)."""
-    h, w = free.shape
-    index = np.full(free.shape, -1, dtype=np.int32)
-    m = int(free.sum())
-    index[free] = np.arange(m, dtype=np.int32)
-    rows, cols, wts = [], [], []
-    for dx, dy in stencil:
-        ys0, ys1 = max(0, -dy), min(h, h - dy)
-        xs0, xs1 = max(0, -dx), min(w, w - dx)
-        a = index[ys0:ys1, xs0:xs1]
-        b = index[ys0 + dy:ys1 + dy, xs0 + dx:xs1 + dx]
-        both = (a >= 0) & (b >= 0)
-        rows.append(a[both])
-        cols.append(b[both])
-        wts.append(np.full(int(both.sum()), cell * math.hypot(dx, dy)))
-    r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(wts)
-    # each edge once: the search treats the graph as undirected
-    graph = coo_matrix((v, (r, c)), shape=(m + 1, m + 1)).tocsr()
-    return graph, index
-
-
-#: added to every source edge (csgraph reads an explicit 0 weight as no edge), then removed
-_SOURCE_OFFSET = 1.0
-
-
-def _travel(geometry: Geometry, target: Target, name: str, nodes: np.ndarray, free: np.ndarray,
-            graph: Any, index: np.ndarray, cell: float, buffer: float, strict: bool = True
-            ) -> np.ndarray:
-    """T (H, W) m to the target: inf where not free or not reached."""
-    flat = np.flatnonzero(free.ravel())
-    near = buffer + 2.0 * cell
-    d, p = target.nearest(nodes[flat])
-    close = d <= near
-    seeds, d, p = flat[close], d[close], p[close]
-    seen = _visible(geometry, nodes[seeds], p)
-    seeds, d = seeds[seen], d[seen]
-    what = "region" if target.is_region else "goal"
-    if len(seeds) == 0 and not strict:
-        return np.full(free.shape, np.inf)
-    if len(seeds) == 0:
-        raise SceneError(f"{name}.{what}", f"{show(target.spec[what])} has no free grid node "
-                         f"within {near:g} m in sight: it is closer than wall_buffer "
-                         f"{buffer:g} m to walls all round",
-                         f"move {name}.{what} into the open, or lower wall_buffer and cell")
-    m = graph.shape[0] - 1
-    src = coo_matrix((d + _SOURCE_OFFSET, (np.full(len(seeds), m, dtype=np.int32),
-                                           index.ravel()[seeds])), shape=graph.shape).tocsr()
-    dist = dijkstra(graph + src, directed=False, indices=m)
-    out = np.full(free.size, np.inf)
-    out[flat] = dist[:m] - _SOURCE_OFFSET
-    return out.reshape(free.shape)
-
-
-def _visible(geometry: Geometry, a: np.ndarray, b: np.ndarray, chunk: int = 256) -> np.ndarray:
-    """(M,) bool: the segment a -> b (M, 2 each) crosses no wall segment, circle or
-    half-plane (the end b may touch one)."""
-    ok = np.ones(len(a), dtype=bool)
-    for n, c0 in zip(geometry.halfplane_normal, geometry.halfplane_offset):
-        ok &= b[:, 0] * n[0] + b[:, 1] * n[1] - c0 >= -1e-12  # not BLAS: CPU-independent
-    if len(geometry.circle_radius):
-        ab = b - a
-        rel = geometry.circle_center[None] - a[:, None]
-        s = np.clip(np.einsum("mkc,mc->mk", rel, ab)
-                    / np.maximum(np.einsum("mc,mc->m", ab, ab), 1e-300)[:, None], 0, 1)
-        d = np.hypot(*(a[:, None] + s[..., None] * ab[:, None] - geometry.circle_center[None]
-                       ).transpose(2, 0, 1))
-        ok &= np.all(d >= geometry.circle_radius[None] - 1e-12, axis=1)
-    sa, sb = geometry.segment_a, geometry.segment_b
-    if len(sa) == 0:
-        return ok
-
-    def orient(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
-        return ((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1])
-                - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
-
-    for s in range(0, len(a), chunk):
-        pa, pb = a[s:s + chunk], b[s:s + chunk]
-        lo = np.minimum(pa, pb).min(axis=0)
-        hi = np.maximum(pa, pb).max(axis=0)
-        keep = np.all((np.maximum(sa, sb) >= lo) & (np.minimum(sa, sb) <= hi), axis=1)
-        if not np.any(keep):
-            continue
-        wa, wb = sa[keep][None], sb[keep][None]
-        p, q = pa[:, None], pb[:, None]
-        o1, o2 = orient(p, q, wa), orient(p, q, wb)
-        o3, o4 = orient(wa, wb, p), orient(wa, wb, q)
-        cross = (o1 * o2 < 0) & (o3 * o4 < 0)
-        ok[s:s + chunk] &= ~np.any(cross, axis=1)
-    return ok
-
-
-def _descent(travel: np.ndarray, cell: float) -> np.ndarray:
-    """(H, W, 2): minus the gradient of T normalised (0 where T is flat or not reached):
-    central differences where both neighbours are reached, one-sided beside a wall."""
-    out = np.zeros(travel.shape + (2,))
-    fin = np.isfinite(travel)
-    t = np.where(fin, travel, 0.0)
-    for axis in (1, 0):  # x along columns, y along rows
-        fwd = np.zeros_like(t)
-        bwd = np.zeros_like(t)
-        has_f = np.zeros_like(fin)
-        has_b = np.zeros_like(fin)
-        sl = [slice(None)] * 2
-        sl_next = [slice(None)] * 2
-        sl[axis], sl_next[axis] = slice(0, -1), slice(1, None)
-        ok = fin[tuple(sl)] & fin[tuple(sl_next)]
-        diff = (t[tuple(sl_next)] - t[tuple(sl)]) / cell
-        fwd[tuple(sl)] = np.where(ok, diff, 0.0)
-        has_f[tuple(sl)] = ok
-        bwd[tuple(sl_next)] = np.where(ok, diff, 0.0)
-        has_b[tuple(sl_next)] = ok
-        grad = np.where(has_f & has_b, 0.5 * (fwd + bwd), np.where(has_f, fwd, bwd))
-        out[..., 1 - axis] = -grad
-    size = np.hypot(out[..., 0], out[..., 1])
-    out /= np.where(size > 1e-12, size, np.inf)[..., None]
-    out[~fin] = 0.0
-    return out
-
-
-def _check_agents(positions: np.ndarray, x: np.ndarray, y: np.ndarray, free: np.ndarray,
-                  travel: np.ndarray, field: str, buffer: float) -> None:
-    """Refuse when an agent's nearest free node has no free path to the goal."""
-    if len(positions) == 0:
-        return
-    if not np.any(free):
-        raise SceneError(f"{field}.wall_buffer", f"{buffer:g} m leaves no free grid node: "
-                         "everything is within it of a wall",
-                         f"lower {field}.wall_buffer (and {field}.cell with it)")
-    cell = float(x[1] - x[0])
-    ix = np.clip(np.rint((positions[:, 0] - x[0]) / cell).astype(np.int64), 0, len(x) - 1)
-    iy = np.clip(np.rint((positions[:, 1] - y[0]) / cell).astype(np.int64), 0, len(y) - 1)
-    _, (ny, nx) = ndimage.distance_transform_edt(~free, return_indices=True)
-    ny, nx = ny[iy, ix], nx[iy, ix]
-    bad = np.flatnonzero(~np.isfinite(travel[ny, nx]))
-    if len(bad):
-        a = int(bad[0])
-        more = f" ({len(bad)} agents in all)" if len(bad) > 1 else ""
-        raise SceneError(field, f"agent {a} at {show(positions[a])} has no way to the goal "
-                         f"that keeps wall_buffer {buffer:g} m from walls (from the free grid "
-                         f"node [{x[nx[a]]:g}, {y[ny[a]]:g}]){more}",
-                         f"open a passage at least 2 x {field}.wall_buffer wide, lower "
-                         f"{field}.wall_buffer, or move the goal")

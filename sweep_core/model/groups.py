@@ -18,7 +18,17 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
-from sweep_core.model.fields import DEFAULT_SPEED, SPEED_KINDS, Field, Groups, field_from_spec
+from sweep_core.model.fields import (
+    DEFAULT_SPEED,
+    FIELD_KINDS,
+    NAVIGATION_KINDS,
+    SPEED_KINDS,
+    Field,
+    Groups,
+    NoDrift,
+    plain_field_from_spec,
+)
+from sweep_core.model.geodesic import navigation_from_spec
 
 #: a group's name: a ROS topic name token
 GROUP_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
@@ -113,7 +123,7 @@ def groups_from_spec(raw: Any, rest_spec: Any, n_agents: int, field: str, rest_f
                                  f"give the speed once: drop {gf}.drift.speed (the group's "
                                  "speed fills it in) or make the two equal")
         pos = None if positions is None else positions[idx]
-        f = field_from_spec(sub, len(idx), f"{gf}.drift", geometry, grid, pos)
+        f = member_field_from_spec(sub, len(idx), f"{gf}.drift", geometry, grid, pos)
         fields.append(f)
         if own is None:
             own = float(getattr(f, "speed", speed))
@@ -130,7 +140,7 @@ def groups_from_spec(raw: Any, rest_spec: Any, n_agents: int, field: str, rest_f
         alone = np.ones(len(positions), dtype=bool)
         alone[list(taken)] = False
         others = positions[alone]
-    rest = field_from_spec(rest_spec, n_agents, rest_field, geometry, grid, others)
+    rest = member_field_from_spec(rest_spec, n_agents, rest_field, geometry, grid, others)
     return Groups(members=tuple(members), fields=tuple(fields), rest=rest, names=tuple(names),
                   speeds=tuple(speeds), given=tuple(given))
 
@@ -142,20 +152,20 @@ def _differs(value: Any, speed: float) -> bool:
             and not isinstance(value, bool) and float(value) != speed)
 
 
-def scene_drift(raw: Any, groups: Any, n_agents: int, geometry: Any, grid: Any,
-                positions: np.ndarray, speed: float) -> tuple[Field, dict, list | None]:
-    """A scene's drift: its ``drift`` (``raw``), or with ``agents.groups`` (``groups``, None if
-    absent) the groups' drifts and ``raw`` for the agents in no group; speed: agents.speed
-    (m/s), the default group speed. Returns the field and the normalised ``drift`` and
-    ``agents.groups`` (None without groups) of the scene's spec."""
-    if groups is None:
-        f = field_from_spec(raw, n_agents, geometry=geometry, grid=grid, positions=positions,
-                            speed=speed)
-        return f, f.to_spec(), None
-    if isinstance(raw, dict) and raw.get("kind") == "groups":
-        raise SceneError("agents.groups", "is given with drift: {kind: groups}",
-                         "give the groups in one place: agents.groups (each with its drift), "
-                         "and in drift the drift of the agents in no group")
-    g = groups_from_spec(groups, raw, n_agents, "agents.groups", "drift", geometry, grid,
-                         positions, speed, authored=True)
-    return g, g.rest.to_spec(), g.group_specs()
+def member_field_from_spec(spec: Any, n_agents: int, field: str = "drift", geometry: Any = None,
+                           grid: Any = None, positions: np.ndarray | None = None) -> Field:
+    """Build a drift of any kind but ``groups`` from its scene dict (None: no drift): a plain
+    kind (:func:`~sweep_core.model.fields.plain_field_from_spec`) or a navigation kind, which
+    needs the scene's geometry, its map (or None) and the positions (N, 2) m of the agents it
+    drives (:func:`~sweep_core.model.geodesic.navigation_from_spec`)."""
+    if spec is None:
+        return NoDrift()
+    checks.mapping(spec, field)
+    kind = checks.kind(spec, field, FIELD_KINDS, default="none")
+    if kind == "groups":
+        raise SceneError(f"{field}.kind", "is groups inside groups",
+                         f"give {field} a plain drift (goal, geodesic, ...)")
+    if kind in NAVIGATION_KINDS:
+        return navigation_from_spec(spec, field, geometry, grid,
+                                    np.empty((0, 2)) if positions is None else positions)
+    return plain_field_from_spec(spec, kind, n_agents, field)

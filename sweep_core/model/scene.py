@@ -36,9 +36,9 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
-from sweep_core.model.fields import DEFAULT_SPEED, Field, field_from_spec
+from sweep_core.model.drift import field_from_spec, scene_drift
+from sweep_core.model.fields import DEFAULT_SPEED, Field
 from sweep_core.model.geometry import Geometry, gaps
-from sweep_core.model.groups import scene_drift
 from sweep_core.model.maps import OccupancyMap, map_from_spec, read_bounded
 from sweep_core.model.outlines import chain_points
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
