@@ -28,6 +28,7 @@ setup(
         "mcap>=1.6",
         "tqdm>=4.60",
         "matplotlib>=3.7",
+        "imageio-ffmpeg==0.8.1",
         "numba>=0.60",
         "cvxopt>=1.3",
     ],

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from sweep_core.cli import analysis, bench, ensemble, maps, recover, run
+from sweep_core.cli import analysis, bench, ensemble, maps, recover, render, run
 from sweep_core.errors import SweepError
 
 
@@ -14,6 +14,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     run.register(sub)
     analysis.register(sub)
+    render.register(sub)
     recover.register(sub)
     maps.register(sub)
     bench.register(sub)

@@ -1,0 +1,103 @@
+"""Video files from RGB frames: MP4 (H.264, yuv420p) through imageio-ffmpeg's ffmpeg, GIF
+through Pillow (:func:`open_writer`). Both write to the temporary file of
+:func:`sweep_core.io.outputs.replacing`, renamed over the output once every frame is in."""
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
+
+from sweep_core.errors import SweepError
+from sweep_core.io.outputs import replacing
+
+
+def has_encoder() -> bool:
+    """imageio-ffmpeg is installed and finds an ffmpeg binary."""
+    try:
+        import imageio_ffmpeg
+        imageio_ffmpeg.get_ffmpeg_exe()
+    except (ImportError, RuntimeError, OSError):
+        return False
+    return True
+
+
+class FrameWriter:
+    """Takes (H, W, 3) uint8 frames of one size, in order."""
+
+    def __init__(self, size: tuple[int, int]) -> None:
+        self.size = size
+        self.count = 0
+
+    def write(self, rgb: np.ndarray) -> None:
+        if rgb.shape != (self.size[1], self.size[0], 3):
+            raise SweepError(f"a frame of {rgb.shape[1]} x {rgb.shape[0]} px in a video of "
+                             f"{self.size[0]} x {self.size[1]} px (fix: report it as a bug)")
+        self._write(np.ascontiguousarray(rgb, dtype=np.uint8))
+        self.count += 1
+
+    def _write(self, rgb: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def finish(self) -> None:
+        """Completes the file."""
+
+
+class Mp4Writer(FrameWriter):
+    """H.264 in an MP4 container at ``fps`` frames per second (even sizes only)."""
+
+    def __init__(self, path: str, size: tuple[int, int], fps: float) -> None:
+        super().__init__(size)
+        import imageio_ffmpeg
+        self._gen: Any = imageio_ffmpeg.write_frames(
+            path, size, fps=fps, codec="libx264", pix_fmt_in="rgb24", pix_fmt_out="yuv420p",
+            quality=7, macro_block_size=2, ffmpeg_log_level="error",
+            output_params=["-f", "mp4"])  # the temporary file's name has no .mp4 ending
+        self._gen.send(None)
+
+    def _write(self, rgb: np.ndarray) -> None:
+        self._gen.send(rgb)
+
+    def finish(self) -> None:
+        self._gen.close()
+
+
+class GifWriter(FrameWriter):
+    """An animated GIF, looping, each frame shown 1 / fps s (GIF counts in 10 ms units)."""
+
+    def __init__(self, path: str, size: tuple[int, int], fps: float) -> None:
+        super().__init__(size)
+        self.path, self.fps = path, fps
+        self._frames: list[Any] = []
+
+    def _write(self, rgb: np.ndarray) -> None:
+        from PIL import Image
+        self._frames.append(Image.fromarray(rgb).quantize(256, dither=Image.Dither.NONE))
+
+    def finish(self) -> None:
+        if not self._frames:
+            return
+        self._frames[0].save(self.path, format="GIF", save_all=True,
+                             append_images=self._frames[1:], loop=0,
+                             duration=int(round(1000.0 / self.fps)), optimize=False)
+
+
+@contextmanager
+def open_writer(path: str, fmt: str, size: tuple[int, int], fps: float, inputs: list[str]
+                ) -> Iterator[FrameWriter]:
+    """A writer of ``fmt`` ("mp4" or "gif") frames to ``path`` (never one of ``inputs``),
+    through a temporary file renamed over it when the block ends without an error."""
+    with replacing(path, inputs, other="--out OTHER") as tmp:
+        writer: FrameWriter = (Mp4Writer(tmp, size, fps) if fmt == "mp4"
+                               else GifWriter(tmp, size, fps))
+        try:
+            yield writer
+        except BaseException:
+            if isinstance(writer, Mp4Writer):
+                try:
+                    writer.finish()
+                except Exception:  # noqa: BLE001, S110 - the error in flight is the one to report
+                    pass
+            raise
+        writer.finish()
