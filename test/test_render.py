@@ -103,7 +103,8 @@ def test_bad_options_and_the_recording_as_output_are_refused(recording, capsys):
     assert main(["render", str(recording), "--from", "99", "--quiet"]) == 2
     assert main(["render", str(recording), "--size", "100x100", "--quiet"]) == 2
     err = capsys.readouterr().err.splitlines()
-    assert len(err) == 5 and "--size: width 100 px is outside 160 .. 8192" in err[4] and all(e.startswith("sweep: error: ") for e in err)
+    assert len(err) == 5 and all(e.startswith("sweep: error: ") for e in err)
+    assert "--size: width 100 px is outside 160 .. 8192" in err[4]
     assert "--fps 0 is not a positive number" in err[1] and "--size 'big'" in err[2]
     assert "--from 99 s is after the recording's last state at 1.5 s" in err[3]
     assert recording.read_bytes() == before
