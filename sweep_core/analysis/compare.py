@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sweep_core.analysis.drawing import pyplot, save_figure
 from sweep_core.analysis.frames import FrameReader, progress_bar
-from sweep_core.analysis.plots import pyplot, save_figure
 from sweep_core.analysis.report import OTHER, jsonable, output_paths, write_table
 from sweep_core.analysis.run import NS, RunMeta, load_run
 from sweep_core.errors import RecordingError, SweepError

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from sweep_core.analysis.arrivals import ArrivalTracker, start_exits, stats, time_for
+from sweep_core.analysis.crowd import Fundamental, FundamentalDiagram, Tracks
 from sweep_core.analysis.density import MAX_CELLS as MAX_CELLS  # re-exported for the CLI
 from sweep_core.analysis.density import Hist2D
 from sweep_core.analysis.frames import Frame, FrameReader, GapFinder, progress_bar
@@ -106,6 +107,13 @@ class Analysis:
     arrival_exit: list[str | None] = field(default_factory=list)
     #: one line per skipped chunk or message and per gap (also in the summary as counts)
     problems: list[str] = field(default_factory=list)
+    #: log time (ns) of the first frame: t = 0 of ``table``
+    t0_ns: int = 0
+    #: centres at up to crowd.TRACK_FRAMES frames (K, N, 2) m, and their times (K,) s
+    tracks: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 2)))
+    track_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: local density against speed, every agent of every frame after step 0
+    fundamental: FundamentalDiagram | None = None
 
 
 def _quantile(hist: np.ndarray, p: float) -> float | None:
@@ -146,6 +154,8 @@ class _Metrics:
         self.goal_seen = False
         self.tracker = ArrivalTracker(0, arrive_radius)
         self._map_geometry: dict[int, Geometry] = {}
+        self.tracks = Tracks(meta.frames)
+        self.fundamental = Fundamental()
 
     def add(self, fr: Frame) -> None:
         meta, q = self.meta, fr.positions
@@ -173,6 +183,10 @@ class _Metrics:
         if self._arrivals(seg, step, q, t):
             self.goal_seen = True
         self.density.add(q)
+        self.tracks.add(t, q)
+        if fr.agents is not None and step != 0:
+            self.fundamental.add(q, np.hypot(fr.agents["vx"].astype(np.float64),
+                                             fr.agents["vy"].astype(np.float64)))
         dt = meta.dt
         self.rows.append((t, step, g.min_gap, g.contacts, react_total,
                           react_total / dt if dt else math.nan, sp_mean, sp_max,
@@ -350,7 +364,10 @@ class _Metrics:
         labels = self.tracker.labels
         return Analysis(meta, summary, table, dens, origin, cell, self.hist, self.arrival,
                         self.evacuation, [labels[k] if k >= 0 else None
-                                          for k in self.tracker.exit.tolist()])
+                                          for k in self.tracker.exit.tolist()],
+                        t0_ns=self.t0, tracks=self.tracks.array(),
+                        track_times=np.array(self.tracks.times),
+                        fundamental=self.fundamental.result())
 
 
 def analyze(path: str | Path, line: tuple[float, float, float, float] | None = None,

@@ -1,157 +1,297 @@
-"""Plots of an analysis (matplotlib, Agg backend)."""
+"""The figure of ``sweep analyze`` (matplotlib, Agg): six labelled panels (:func:`analysis_figure`).
+
+Top, in the room's own aspect (equal axes): the trajectories coloured by group, and the density
+map with the travel-time contours of the navigation fields (legends outside the room). Bottom:
+the agents who arrived and crossed the counting line per group and per exit; the run's
+fundamental diagram (local density against speed); speeds and touching constraints; the
+distribution of the per-frame minimum gap, touching frames (|gap| at rounding level) counted
+apart. Time axes mark the node's commands, resets and map changes."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from sweep_core.analysis.metrics import SPEED_BIN, Analysis
-from sweep_core.errors import SweepError
-from sweep_core.io.outputs import replacing
+from sweep_core.analysis.crowd import ROUNDING_M, gap_distribution
+from sweep_core.analysis.drawing import (
+    agent_groups,
+    draw_geometry,
+    group_colour,
+    pyplot,
+    save_figure,
+    view_of,
+)
+from sweep_core.analysis.metrics import Analysis
+from sweep_core.analysis.run import NS
 from sweep_core.model.fields import Field, Groups
 from sweep_core.model.geodesic import Geodesic, navigation_fields
 from sweep_core.model.scene import Scene
 
+__all__ = ["analysis_figure", "draw_travel_time", "named_navigation_fields", "plot_analysis",
+           "pyplot", "save_figure"]
+
 #: travel-time contours drawn per navigation field
 CONTOURS = 12
-
-
-def pyplot() -> Any:
-    try:
-        import matplotlib
-    except ImportError as err:
-        raise SweepError("matplotlib is not installed (fix: pip install matplotlib, or pass "
-                         "--no-plots)") from err
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
+#: the figure's size (inches) and resolution (pixels per inch)
+SIZE, DPI = (14.0, 15.0), 72
+#: a room wider than this (width / height) gets the whole width of the figure
+WIDE = 1.8
+#: height (inches) of each lower panel
+PANEL_HEIGHT = 3.6
+#: how each kind of event is drawn on the time axes: (colour, line style)
+EVENT_STYLE = {"command": ("C1", "--"), "reset": ("k", "-"), "map": ("C4", ":")}
 
 
 def draw_scene(ax: Any, scene: Scene | None) -> None:
-    """Walls (segments) and circular obstacles of a scene on a matplotlib axis."""
-    if scene is None:
-        return
-    from matplotlib.patches import Circle
-    g = scene.geometry
-    for a, b in zip(g.segment_a, g.segment_b):
-        ax.plot([a[0], b[0]], [a[1], b[1]], color="k", lw=1.5)
-    for c, r in zip(g.circle_center, g.circle_radius):
-        ax.add_patch(Circle(c, r, fill=False, color="k", lw=1.0))
+    """Walls (segments) and circular obstacles of a scene at t = 0 on a matplotlib axis."""
+    if scene is not None:
+        draw_geometry(ax, scene.geometry)
 
 
 def named_navigation_fields(drift: Field) -> list[tuple[str, Geodesic]]:
     """The geodesic / exits fields of a drift, named for a legend ("travel time", the group's
     name, or "others" for a groups drift's rest)."""
+    return [(name, f) for name, _, f in _navigation(drift)]
+
+
+def _navigation(drift: Field) -> list[tuple[str, str, Geodesic]]:
+    """(name, colour, field) of each navigation field: the group's colour under groups."""
     found = navigation_fields(drift)
     if not isinstance(drift, Groups):
-        return [("travel time", f) for _, f in found]
-    return [(drift.names[k] if k >= 0 else "others", f) for k, f in found]
+        return [("travel time", "0.45", f) for _, f in found]
+    return [(drift.names[k] if k >= 0 else "others", group_colour(k), f) for k, f in found]
 
 
-def draw_travel_time(ax: Any, scene: Scene | None) -> str:
+def draw_travel_time(ax: Any, scene: Scene | None, legend_below: bool = False) -> str:
     """Contours of the travel time T / speed (s) at t = 0 of the scene's navigation fields
-    (one colour each) on a matplotlib axis; the title suffix saying so ("" if none)."""
-    fields = named_navigation_fields(scene.drift) if scene is not None else []
+    (one colour each, a group's own) on a matplotlib axis, with their legend (below the axes
+    with ``legend_below``); the title suffix saying so ("" if none)."""
+    fields = _navigation(scene.drift) if scene is not None else []
     from matplotlib.lines import Line2D
     handles = []
-    for k, (name, f) in enumerate(fields):
+    for name, colour, f in fields:
         seconds = f.travel / f.speed if f.speed > 0 else f.travel
         finite = seconds[np.isfinite(seconds)]
         if finite.size < 4 or float(finite.max()) <= 0:
             continue
         levels = np.linspace(0.0, float(finite.max()), CONTOURS + 1)[1:]
-        colour = "0.45" if len(fields) == 1 else f"C{k + 1}"
         ax.contour(f.x, f.y, np.ma.masked_invalid(seconds), levels=levels, colors=colour,
                    linewidths=0.7, alpha=0.8)
         step = float(levels[1] - levels[0]) if len(levels) > 1 else float(levels[0])
         handles.append(Line2D([], [], color=colour, lw=0.7, label=f"{name}: every {step:.2g} s"))
     if not handles:
         return ""
-    ax.legend(handles=handles, loc="upper right", fontsize=7, framealpha=0.7)
+    if legend_below:
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                  borderaxespad=4.0, fontsize=8, ncol=min(3, len(handles)), frameon=False,
+                  title="travel time to the goal", title_fontsize=8)
+    else:
+        ax.legend(handles=handles, loc="upper right", fontsize=7, framealpha=0.7)
     return " and travel time"
 
 
-def plot_analysis(an: Analysis, png: Path) -> None:
-    plt = pyplot()
-    tab, s = an.table, an.summary
-    t = tab[:, 0]
-    fig, axes = plt.subplots(2, 3, figsize=(12, 6.5), dpi=72)
-    title = f"{s['scene'] or Path(an.meta.path).name}: {s['agents']} agents, {s['duration_s']:g} s"
-    if s["truncated"]:
-        title += " (truncated recording)"
-    fig.suptitle(title)
-    ax = axes[0, 0]
-    gap = tab[:, 2]
-    ax.plot(t, np.where(np.isfinite(gap), gap, np.nan), lw=1)
-    ax.set_yscale("symlog", linthresh=1e-9)
-    ax.axhline(0.0, color="k", lw=0.5)
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel("minimum gap (m)")
-    ax.set_title("minimum gap")
-    ax = axes[0, 1]
-    ax.plot(t, tab[:, 3], lw=1, color="C0")
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel("touching (gap <= 1e-6 m)", color="C0")
-    ax2 = ax.twinx()
-    ax2.plot(t, tab[:, 5], lw=1, color="C3")
-    ax2.set_ylabel("total reaction / dt (m/s)", color="C3")
-    ax.set_title("touching constraints and pressure")
-    ax = axes[0, 2]
-    ax.plot(t, tab[:, 6], lw=1, label="mean")
-    ax.plot(t, tab[:, 7], lw=0.8, alpha=0.6, label="max")
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel("speed (m/s)")
-    ax.legend(loc="upper right", fontsize=8)
-    ax.set_title("speed over time")
-    ax = axes[1, 0]
-    h = an.speed_hist
-    if h.sum():
-        k = max(1, math.ceil(len(h) / 60))
-        pad = np.concatenate([h, np.zeros(-len(h) % k, dtype=h.dtype)]).reshape(-1, k).sum(1)
-        edges = np.arange(len(pad) + 1) * k * SPEED_BIN
-        ax.stairs(pad / pad.sum(), edges, fill=True, alpha=0.7)
-    ax.set_xlabel("speed (m/s)")
-    ax.set_ylabel("fraction")
-    ax.set_title("speed distribution")
-    ax = axes[1, 1]
-    drawn = False
-    if s["flow"] is not None:
-        ax.plot(t, tab[:, 8], lw=1.2, label="net crossings")
-        drawn = True
-    if s["arrivals"] is not None:
-        ax.plot(t, tab[:, 9], lw=1.2, label="arrived")
-        drawn = True
-    if drawn:
-        ax.legend(loc="upper left", fontsize=8)
-    else:
-        ax.text(0.5, 0.5, "no --line, no goal", ha="center", va="center",
-                transform=ax.transAxes)
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel("agents")
-    ax.set_title("flow and arrivals (cumulative)")
-    ax = axes[1, 2]
+def events(an: Analysis) -> list[tuple[float, str, str]]:
+    """(t s on the table's clock, kind, text) of the node's commands, resets and map changes."""
+    meta, t0 = an.meta, an.t0_ns
+    out = [((c.log_time_ns - t0) / NS, "command", f"command {c.index}") for c in meta.commands]
+    out += [((ns - t0) / NS, "reset", f"reset {k + 1}") for k, ns in enumerate(meta.resets)]
+    out += [((m.log_time_ns - t0) / NS, "map", f"map {m.index}") for m in meta.maps]
+    return sorted(out)
+
+
+def mark_events(ax: Any, marks: list[tuple[float, str, str]]) -> None:
+    """Vertical lines at the events, one legend entry per kind."""
+    seen: set[str] = set()
+    for t, kind, _ in marks:
+        colour, style = EVENT_STYLE[kind]
+        ax.axvline(t, color=colour, ls=style, lw=1.0, alpha=0.8,
+                   label=kind + "s" if kind not in seen else None)
+        seen.add(kind)
+
+
+def _room(ax: Any, an: Analysis) -> None:
+    """Equal axes on the box of the walls, obstacles and trajectories."""
+    pts = an.tracks.reshape(-1, 2) if an.tracks.size else np.zeros((0, 2))
+    x0, x1, y0, y1 = view_of(an.meta.scene, pts[np.all(np.isfinite(pts), axis=1)], 0.3)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+
+
+def _trajectories(ax: Any, an: Analysis) -> None:
+    tracks = an.tracks
+    n = tracks.shape[1] if tracks.ndim == 3 else 0
+    groups, names = agent_groups(an.meta.scene, n)
+    from matplotlib.collections import LineCollection
+    from matplotlib.patches import Patch
+    present = set(groups.tolist())
+    order = sorted(k for k in present if k >= 0) + ([-1] if -1 in present else [])
+    for k in order:
+        idx = np.flatnonzero(groups == k)
+        segs = [tracks[:, i][np.all(np.isfinite(tracks[:, i]), axis=1)] for i in idx]
+        ax.add_collection(LineCollection(segs, colors=group_colour(k), linewidths=0.8,
+                                         alpha=0.7, label=f"trajectories of group {k}"))
+    if len(tracks):
+        ax.scatter(tracks[0, :, 0], tracks[0, :, 1], s=8, c="k", marker="o", zorder=3,
+                   label="start")
+        ax.autoscale_view()
+    draw_scene(ax, an.meta.scene)
+    _room(ax, an)
+    handles = [Patch(color=group_colour(k), label=names[k] if k >= 0 else "others")
+               for k in order] if names else []
+    if handles:
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                  borderaxespad=4.0, fontsize=8, ncol=min(4, len(handles)), frameon=False,
+                  title="groups", title_fontsize=8)
+    ax.set_title(f"trajectories ({n} agents" + (", coloured by group)" if names else ")"))
+
+
+def _density(fig: Any, ax: Any, an: Analysis) -> None:
     d = an.density
     x0, y0 = an.density_origin
     im = ax.imshow(np.ma.masked_equal(d, 0.0), origin="lower", cmap="viridis",
                    interpolation="nearest",
                    extent=(x0, x0 + d.shape[1] * an.cell, y0, y0 + d.shape[0] * an.cell))
     draw_scene(ax, an.meta.scene)
-    travel = draw_travel_time(ax, an.meta.scene)
-    if s["flow"] is not None:
-        x_0, y_0, x_1, y_1 = s["flow"]["line"]
+    travel = draw_travel_time(ax, an.meta.scene, legend_below=True)
+    flow = an.summary["flow"]
+    if flow is not None:
+        x_0, y_0, x_1, y_1 = flow["line"]
         ax.plot([x_0, x_1], [y_0, y_1], color="r", lw=1.5)
-    fig.colorbar(im, ax=ax, label="agents / m²")
-    ax.set_aspect("equal")
-    ax.set_title(("density" if travel else "density (time average)") + travel)
-    fig.tight_layout()
+    fig.colorbar(im, ax=ax, label="agents / m² (time average)", shrink=0.7)
+    _room(ax, an)
+    ax.set_title("density" + travel + (" (red: counting line)" if flow is not None else ""))
+
+
+def _cumulative(times: np.ndarray, t_end: float) -> tuple[np.ndarray, np.ndarray]:
+    """A step curve of how many of ``times`` have passed, from 0 to t_end (s)."""
+    t = np.sort(times[np.isfinite(times)])
+    return (np.concatenate([[0.0], np.repeat(t, 2), [t_end]]),
+            np.concatenate([[0, 0], np.repeat(np.arange(1, len(t) + 1), 2)[:-1], [len(t)]])
+            if len(t) else np.array([0, 0]))
+
+
+def _arrivals(ax: Any, an: Analysis, marks: list) -> None:
+    tab, s = an.table, an.summary
+    t_end = float(tab[-1, 0])
+    n = len(an.arrival)
+    groups, names = agent_groups(an.meta.scene, n)
+    drawn = False
+    if s["arrivals"] is not None:
+        ax.plot(*_cumulative(an.arrival, t_end), color="k", lw=1.6, label="arrived, all")
+        for k, name in enumerate(names):
+            ax.plot(*_cumulative(an.arrival[groups == k], t_end), color=group_colour(k),
+                    lw=1.2, label=f"arrived, {name}")
+        labels = sorted({e for e in an.arrival_exit if e is not None})
+        exits = np.array([e if e is not None else "" for e in an.arrival_exit])
+        for j, label in enumerate(labels):
+            ax.plot(*_cumulative(an.arrival[exits == label], t_end), color="0.35",
+                    ls=(0, (1 + j, 1 + j)), lw=1.0, label=f"arrived at {label}")
+        drawn = True
+    if s["flow"] is not None:
+        ax.plot(tab[:, 0], tab[:, 8], color="C3", lw=1.4, label="line: net crossings")
+        for k, name in enumerate(names):
+            ax.plot(*_cumulative(an.evacuation[groups == k], t_end), color=group_colour(k),
+                    lw=1.0, ls="--", label=f"line: {name} crossed")
+        drawn = True
+    if not drawn:
+        ax.text(0.5, 0.5, "no goal and no --line: nothing arrives or crosses",
+                ha="center", va="center", transform=ax.transAxes)
+    mark_events(ax, marks)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("agents (cumulative)")
+    ax.set_title("arrivals and flow per group and exit")
+    if drawn or marks:
+        ax.legend(loc="upper left", fontsize=7)
+
+
+def _fundamental(fig: Any, ax: Any, an: Analysis) -> None:
+    fd = an.fundamental
+    if fd is None or not fd.counts.any():
+        ax.text(0.5, 0.5, "no speeds recorded (/agents)", ha="center", va="center",
+                transform=ax.transAxes)
+    else:
+        keep = fd.counts.sum(axis=1) > 0
+        top = int(np.flatnonzero(keep)[-1]) + 2
+        counts = np.ma.masked_equal(fd.counts[:top], 0)
+        from matplotlib.colors import LogNorm
+        im = ax.pcolormesh(fd.density_edges[:top + 1], fd.speed_edges, counts.T,
+                           norm=LogNorm(), cmap="Greys")
+        fig.colorbar(im, ax=ax, label="agent-frames")
+        rho, mean = fd.mean_speed()
+        ax.plot(rho[:top], mean[:top], "o-", color="C3", ms=3, lw=1.2, label="mean speed")
+        ax.legend(loc="upper right", fontsize=7)
+    ax.set_xlabel("local density (1/m², agents within 1 m)")
+    ax.set_ylabel("speed (m/s)")
+    ax.set_title("fundamental diagram")
+
+
+def _speeds(ax: Any, an: Analysis, marks: list) -> None:
+    tab = an.table
+    ax.plot(tab[:, 0], tab[:, 6], lw=1.2, color="C0", label="mean speed")
+    ax.plot(tab[:, 0], tab[:, 7], lw=0.7, color="C0", alpha=0.45, label="max speed")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("speed (m/s)")
+    ax2 = ax.twinx()
+    ax2.plot(tab[:, 0], tab[:, 3], lw=1.0, color="C2")
+    ax2.set_ylabel("touching constraints (gap <= 1e-6 m)", color="C2")
+    mark_events(ax, marks)
+    ax.legend(loc="upper left", fontsize=7)
+    ax.set_title("speed and contacts over time")
+
+
+def _gaps(ax: Any, an: Analysis) -> None:
+    touching, overlap, positive = gap_distribution(an.table[:, 2])
+    frames = len(an.table)
+    if len(positive):
+        mm = positive * 1e3
+        ax.hist(mm, bins=min(40, max(5, len(mm) // 5)), color="C0", alpha=0.8,
+                weights=np.full(len(mm), 1.0 / frames), label="frames with a gap")
+    ax.set_xlabel("minimum gap of a frame (mm)")
+    ax.set_ylabel("fraction of frames")
+    note = (f"{touching / frames:.0%} of frames touching\n(|gap| <= {ROUNDING_M:g} m: "
+            "rounding level, not a distance)")
+    if overlap:
+        note += f"\n{overlap} frames overlapping by more than {ROUNDING_M:g} m"
+    ax.text(0.97, 0.95, note, ha="right", va="top", transform=ax.transAxes, fontsize=8,
+            bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "0.7"})
+    ax.set_title("minimum gap: distribution over frames")
+
+
+def analysis_figure(an: Analysis) -> Any:
+    """The figure (see the module docstring); close it with pyplot's ``close``."""
+    plt = pyplot()
+    s = an.summary
+    pts = an.tracks.reshape(-1, 2) if an.tracks.size else np.zeros((0, 2))
+    x0, x1, y0, y1 = view_of(an.meta.scene, pts[np.all(np.isfinite(pts), axis=1)], 0.3)
+    aspect = (x1 - x0) / (y1 - y0)
+    wide = aspect > WIDE
+    # a wide room takes the whole width, once for the trajectories and once for the density
+    room = min(max(SIZE[0] * 0.75 / aspect, 1.6), 6.0) if wide else 5.0
+    rows = (room + 0.9, room + 0.9) if wide else (room + 0.9,)
+    fig = plt.figure(figsize=(SIZE[0], sum(rows) + 2 * PANEL_HEIGHT + 0.8), dpi=DPI)
+    grid = fig.add_gridspec(len(rows) + 2, 2, height_ratios=rows + (PANEL_HEIGHT,) * 2,
+                            hspace=0.5, wspace=0.3)
+    title = f"{s['scene'] or Path(an.meta.path).name}: {s['agents']} agents, {s['duration_s']:g} s"
+    if s["truncated"]:
+        title += " (truncated recording)"
+    fig.suptitle(title, fontsize=14)
+    marks = events(an)
+    _trajectories(fig.add_subplot(grid[0, :] if wide else grid[0, 0]), an)
+    _density(fig, fig.add_subplot(grid[1, :] if wide else grid[0, 1]), an)
+    top = len(rows)
+    _arrivals(fig.add_subplot(grid[top, 0]), an, marks)
+    _fundamental(fig, fig.add_subplot(grid[top, 1]), an)
+    _speeds(fig.add_subplot(grid[top + 1, 0]), an, marks)
+    _gaps(fig.add_subplot(grid[top + 1, 1]), an)
+    return fig
+
+
+def plot_analysis(an: Analysis, png: Path) -> None:
+    """Writes the figure to ``png`` (never over the recording)."""
+    fig = analysis_figure(an)
     save_figure(fig, png, [an.meta.path])
-    plt.close(fig)
-
-
-def save_figure(fig: Any, png: str | Path, inputs: list[str]) -> None:
-    """Saves ``fig`` as PNG to ``png`` through a temporary file renamed over it
-    (:func:`sweep_core.io.outputs.replacing`); ``png`` may be none of ``inputs``."""
-    with replacing(png, inputs, other="write beside another recording") as tmp:
-        fig.savefig(tmp, format="png")
+    pyplot().close(fig)

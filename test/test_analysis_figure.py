@@ -1,0 +1,127 @@
+"""The figure of ``sweep analyze``: its panels exist with their titles and labels, the room
+keeps its aspect with the legends outside it, groups and exits have their own curves, the time
+axes mark the node's commands, resets and maps, and the minimum gap is a distribution with
+rounding-level frames counted apart. Read from matplotlib's objects (axes, legends, lines),
+not pixels."""
+from __future__ import annotations
+
+import dataclasses
+
+import matplotlib
+import numpy as np
+import pytest
+from matplotlib.collections import LineCollection
+
+from sweep_core.analysis import crowd, metrics, plots
+from sweep_core.analysis.run import Command, MapChange
+from sweep_core.cli import main
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+SCENE = """
+name: figure test
+agents:
+  positions: [[1, 0.8], [1.7, 0.8], [2.4, 0.8], [8, 2.2], [7.3, 2.2], [5, 1.5]]
+  radius: 0.25
+  groups:
+    - {name: east, agents: [0, 1, 2], speed: 1.3, drift: {kind: geodesic, goal: [9.5, 0.8]}}
+    - {name: west, agents: [3, 4], speed: 1.0, drift: {kind: geodesic, goal: [0.5, 2.2]}}
+walls:
+  - {kind: polyline, closed: true, points: [[0, 0], [10, 0], [10, 3], [0, 3]]}
+noise: {sigma: 0.05}
+"""
+
+TITLES = ("trajectories", "density", "arrivals and flow per group and exit",
+          "fundamental diagram", "speed and contacts over time",
+          "minimum gap: distribution over frames")
+
+
+@pytest.fixture(scope="module")
+def analysis(tmp_path_factory):
+    d = tmp_path_factory.mktemp("figure")
+    (d / "scene.yaml").write_text(SCENE)
+    rec = d / "run.mcap"
+    assert main(["run", str(d / "scene.yaml"), "--t-end", "2", "--dt", "0.02", "--out",
+                 str(rec), "--quiet"]) == 0
+    return metrics.analyze(rec, line=(5.0, 0.0, 5.0, 3.0))
+
+
+@pytest.fixture
+def figure(analysis):
+    an = analysis
+    # the node's records, as load_run reads them: a command at 0.5 s, a reset at 1 s, a map
+    t0 = an.t0_ns
+    meta = dataclasses.replace(
+        an.meta, commands=[Command(0, "goal", 25, t0 + 500_000_000, {"kind": "none"}, 0)],
+        resets=[t0 + 1_000_000_000],
+        maps=[MapChange(0, "map", 10, t0 + 1_500_000_000, {}, 1)])
+    fig = plots.analysis_figure(dataclasses.replace(an, meta=meta))
+    yield fig
+    plt.close(fig)
+
+
+def panel(fig, words):
+    (ax,) = [a for a in fig.axes if a.get_title().startswith(words)]
+    return ax
+
+
+def legend_texts(ax):
+    return [t.get_text() for t in ax.get_legend().get_texts()] if ax.get_legend() else []
+
+
+def test_every_panel_is_there_with_its_labels(figure):
+    for words in TITLES:
+        panel(figure, words)
+    assert panel(figure, "fundamental diagram").get_xlabel().startswith("local density (1/m²")
+    assert panel(figure, "fundamental diagram").get_ylabel() == "speed (m/s)"
+    for words in ("arrivals", "speed and contacts"):
+        assert panel(figure, words).get_xlabel() == "t (s)"
+    assert panel(figure, "arrivals").get_ylabel() == "agents (cumulative)"
+
+
+def test_the_room_keeps_its_aspect_and_its_legends_stay_outside(figure):
+    figure.canvas.draw()
+    renderer = figure.canvas.get_renderer()
+    for words in ("trajectories", "density"):
+        ax = panel(figure, words)
+        assert ax.get_aspect() == 1.0 and ax.get_xlabel() == "x (m)"
+        box = ax.get_window_extent(renderer)
+        legend = ax.get_legend().get_window_extent(renderer)
+        assert legend.y1 <= box.y0  # below the room, covering none of it
+    assert legend_texts(panel(figure, "trajectories")) == ["east", "west", "others"]
+    assert [t.split(":")[0] for t in legend_texts(panel(figure, "density"))] == ["east", "west"]
+    lines = [c for c in panel(figure, "trajectories").collections
+             if isinstance(c, LineCollection) and c.get_label().startswith("trajectories")]
+    assert len(lines) == 3 and sum(len(c.get_segments()) for c in lines) == 6
+
+
+def test_arrivals_and_flow_are_drawn_per_group(figure):
+    texts = legend_texts(panel(figure, "arrivals"))
+    for name in ("arrived, all", "arrived, east", "arrived, west", "line: net crossings",
+                 "line: east crossed", "line: west crossed"):
+        assert name in texts
+
+
+def test_time_axes_mark_commands_resets_and_maps(figure):
+    for words in ("arrivals", "speed and contacts"):
+        ax = panel(figure, words)
+        assert {"commands", "resets", "maps"} <= set(legend_texts(ax))
+        marks = sorted(float(ln.get_xdata()[0]) for ln in ax.get_lines()
+                       if ln.get_label() in ("commands", "resets", "maps"))
+        assert marks == [0.5, 1.0, 1.5]
+
+
+def test_minimum_gap_is_a_distribution_with_touching_frames_apart(figure, analysis):
+    ax = panel(figure, "minimum gap")
+    assert ax.get_xscale() == "linear" and ax.get_xlabel() == "minimum gap of a frame (mm)"
+    assert ax.get_ylabel() == "fraction of frames"
+    touching, overlap, positive = crowd.gap_distribution(analysis.table[:, 2])
+    heights = sum(p.get_height() for p in ax.patches)
+    assert heights == pytest.approx(len(positive) / len(analysis.table))
+    assert f"{touching / len(analysis.table):.0%} of frames touching" in "".join(
+        t.get_text() for t in ax.texts)
+    # rounding-level gaps are counted as touching, not drawn as distances
+    gaps = np.array([5e-15, -4e-15, 0.0, 2e-9, -3e-9, 0.01])
+    t, o, p = crowd.gap_distribution(gaps)
+    assert (t, o, p.tolist()) == (3, 1, [2e-9, 0.01])
