@@ -220,7 +220,7 @@ class Painter:
         self.nav: list[Any] = []
         self.scene_key: Any = None
         self.nav_key: Any = None
-        self.groups, self.names = agent_groups(scene, 0)
+        self.groups, self.names = agent_groups(scene, scene.n_agents if scene else 0)
         if opts.colour == "speed":
             from matplotlib.cm import ScalarMappable
             from matplotlib.colors import Normalize
@@ -278,7 +278,7 @@ class Painter:
             from matplotlib import colormaps
             speed = np.hypot(fr.agents["vx"], fr.agents["vy"]).astype(float)
             faces: Any = colormaps["viridis"](self.norm(speed))
-        elif self.opts.colour == "group":
+        elif self.opts.colour == "group" and self.names:
             if len(self.groups) != n:
                 self.groups, self.names = agent_groups(self.meta.scene, n)
             faces = group_colours(self.groups)
