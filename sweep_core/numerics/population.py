@@ -147,7 +147,7 @@ class Population:
         if self.waits:
             u[t < self.start[ids]] = 0.0
         if self.flows.time_gap is not None:
-            u = headway(q, self.radius[ids], u, self.flows.time_gap)
+            u = headway(q, self.radius[ids], u, self.flows.time_gap, self.flows.margin)
         return u
 
     # -- after a step ---------------------------------------------------------------------------
