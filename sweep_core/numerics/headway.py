@@ -10,8 +10,9 @@ i's path), that distance is a - sqrt(l^2 - b^2): for a person straight ahead (b 
 model's s - l, centre distance minus the sum of the radii. A person beside the path, within a
 lateral margin w (l <= b < l + w), counts with s = a (continuous at b = l): people keep a
 lateral distance, and without it agents in lanes would not feel the crowd beside them.
-s_i is the minimum over such j (infinite if none). Walls do not enter s_i; the projection keeps every contact exact as
-always, so the law only lowers the prediction's speed. Agents with U_i = 0 are left alone.
+s_i is the minimum over such j (infinite if none). Walls do not enter s_i; the projection
+keeps every contact exact as always, so the law only lowers the prediction's speed. Agents
+with U_i = 0 are left alone.
 """
 from __future__ import annotations
 
