@@ -36,10 +36,17 @@ class Tracks:
         self.times: list[float] = []
         self.points: list[np.ndarray] = []
 
-    def add(self, t: float, q: np.ndarray) -> None:
+    def add(self, t: float, q: np.ndarray, ids: np.ndarray | None = None) -> None:
+        """Keep the centres q (N, 2) m at time t (s); with ``ids`` (N,) (a scene with flows,
+        where agents enter and leave) each agent keeps its row, its id."""
         if self.count % self.stride == 0:
             self.times.append(t)
-            self.points.append(np.array(q, dtype=np.float64))
+            if ids is None:
+                self.points.append(np.array(q, dtype=np.float64))
+            else:
+                p = np.full((int(ids.max(initial=-1)) + 1, 2), np.nan)
+                p[ids] = q
+                self.points.append(p)
         self.count += 1
 
     def array(self) -> np.ndarray:

@@ -26,9 +26,11 @@ NAVIGATION_FIELDS = ("x", "y", "z", "T", "vx", "vy", "group")
 
 
 def agent_fields(state: State) -> dict[str, np.ndarray]:
-    """The ``agents`` cloud columns of a state (float32 each, shape (N,))."""
+    """The ``agents`` cloud columns of a state (float32 each, shape (N,)); ``id``: the
+    agents' ids (with flows, agents enter and leave: ids are kept, exact up to 2^24)."""
     q, v, k = state.positions, state.velocities, state.reaction
-    return {"id": np.arange(len(q), dtype=np.float32), "x": q[:, 0], "y": q[:, 1],
+    ids = np.arange(len(q)) if state.ids is None else state.ids
+    return {"id": ids.astype(np.float32), "x": q[:, 0], "y": q[:, 1],
             "radius": state.radii, "vx": v[:, 0], "vy": v[:, 1],
             "reaction_x": k[:, 0], "reaction_y": k[:, 1]}
 

@@ -19,6 +19,7 @@ metres and seconds. The keys are a public contract, documented in the README:
     map                {yaml: PATH} a map_server map whose blocked cells become walls (maps.py)
     drift              see fields.FIELD_KINDS (geodesic, exits: geodesic.py; groups: fields.Groups)
     noise              {sigma: scalar or per-agent list}
+    flows              speeds, delays, sinks, sources, journeys, headway (flows.py)
 
 Longer than 420 lines because it is the one validation of the whole schema (agents, walls,
 obstacles, map, drift, noise, the initial configuration), each key checked beside the
@@ -38,6 +39,7 @@ from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.drift import field_from_spec, scene_drift
 from sweep_core.model.fields import DEFAULT_SPEED, Field
+from sweep_core.model.flows import Flows, flows_from_spec
 from sweep_core.model.geometry import Geometry, gaps
 from sweep_core.model.maps import OccupancyMap, map_from_spec, read_bounded
 from sweep_core.model.outlines import chain_points
@@ -55,7 +57,7 @@ MAX_SCENE_BYTES = 256 << 20
 MAX_NAME, MAX_DESCRIPTION = 200, 10_000
 
 _TOP_KEYS = {"name", "description", "horizon", "agents", "walls", "obstacles", "map", "drift",
-             "noise", "constraints"}
+             "noise", "constraints", "flows"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,6 +81,7 @@ class Scene:
     speed: float
     horizon: float | None
     spec: dict
+    flows: Flows | None = None
 
     @property
     def n_agents(self) -> int:
@@ -254,9 +257,12 @@ def _build(data: Any, default_name: str, base: Path | None = None, files: bool =
     sigma = checks.per_agent(noise.get("sigma", 0.0), n, "noise.sigma", nonnegative=True)
     spec["noise"] = {"sigma": _compact(sigma, noise.get("sigma", 0.0))}
 
+    flows = flows_from_spec(data.get("flows"), n, drift, speed, sigma, geometry, grid)
+    if flows is not None:
+        spec["flows"] = flows.spec
     scene = Scene(name=spec["name"], positions=positions, radius=radius, radius_law=law,
                   geometry=geometry, drift=drift, sigma=sigma, speed=speed, horizon=horizon,
-                  spec=spec)
+                  spec=spec, flows=flows)
     # a sine law's trough counts from t = 0; a linear shrink is checked against each horizon
     scene.check_horizon(horizon if horizon is not None else 0.0)
     _check_initial(scene)

@@ -16,6 +16,7 @@ from sweep_core.model.geometry import SEGMENT, gaps, single_rows
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise
+from sweep_core.numerics.population import Population
 from sweep_core.numerics.projection import SolverOptions
 from sweep_core.numerics.schemes import SCHEMES, Scheme, StepResult
 
@@ -31,7 +32,8 @@ class State:
     velocities (N, 2) m/s: (q_n - q_{n-1}) / h of the last step (zero before the first);
     reaction (N, 2) m: prediction minus result of the last step (the increment of K);
     contacts: active constraints of the last step; min_gap: smallest true constraint value
-    among touching or near pairs and walls (m, inf if none is near).
+    among touching or near pairs and walls (m, inf if none is near); ids (N,) int: the
+    agents' ids with ``flows`` (None: 0 .. N - 1).
     """
 
     t: float
@@ -42,6 +44,7 @@ class State:
     reaction: np.ndarray
     contacts: int
     min_gap: float
+    ids: np.ndarray | None = None
 
 
 def _scheme_class(scheme: str | type[Scheme]) -> type[Scheme]:
@@ -95,6 +98,23 @@ class Simulator:
         g = gaps(self.scene.geometry, 0.0, self._q, self.scene.radii(0.0))
         self._min_gap = g.min_gap
         self.last: StepResult | None = None
+        # flows (sinks, sources, speeds, delays, journeys, headway): who is present
+        self._pop = Population(self.scene, self.seed) if self.scene.flows is not None else None
+
+    def _live(self) -> Scene:
+        """The scene the scheme steps: the present agents' (flows), else the scene."""
+        return self.scene if self._pop is None else self._pop.view(self.scene, self._q)
+
+    @property
+    def ids(self) -> np.ndarray:
+        """(N,) int ids of the present agents, increasing (0 .. N - 1 without flows)."""
+        return (np.arange(len(self._q), dtype=np.int64) if self._pop is None
+                else self._pop.ids.copy())
+
+    @property
+    def flows(self) -> Population | None:
+        """Who entered, left, waits (``Population``) in a scene with flows; else None."""
+        return self._pop
 
     @property
     def t(self) -> float:
@@ -113,7 +133,7 @@ class Simulator:
     @property
     def radii(self) -> np.ndarray:
         """(N,) radii at the current time (m)."""
-        return np.array(self.scene.radii(self.t), dtype=np.float64, copy=True)
+        return np.array(self._live().radii(self.t), dtype=np.float64, copy=True)
 
     @property
     def reaction(self) -> np.ndarray:
@@ -148,7 +168,8 @@ class Simulator:
     @property
     def state(self) -> State:
         return State(self.t, self._k, self.positions, self.radii, self.velocities,
-                     self.reaction, self._contacts, self._min_gap)
+                     self.reaction, self._contacts, self._min_gap,
+                     None if self._pop is None else self._pop.ids.copy())
 
     # -- commands ------------------------------------------------------------------------
     @property
@@ -197,7 +218,8 @@ class Simulator:
             raise SceneError("scene", f"has {scene.n_agents} agents (radii or radius law "
                              f"differing), the simulator {old.n_agents}",
                              "keep the agents and their radii; build a new Simulator for others")
-        bad = violating_agents(scene, self.t, self._q)
+        live = scene if self._pop is None else self._pop.view(scene, self._q)
+        bad = violating_agents(live, self.t, self._q)
         if bad:
             shown = ", ".join(str(a) for a in bad[:12])
             more = "" if len(bad) <= 12 else f" and {len(bad) - 12} more"
@@ -223,9 +245,9 @@ class Simulator:
                                  "or keep its goal reachable in them") from err
         self._drift = drift
         self.scene = scene
-        self.scheme.scene = scene
+        self.scheme.scene = live
         self.scheme.reset()
-        r = scene.radii(self.t)
+        r = live.radii(self.t)
         self._min_gap = gaps(scene.geometry, self.t, self._q, r).min_gap if len(r) else math.inf
 
     # -- stepping ------------------------------------------------------------------------
@@ -233,7 +255,7 @@ class Simulator:
         """Take n steps. dB: Brownian increments, (N, 2) for one step or (n, N, 2) for n steps;
         by default they are drawn from the seeded path (nothing is drawn if sigma = 0)."""
         checks.integer(n, "n")
-        shape = (self.scene.n_agents, 2)
+        shape = (len(self._q), 2)
         if dB is not None:
             dB = np.asarray(dB, dtype=np.float64)
             if dB.shape == shape and n == 1:
@@ -278,26 +300,31 @@ class Simulator:
     def _advance(self, dB: np.ndarray | None) -> None:
         h, t = self.dt, self.t
         t1 = (self._k + 1) * h
-        r1 = self.scene.radii(t1)
+        scene = self._live()
+        r1 = scene.radii(t1)
         if len(r1) and float(r1.min()) <= 0:
             raise SceneError("agents.radius_law", f"radii reach {float(r1.min()):.6g} m <= 0 at "
                              f"t = {t1:.6g} s", "stop earlier or shrink the radii more slowly")
-        if dB is None and np.any(self._sigma):
-            dB = noise.increments(self._rng, h, self.scene.n_agents)
-        res = self.scheme.step(t, self._q, h, dB, self._drift, self._sigma)
+        drift, sigma = self._drift, self._sigma
+        if self._pop is not None:
+            drift, sigma = self._pop.drift(drift), self._pop.sigma(sigma)
+            self.scheme.scene = scene
+        if dB is None and np.any(sigma):
+            dB = noise.increments(self._rng, h, len(self._q))
+        res = self.scheme.step(t, self._q, h, dB, drift, sigma)
         y = res.q_new
         if not np.all(np.isfinite(y)):
             bad = np.nonzero(~np.all(np.isfinite(y), axis=1))[0]
             raise InfeasibleError(t1, bad.tolist(), "non-finite positions")
         min_gap = math.inf
         if self.check:
-            g = gaps(self.scene.geometry, t1, y, r1)
+            g = gaps(scene.geometry, t1, y, r1)
             if g.min_gap < -FEASIBILITY_TOLERANCE:
                 worst = g.worst_pair if g.min_pair <= g.min_single else g.worst_single
                 who = [] if worst is None else (
                     list(worst[:2]) if g.min_pair <= g.min_single else [worst[0]])
                 raise InfeasibleError(t1, who, f"true constraint violated by {-g.min_gap:.3g} m")
-            through, item = crossings(self.scene.geometry, self._q, y, r1, g)
+            through, item = crossings(scene.geometry, self._q, y, r1, g)
             if len(through):
                 raise InfeasibleError(t1, sorted(set(through.tolist())), "the centre of agent "
                                       f"{int(through[0])} went through "
@@ -306,6 +333,11 @@ class Simulator:
             min_gap = g.min_gap
         self._v = (y - self._q) / h
         self._reaction = res.prediction - y
+        if self._pop is not None:
+            changed, y, (self._v, self._reaction) = self._pop.after_step(
+                scene, t1, y, self._v, self._reaction)
+            if changed:
+                self.scheme.reset()  # the warm start's rows name the old agents
         self._q = y
         self._k += 1
         self._contacts = res.projection.active

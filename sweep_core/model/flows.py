@@ -1,0 +1,372 @@
+"""Flows: the scene's optional ``flows`` key (per-agent speeds, start delays, sinks, sources,
+journeys, the headway speed law), validated into a :class:`Flows`. docs/flows.md is the
+user's page; the run-time state (who is present, who left) is
+:mod:`sweep_core.numerics.population`.
+
+    flows:
+      speeds:   v | [v_0, ...] | {distribution: normal, mean, std, min, max}
+                               | {distribution: uniform, min, max}        m/s, > 0
+      delays:   same forms, s >= 0 (pre-movement times)
+      sinks:    [region, ...]               an agent whose centre is inside one leaves
+      sources:  [{region, rate | times, start, count, radius, group, speeds, delays}, ...]
+      journeys: [{group, legs: [{goal: [x, y]} | {region: {...}}, ...], arrive_radius,
+                  cell, wall_buffer}, ...]
+      headway:  {time_gap: T, margin: w}    s, m
+
+Regions: :mod:`sweep_core.model.regions`. Values drawn from a distribution are drawn per run
+from the run's seed (:func:`draw`), never stored in the spec.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from sweep_core import checks
+from sweep_core.errors import SceneError, show
+from sweep_core.model.fields import Field, Groups
+from sweep_core.model.regions import Region, region_from_spec
+
+#: time gap T (s) of the headway law when the scene gives none: calibrated against Weidmann's
+#: speed-density relation in a ring corridor (docs/flows.md, scripts/calibrate_headway.py)
+DEFAULT_TIME_GAP = 0.5
+#: lateral margin w (m) of the headway law when the scene gives none (calibrated with T)
+DEFAULT_MARGIN = 0.0
+#: most agents one source may emit
+MAX_SOURCE_COUNT = 100_000
+#: most legs of a journey
+MAX_LEGS = 64
+_DISTRIBUTIONS: dict[str, set[str]] = {"normal": {"mean", "std", "min", "max"},
+                                        "uniform": {"min", "max"}}
+
+
+@dataclass(frozen=True)
+class Draw:
+    """Per-agent values: given (``values``, one per agent or one for all) or drawn from a
+    normal distribution clipped to [low, high] or a uniform one on [low, high]."""
+
+    values: np.ndarray | None
+    distribution: str | None = None
+    mean: float = 0.0
+    std: float = 0.0
+    low: float = 0.0
+    high: float = 0.0
+
+    def to_spec(self) -> Any:
+        if self.values is not None:
+            return self.values.tolist() if self.values.ndim else float(self.values)
+        out: dict = {"distribution": self.distribution, "min": self.low, "max": self.high}
+        if self.distribution == "normal":
+            out.update(mean=self.mean, std=self.std)
+        return out
+
+
+def draw(d: Draw, rng: np.random.Generator, n: int) -> np.ndarray:
+    """n values (n,) of d: the given ones (a scalar broadcast), or n draws from rng."""
+    if d.values is not None:
+        return (np.full(n, float(d.values)) if d.values.ndim == 0
+                else np.asarray(d.values, dtype=np.float64)[:n].copy())
+    if d.distribution == "uniform":
+        return d.low + rng.random(n) * (d.high - d.low)
+    return np.clip(d.mean + d.std * rng.standard_normal(n), d.low, d.high)
+
+
+def draw_from_spec(value: Any, field: str, n: int | None, *, positive: bool) -> Draw:
+    """A speeds or delays value: a number, a list of n numbers (n None: a list is refused),
+    or a distribution; positive: values > 0 (speeds), else >= 0 (delays)."""
+    bound = "> 0" if positive else ">= 0"
+    unit = "m/s" if positive else "s"
+    if isinstance(value, dict):
+        checks.mapping(value, field, required={"distribution"},
+                       allowed={"distribution", "mean", "std", "min", "max"})
+        dist = value["distribution"]
+        if dist not in _DISTRIBUTIONS:
+            raise SceneError(f"{field}.distribution", f"unknown distribution {show(dist)}",
+                             f"use one of {sorted(_DISTRIBUTIONS)}")
+        need = _DISTRIBUTIONS[dist]
+        checks.mapping(value, field, required={"distribution"} | need,
+                       allowed={"distribution"} | need)
+        lo = checks.number(value["min"], f"{field}.min", positive=positive,
+                           nonnegative=not positive)
+        hi = checks.number(value["max"], f"{field}.max", positive=positive,
+                           nonnegative=not positive)
+        if hi < lo:
+            raise SceneError(f"{field}.max", f"{hi:g} {unit} is below min {lo:g} {unit}",
+                             f"set {field}.max to at least {field}.min")
+        if dist == "uniform":
+            return Draw(None, "uniform", low=lo, high=hi)
+        mean = checks.number(value["mean"], f"{field}.mean")
+        std = checks.number(value["std"], f"{field}.std", nonnegative=True)
+        if not lo <= mean <= hi:
+            raise SceneError(f"{field}.mean", f"{mean:g} {unit} is outside [min, max] = "
+                             f"[{lo:g}, {hi:g}]", f"set {field}.mean between min and max")
+        return Draw(None, "normal", mean=mean, std=std, low=lo, high=hi)
+    if isinstance(value, list):
+        if n is None:
+            raise SceneError(field, f"is a list {show(value)} but these agents are not known "
+                             "in advance", f"give {field} one number {bound} ({unit}) or a "
+                             "distribution {distribution: uniform, min, max}")
+        arr = checks.per_agent(value, n, field, positive=positive, nonnegative=not positive)
+        return Draw(arr)
+    x = checks.number(value, field, positive=positive, nonnegative=not positive,
+                      fix=f"give {field} a number {bound} ({unit}), a list of one per agent, "
+                          "or {distribution: normal, mean, std, min, max}")
+    return Draw(np.array(x))
+
+
+@dataclass(frozen=True, eq=False)
+class Source:
+    """Agents entering in ``region``: at ``times`` (s, sorted), ``count`` of them; radii
+    uniform in [r_low, r_high] (m); ``group`` (index in the scene's groups, -1: none);
+    speeds and delays (None: the group's speed, no delay)."""
+
+    region: Region
+    times: np.ndarray
+    r_low: float
+    r_high: float
+    group: int
+    speeds: Draw | None
+    delays: Draw | None
+    spec: dict
+
+
+@dataclass(frozen=True, eq=False)
+class Journey:
+    """A group's legs (-1: the agents in no group): ``fields[k]`` leads to ``targets[k]`` (a
+    Region or a goal point (2,)), reached when the centre is within ``arrive_radius`` m of it
+    (inside a region counts as 0 m; a geodesic field slows to a halt at a region's edge, so
+    the radius is needed for regions too)."""
+
+    group: int
+    fields: tuple[Field, ...]
+    targets: tuple[Region | np.ndarray, ...]
+    arrive_radius: float
+    spec: dict
+
+    def reached(self, leg: int, q: np.ndarray) -> np.ndarray:
+        """(M,) bool: centres q (M, 2) reached target ``leg``."""
+        tg = self.targets[leg]
+        if isinstance(tg, Region):  # the field slows to a halt at the region's edge
+            return tg.distance(q) <= self.arrive_radius
+        d = q - tg
+        return np.hypot(d[:, 0], d[:, 1]) <= self.arrive_radius
+
+
+@dataclass(frozen=True, eq=False)
+class Flows:
+    """The validated ``flows`` key (module docstring); ``spec`` its normalised dict.
+    ``group_speed[k]`` (k = -1: agents in no group, last entry) the speed s_k (m/s) the
+    drift of group k moves at, which a per-agent speed v0 rescales (U v0 / s_k)."""
+
+    speeds: Draw | None
+    delays: Draw | None
+    sinks: tuple[Region, ...]
+    sources: tuple[Source, ...]
+    journeys: tuple[Journey, ...]
+    time_gap: float | None
+    margin: float
+    group_speed: np.ndarray
+    spec: dict
+
+    @property
+    def changes_population(self) -> bool:
+        return bool(self.sinks or self.sources)
+
+
+def _group(value: Any, field: str, names: tuple[str, ...]) -> int:
+    if value is None:
+        return -1
+    if value not in names:
+        raise SceneError(field, f"{show(value)} is not a group of the scene (its groups: "
+                         f"{', '.join(names) or 'none'})",
+                         "name one of agents.groups, or omit it for the agents in no group")
+    return names.index(value)
+
+
+def _source(value: Any, field: str, names: tuple[str, ...]) -> Source:
+    checks.mapping(value, field, required={"region"},
+                   allowed={"region", "rate", "times", "start", "count", "radius", "group",
+                            "speeds", "delays"})
+    region = region_from_spec(value["region"], f"{field}.region")
+    spec: dict = {"region": region.spec}
+    if ("rate" in value) == ("times" in value):
+        raise SceneError(field, f"gives {'both' if 'rate' in value else 'neither'} rate and "
+                         "times", f"give {field}.rate (agents/s) with {field}.count, or "
+                         f"{field}.times: [t0, t1, ...] (s)")
+    if "rate" in value:
+        rate = checks.number(value["rate"], f"{field}.rate", positive=True)
+        if "count" not in value:
+            raise SceneError(f"{field}.count", "is missing (a rate needs a count)",
+                             f"set {field}.count to the number of agents the source emits")
+        count = checks.integer(value["count"], f"{field}.count", low=1)
+        if count > MAX_SOURCE_COUNT:
+            raise SceneError(f"{field}.count", f"{count} is above {MAX_SOURCE_COUNT}",
+                             f"set {field}.count to at most {MAX_SOURCE_COUNT}")
+        start = checks.number(value.get("start", 0.0), f"{field}.start", nonnegative=True)
+        times = start + np.arange(count) / rate
+        spec.update(rate=rate, count=count, start=start)
+    else:
+        if "start" in value or "count" in value:
+            raise SceneError(field, "gives start or count with times",
+                             "give the times alone (each entry is one agent)")
+        raw = value["times"]
+        if not isinstance(raw, list) or not raw or len(raw) > MAX_SOURCE_COUNT:
+            raise SceneError(f"{field}.times", f"must be a non-empty list of at most "
+                             f"{MAX_SOURCE_COUNT} times, got {show(raw)}",
+                             f"write {field}.times as [t0, t1, ...] (s)")
+        times = np.array([checks.number(t, f"{field}.times[{k}]", nonnegative=True)
+                          for k, t in enumerate(raw)])
+        if np.any(np.diff(times) < 0):
+            raise SceneError(f"{field}.times", f"{show(times)} is not sorted",
+                             f"sort {field}.times in increasing order")
+        spec["times"] = times.tolist()
+    r = value.get("radius", 0.2)
+    if isinstance(r, list):
+        if len(r) != 2:
+            raise SceneError(f"{field}.radius", f"must be R or [R_min, R_max], got {show(r)}",
+                             f"set {field}.radius to a radius (m) or a range [R_min, R_max]")
+        lo = checks.length(r[0], f"{field}.radius[0]", positive=True)
+        hi = checks.length(r[1], f"{field}.radius[1]", positive=True)
+        if hi < lo:
+            raise SceneError(f"{field}.radius", f"{show(r)} is decreasing",
+                             f"give {field}.radius as [R_min, R_max] with R_min <= R_max")
+        spec["radius"] = [lo, hi]
+    else:
+        lo = hi = checks.length(r, f"{field}.radius", positive=True)
+        spec["radius"] = lo
+    group = _group(value.get("group"), f"{field}.group", names)
+    if group >= 0:
+        spec["group"] = names[group]
+    speeds = (draw_from_spec(value["speeds"], f"{field}.speeds", None, positive=True)
+              if value.get("speeds") is not None else None)
+    delays = (draw_from_spec(value["delays"], f"{field}.delays", None, positive=False)
+              if value.get("delays") is not None else None)
+    for key, d in (("speeds", speeds), ("delays", delays)):
+        if d is not None:
+            spec[key] = d.to_spec()
+    return Source(region, times, lo, hi, group, speeds, delays, spec)
+
+
+def _journey(value: Any, field: str, names: tuple[str, ...], speed: float, geometry: Any,
+             grid: Any) -> Journey:
+    from sweep_core.model.geodesic import navigation_from_spec  # built on fields
+
+    checks.mapping(value, field, required={"legs"},
+                   allowed={"group", "legs", "arrive_radius", "cell", "wall_buffer"})
+    group = _group(value.get("group"), f"{field}.group", names)
+    legs = value["legs"]
+    if not isinstance(legs, list) or not legs or len(legs) > MAX_LEGS:
+        raise SceneError(f"{field}.legs", f"must be a non-empty list of at most {MAX_LEGS} "
+                         f"targets, got {show(legs)}",
+                         f"write {field}.legs as [{{goal: [x, y]}}, {{region: {{...}}}}, ...]")
+    arrive = checks.length(value.get("arrive_radius", 0.5), f"{field}.arrive_radius",
+                           positive=True)
+    extra = {k: value[k] for k in ("cell", "wall_buffer") if k in value}
+    fields, targets, legs_spec = [], [], []
+    for k, leg in enumerate(legs):
+        lf = f"{field}.legs[{k}]"
+        checks.mapping(leg, lf, allowed={"goal", "region"})
+        if ("goal" in leg) == ("region" in leg):
+            raise SceneError(lf, f"gives {'both' if 'goal' in leg else 'neither'} goal and "
+                             "region", f"give {lf}.goal: [x, y] or {lf}.region: {{kind: "
+                             "rectangle, min: [x, y], max: [x, y]}")
+        if "goal" in leg:
+            goal = checks.point(leg["goal"], f"{lf}.goal")
+            tg: Region | np.ndarray = goal
+            one = {"goal": goal.tolist()}
+        else:
+            tg = region_from_spec(leg["region"], f"{lf}.region")
+            one = {"region": tg.spec}
+        legs_spec.append(one)
+        targets.append(tg)
+        fields.append(navigation_from_spec({"kind": "geodesic", **one, "speed": speed, **extra},
+                                           lf, geometry, grid, np.empty((0, 2))))
+    spec = {**({"group": names[group]} if group >= 0 else {}), "legs": legs_spec,
+            "arrive_radius": arrive, **extra}
+    return Journey(group, tuple(fields), tuple(targets), arrive, spec)
+
+
+def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: np.ndarray,
+                    geometry: Any, grid: Any) -> Flows | None:
+    """Validate the ``flows`` key (None: absent) of a scene of ``n_agents`` initial agents with
+    its drift (a Groups field gives the group names and speeds), agents.speed (m/s) and noise
+    intensities sigma (N,)."""
+    if raw is None:
+        return None
+    checks.mapping(raw, "flows", allowed={"speeds", "delays", "sinks", "sources", "journeys",
+                                          "headway"})
+    names: tuple[str, ...] = drift.names if isinstance(drift, Groups) else ()
+    if isinstance(drift, Groups):
+        gspeed = np.array(list(drift.speeds) + [float(getattr(drift.rest, "speed", speed))])
+    else:
+        gspeed = np.array([float(getattr(drift, "speed", speed))])
+    spec: dict = {}
+    speeds = delays = None
+    if raw.get("speeds") is not None:
+        speeds = draw_from_spec(raw["speeds"], "flows.speeds", n_agents, positive=True)
+        spec["speeds"] = speeds.to_spec()
+    if raw.get("delays") is not None:
+        delays = draw_from_spec(raw["delays"], "flows.delays", n_agents, positive=False)
+        spec["delays"] = delays.to_spec()
+    sinks = []
+    for k, s in enumerate(_items(raw.get("sinks"), "flows.sinks")):
+        sinks.append(region_from_spec(s, f"flows.sinks[{k}]"))
+    spec["sinks"] = [s.spec for s in sinks]
+    sources = [_source(s, f"flows.sources[{k}]", names)
+               for k, s in enumerate(_items(raw.get("sources"), "flows.sources"))]
+    spec["sources"] = [s.spec for s in sources]
+    journeys: list[Journey] = []
+    seen: dict[int, int] = {}
+    for k, j in enumerate(_items(raw.get("journeys"), "flows.journeys")):
+        g = _group(j.get("group") if isinstance(j, dict) else None, f"flows.journeys[{k}].group",
+                   names)
+        if g in seen:
+            raise SceneError(f"flows.journeys[{k}].group", f"gives group {show(j.get('group'))}"
+                             f" a second journey (journeys[{seen[g]}] is its first)",
+                             "give each group one journey")
+        seen[g] = k
+        journeys.append(_journey(j, f"flows.journeys[{k}]", names, float(gspeed[g]), geometry,
+                                 grid))
+    spec["journeys"] = [j.spec for j in journeys]
+    time_gap, margin = None, 0.0
+    if raw.get("headway") is not None:
+        hw = checks.mapping(raw["headway"], "flows.headway", allowed={"time_gap", "margin"})
+        time_gap = checks.number(hw.get("time_gap", DEFAULT_TIME_GAP), "flows.headway.time_gap",
+                                 positive=True)
+        margin = checks.length(hw.get("margin", DEFAULT_MARGIN), "flows.headway.margin",
+                               nonnegative=True)
+        spec["headway"] = {"time_gap": time_gap, "margin": margin}
+    out = Flows(speeds, delays, tuple(sinks), tuple(sources), tuple(journeys), time_gap,
+                margin, gspeed, spec)
+    if out.changes_population:
+        _check_changing(out, drift, sigma)
+    return out
+
+
+def _items(value: Any, field: str) -> list:
+    if value is None:
+        return []
+    if not isinstance(value, list):
+        raise SceneError(field, f"must be a list, got {show(value)}",
+                         f"write {field} as a list, one '- ...' per item")
+    return value
+
+
+def _check_changing(flows: Flows, drift: Field, sigma: np.ndarray) -> None:
+    """Refuse what cannot follow a changing set of agents: per-agent drifts, noise lists."""
+    fields = (list(drift.fields) + [drift.rest]) if isinstance(drift, Groups) else [drift]
+    for f in fields:
+        if f.kind == "per_agent":
+            raise SceneError("drift", "is per_agent, one velocity per agent, while "
+                             "flows.sinks or flows.sources change the agents",
+                             "give a drift that depends on position (goal, geodesic, ...)")
+    if flows.sources and len(sigma) and not np.all(sigma == sigma[0]):
+        raise SceneError("noise.sigma", "is a list, one per agent, while flows.sources adds "
+                         "agents", "give noise.sigma one value for all agents")
+    if not flows.sources:
+        return
+    if not all(math.isfinite(float(t)) for s in flows.sources for t in s.times[-1:]):
+        raise SceneError("flows.sources", "has a time that is not finite",
+                         "give finite times (s)")
