@@ -12,9 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from sweep_core.analysis.frames import FrameReader, progress_bar
+from sweep_core.analysis.frames import Frame, FrameReader, progress_bar
 from sweep_core.analysis.plots import pyplot, save_figure
 from sweep_core.analysis.report import OTHER, jsonable, output_paths, write_table
+from sweep_core.analysis.roster import Roster
 from sweep_core.analysis.run import NS, RunMeta, load_run
 from sweep_core.errors import RecordingError, SweepError
 from sweep_core.io.outputs import check_output
@@ -62,13 +63,25 @@ def _path_note(ma: RunMeta, mb: RunMeta) -> str:
             "run with the fine run's dt and seed)")
 
 
+def _ids(fr: Frame, path: str, t: float) -> np.ndarray:
+    """A frame's agent ids (from /agents), or a RecordingError saying they are missing."""
+    if fr.agents is None or "id" not in fr.agents or len(fr.agents["id"]) != len(fr.positions):
+        raise RecordingError(f"{path}: the frame at t = {t:g} s has no readable /agents ids, "
+                             "which a scene with flows needs (fix: record /agents)")
+    return np.rint(fr.agents["id"].astype(np.float64)).astype(np.int64)
+
+
 def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
     """Aligns two recordings on their common log times and measures |q^A - q^B|."""
     ma, mb = load_run(a), load_run(b)
     notes = []
     if ma.scene is not None and mb.scene is not None and ma.scene.spec != mb.scene.spec:
         notes.append("the recorded scenes differ")
-    ra, rb = FrameReader(ma, agents=False), FrameReader(mb, agents=False)
+    # with flows (agents entering, leaving) the agents two frames share are matched by id
+    by_id = any(m.scene is not None and m.scene.flows is not None for m in (ma, mb))
+    if by_id:
+        notes.append("agents matched by their /agents ids (flows: agents enter and leave)")
+    ra, rb = FrameReader(ma, agents=by_id), FrameReader(mb, agents=by_id)
     ia, ib = iter(ra), iter(rb)
     fa, fb = next(ia, None), next(ib, None)
     rows: list[tuple[float, float, float]] = []
@@ -88,15 +101,24 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
             if n is None:
                 n = len(fa.positions)
                 per, arg = np.zeros(n), np.zeros(n)
-            if len(fa.positions) != n or len(fb.positions) != n:
+            t = fa.log_ns / NS
+            qa, qb, who = fa.positions, fb.positions, None
+            if by_id:
+                who, qa, qb = Roster.common(_ids(fa, ma.path, t), qa, _ids(fb, mb.path, t), qb)
+                top = int(who.max(initial=-1)) + 1
+                if top > len(per):
+                    per = np.concatenate([per, np.zeros(top - len(per))])
+                    arg = np.concatenate([arg, np.zeros(top - len(arg))])
+                n = len(per)
+            elif len(qa) != n or len(qb) != n:
                 raise RecordingError(f"{ma.path} and {mb.path} have different agent counts "
                                      f"({len(fa.positions)} and {len(fb.positions)})")
-            t = fa.log_ns / NS
-            d = np.hypot(*(fa.positions - fb.positions).T)
-            worse = d > per
-            per[worse] = d[worse]
-            arg[worse] = t
-            rows.append((t, float(d.max(initial=0.0)), float(d.mean()) if n else 0.0))
+            d = np.hypot(*(qa - qb).T)
+            who = np.arange(len(d)) if who is None else who
+            worse = d > per[who]
+            per[who[worse]] = d[worse]
+            arg[who[worse]] = t
+            rows.append((t, float(d.max(initial=0.0)), float(d.mean()) if len(d) else 0.0))
             last = d
             bar.update()
             fa, fb = next(ia, None), next(ib, None)
@@ -115,7 +137,7 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
         a=ma.path, b=mb.path, common_frames=len(rows), t_first_s=float(table[0, 0]),
         t_last_s=float(table[-1, 0]), sup_m=float(table[:, 1].max()), sup_t_s=sup_t,
         sup_agent=sup_agent, final_max_m=float(last.max(initial=0.0)),
-        final_mean_m=float(last.mean()) if n else 0.0, per_agent_sup_m=per.tolist(),
+        final_mean_m=float(last.mean()) if len(last) else 0.0, per_agent_sup_m=per.tolist(),
         per_agent_t_s=arg.tolist(), shared_path=_path_note(ma, mb), truncated=truncated,
         notes=notes, table=table, problems=ra.problems + rb.problems)
 

@@ -33,6 +33,7 @@ from sweep_core.analysis.arrivals import ArrivalTracker, start_exits, stats, tim
 from sweep_core.analysis.density import MAX_CELLS as MAX_CELLS  # re-exported for the CLI
 from sweep_core.analysis.density import Hist2D
 from sweep_core.analysis.frames import Frame, FrameReader, GapFinder, progress_bar
+from sweep_core.analysis.roster import Roster
 from sweep_core.analysis.run import NS, RunMeta, Schedule, load_run, scene_with_map
 from sweep_core.errors import RecordingError, SweepError
 from sweep_core.model.geometry import Geometry, gaps
@@ -146,6 +147,10 @@ class _Metrics:
         self.goal_seen = False
         self.tracker = ArrivalTracker(0, arrive_radius)
         self._map_geometry: dict[int, Geometry] = {}
+        # flows (sinks, sources): agents followed by id (roster.py)
+        flows = meta.scene is not None and meta.scene.flows is not None
+        self.roster = Roster(meta.scene, meta.path) if flows and meta.scene else None
+        self.ids = self.prev_ids = np.zeros(0, dtype=np.int64)
 
     def add(self, fr: Frame) -> None:
         meta, q = self.meta, fr.positions
@@ -159,10 +164,13 @@ class _Metrics:
                      if meta.scene is not None else {})
             self.tracker = ArrivalTracker(self.n, self.arrive_radius, start)
             self.arrival = self.tracker.arrival
-        elif len(q) != self.n:
+        elif len(q) != self.n and self.roster is None:
             raise RecordingError(f"{meta.path}: frame at t = {fr.log_ns / NS:g} s has "
                                  f"{len(q)} poses, the first had {self.n}")
         t = (fr.log_ns - self.t0) / NS
+        if self.roster is not None:
+            self.ids = self.roster.ids(fr.agents, len(q), t)
+            self.roster.add(self.ids, t)
         seg = meta.segment_of(fr.log_ns)
         step = meta.step_of(fr.stamp_ns) if meta.dt is not None else -1
         geometry = self._geometry_at(seg, step)
@@ -170,7 +178,7 @@ class _Metrics:
         react_total, sp_mean, sp_max = self._agents(fr.agents, step)
         if self.line is not None:
             self._flow(seg, q, t)
-        if self._arrivals(seg, step, q, t):
+        if self.roster is None and self._arrivals(seg, step, q, t):
             self.goal_seen = True
         self.density.add(q)
         dt = meta.dt
@@ -204,7 +212,9 @@ class _Metrics:
         scene, dt = self.meta.scene, self.meta.dt
         if scene is not None:
             t_sim = step * dt if dt is not None else fr.stamp_ns / NS
-            return gaps(geometry, t_sim, fr.positions, scene.radii(t_sim), CONTACT_TOL)
+            r = (scene.radii(t_sim) if self.roster is None or fr.agents is None
+                 else self.roster.radii(self.ids, fr.agents, t_sim))
+            return gaps(geometry, t_sim, fr.positions, r, CONTACT_TOL)
         # no scene in the metadata: disks only, with the float32 radii of /agents
         r = (fr.agents["radius"].astype(np.float64) if fr.agents is not None
              else np.zeros(len(fr.positions)))
@@ -230,14 +240,24 @@ class _Metrics:
         return react_total, float(v.mean()), float(v.max())
 
     def _flow(self, seg: int, q: np.ndarray, t: float) -> None:
-        """Crossings of the line since the previous frame of the same segment."""
+        """Crossings of the line since the previous frame of the same segment (with flows:
+        of the agents both frames hold, by id)."""
         if self.prev is not None and self.prev[0] == seg:
-            c = line_crossings(self.prev[1], q, self.line)
+            p0, p1, who = self.prev[1], q, np.arange(len(q))
+            if self.roster is not None:
+                who, p0, p1 = Roster.common(self.prev_ids, p0, self.ids, q)
+                top = int(self.ids.max(initial=-1)) + 1
+                if top > len(self.evacuation):
+                    self.evacuation = np.concatenate(
+                        [self.evacuation, np.full(top - len(self.evacuation), np.nan)])
+            c = line_crossings(p0, p1, self.line)
             self.positive += int(np.count_nonzero(c > 0))
             self.negative += int(np.count_nonzero(c < 0))
             self.net += int(c.sum())
-            self.evacuation[(c > 0) & np.isnan(self.evacuation)] = t
+            first = who[(c > 0) & np.isnan(self.evacuation[who])]
+            self.evacuation[first] = t
         self.prev = (seg, q)
+        self.prev_ids = self.ids
 
     def _arrivals(self, seg: int, step: int, q: np.ndarray, t: float) -> bool:
         """Marks agents that reached the goal of their drift in effect (goal, geodesic,
@@ -254,6 +274,10 @@ class _Metrics:
             raise RecordingError(f"{meta.path}: no complete frame (poses) in the recording"
                                  + (f" ({reader.error})" if reader.error else ""))
         n, worst = self.n or 0, self.worst
+        if self.roster is not None:  # every agent seen, the scene's and the entered
+            n = self.roster.total
+            self.evacuation = np.concatenate(
+                [self.evacuation, np.full(max(0, n - len(self.evacuation)), np.nan)])
         duration = float(table[-1, 0] - table[0, 0])
         dens = self.density.counts / (frames * cell * cell)
         origin = (self.density.ix0 * cell, self.density.iy0 * cell)
@@ -348,9 +372,22 @@ class _Metrics:
             summary["per_exit"] = self.tracker.per_exit()
             summary["per_group"] = self.tracker.per_group()
         labels = self.tracker.labels
-        return Analysis(meta, summary, table, dens, origin, cell, self.hist, self.arrival,
-                        self.evacuation, [labels[k] if k >= 0 else None
-                                          for k in self.tracker.exit.tolist()])
+        exits = [labels[k] if k >= 0 else None for k in self.tracker.exit.tolist()]
+        arrival = self.arrival
+        if self.roster is not None:
+            # agents followed by id: an arrival is leaving at a sink (its time by id)
+            pop = self.roster.summary()
+            summary["population"] = pop
+            arrival = self.roster.left_at
+            exits = [None] * len(arrival)
+            if pop["left"]:
+                summary["arrivals"] = {
+                    "arrived": pop["left"], "t_first_s": pop["left_t_first_s"],
+                    "t_mean_s": stats(arrival, np.mean), "t_50_s": pop["left_t_50_s"],
+                    "t_90_s": pop["left_t_90_s"], "t_all_s": pop["left_t_all_s"],
+                    "precision": "agents that left at a sink: " + pop["precision"]}
+        return Analysis(meta, summary, table, dens, origin, cell, self.hist, arrival,
+                        self.evacuation, exits)
 
 
 def analyze(path: str | Path, line: tuple[float, float, float, float] | None = None,

@@ -85,6 +85,11 @@ def run(sim: Simulator, t_end: float, path_dt: float, progress: bool = False,
     if sim.n_steps:
         raise SceneError("path_dt", f"the simulator is at step {sim.n_steps}, not at t = 0",
                          "call sim.reset() first")
+    flows = sim.scene.flows
+    if flows is not None and flows.changes_population:
+        raise SceneError("path_dt", f"{path_dt:g} s is given for a scene whose flows (sinks, "
+                         "sources) change the agents: a fine path holds a fixed number of them",
+                         "run it without --path-dt")
     path = FinePath(sim.seed, sim.dt, path_dt, sim.scene.n_agents)
     sim.run(t_end, progress=progress, callback=callback, increments=path.increment)
     return path

@@ -1,0 +1,104 @@
+"""Agents by id across the frames of a recording whose scene has ``flows`` (sinks and sources
+change the agents from frame to frame): who entered and when, who left and when, the radii of
+the present agents, and the positions of the agents two frames share.
+
+Ids come from the ``id`` field of ``/agents`` (float32: exact up to 2^24 ids). An agent's
+entry time is the first frame that holds it, its leaving time the first frame (after one that
+held it) that does not: with ``--record-every K`` both are late by less than K steps.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from sweep_core.analysis.arrivals import stats, time_for
+from sweep_core.errors import RecordingError
+from sweep_core.model.scene import Scene
+
+
+def _grow(a: np.ndarray, n: int, fill: float) -> np.ndarray:
+    if len(a) >= n:
+        return a
+    return np.concatenate([a, np.full(n - len(a), fill, dtype=a.dtype)])
+
+
+class Roster:
+    """Entry and leaving times by id (module docstring) of a recording of ``scene``."""
+
+    def __init__(self, scene: Scene, path: str) -> None:
+        self.scene, self.path = scene, path
+        self.n0 = scene.n_agents
+        self.entered_at = np.zeros(0)
+        self.left_at = np.zeros(0)
+        self.present = np.zeros(0, dtype=np.int64)
+        self.frames = 0
+        flows = scene.flows
+        sources = flows.sources if flows is not None else ()
+        fixed = {s.r_low for s in sources if s.r_low == s.r_high}
+        #: the radius (m) of every entering agent when all sources give the same one
+        self.source_radius = (fixed.pop() if len(fixed) == 1 and all(
+            s.r_low == s.r_high for s in sources) else None)
+
+    def ids(self, agents: dict[str, np.ndarray] | None, n: int, t: float) -> np.ndarray:
+        """The ids (n,) of a frame's agents at t (s), from its ``/agents`` columns."""
+        if agents is None or "id" not in agents or len(agents["id"]) != n:
+            raise RecordingError(f"{self.path}: the frame at t = {t:g} s has no readable "
+                                 "/agents ids, which a scene with flows needs to follow its "
+                                 "agents (fix: record /agents, as sweep run does)")
+        return np.rint(agents["id"].astype(np.float64)).astype(np.int64)
+
+    def add(self, ids: np.ndarray, t: float) -> None:
+        """Marks the agents ``ids`` present at t (s): new ones entered, missing ones left."""
+        top = int(ids.max()) + 1 if len(ids) else 0
+        self.entered_at = _grow(self.entered_at, top, np.nan)
+        self.left_at = _grow(self.left_at, top, np.nan)
+        new = ids[np.isnan(self.entered_at[ids])]
+        self.entered_at[new] = 0.0 if self.frames == 0 else t
+        gone = np.setdiff1d(self.present, ids, assume_unique=True)
+        self.left_at[gone] = t
+        self.present = ids
+        self.frames += 1
+
+    def radii(self, ids: np.ndarray, agents: dict[str, np.ndarray], t: float) -> np.ndarray:
+        """Radii (n,) m of the agents ``ids`` at t (s): float64 from the scene for its own
+        agents and for entering agents of a single source radius, else the float32 of
+        ``/agents``."""
+        r = agents["radius"].astype(np.float64)
+        law = self.scene.radius_law
+        own = ids < self.n0
+        r[own] = self.scene.radius[ids[own]] + (0.0 if law.is_constant else law.offset(t))
+        if self.source_radius is not None:
+            r[~own] = self.source_radius + (0.0 if law.is_constant else law.offset(t))
+        return r
+
+    @staticmethod
+    def common(ids_a: np.ndarray, q_a: np.ndarray, ids_b: np.ndarray, q_b: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The ids two frames share (increasing) and their centres in each, (M,), (M, 2) x 2."""
+        both, ia, ib = np.intersect1d(ids_a, ids_b, assume_unique=True, return_indices=True)
+        return both, q_a[ia], q_b[ib]
+
+    @property
+    def total(self) -> int:
+        """Agents seen in all (the scene's and the entered)."""
+        return int(np.count_nonzero(np.isfinite(self.entered_at)))
+
+    def summary(self) -> dict:
+        """Counts and times: entered, left, present at the end (N0 + entered = present + left),
+        leaving times (arrivals at the sinks) and travel times (leaving minus entry)."""
+        left = self.left_at
+        n = self.total
+        entered = int(np.count_nonzero(np.isfinite(self.entered_at[self.n0:])))
+        gone = int(np.count_nonzero(np.isfinite(left)))
+        travel = left - self.entered_at
+        return {
+            "initial": self.n0, "entered": entered, "left": gone,
+            "present_at_end": int(len(self.present)),
+            "conserved": self.n0 + entered == len(self.present) + gone,
+            "left_t_first_s": stats(left, np.min), "left_t_50_s": time_for(left, n, 0.5),
+            "left_t_90_s": time_for(left, n, 0.9), "left_t_all_s": time_for(left, n, 1.0),
+            "travel_time_mean_s": stats(travel, np.mean),
+            "travel_time_min_s": stats(travel, np.min),
+            "travel_time_max_s": stats(travel, np.max),
+            "precision": "times of the first recorded frame holding (entry) or no longer "
+                         "holding (leaving) an agent, by its /agents id",
+        }
