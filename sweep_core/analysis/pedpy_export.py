@@ -147,6 +147,18 @@ def density_speed(traj: Trajectories, area: Sequence[tuple[float, float]],
             "voronoi_speed": mean(v_speed, "speed")}
 
 
+def classic_density(traj: Trajectories, area: Sequence[tuple[float, float]]) -> np.ndarray:
+    """PedPy's classic density (1/m^2) in the measurement ``area`` (a polygon, m), one value
+    per frame from the first to the last recorded (frames without agents in it: 0)."""
+    import pedpy
+
+    if not len(traj.frames):
+        return np.zeros(0)
+    frame = pedpy.compute_classic_density(traj_data=traj.to_pedpy(),
+                                          measurement_area=pedpy.MeasurementArea(list(area)))
+    return np.asarray(frame["density"], dtype=np.float64)
+
+
 def line_flow(traj: Trajectories, line: Sequence[tuple[float, float]]) -> dict[str, float]:
     """Crossings of a measurement ``line`` (two points, m) by PedPy's ``compute_n_t``: the
     number of agents that crossed, the first and last crossing times (s) and the mean flow
