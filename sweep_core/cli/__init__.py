@@ -1,6 +1,6 @@
 """The ``sweep`` command: ``run`` a scene headless and record it, ``analyze``, ``replay`` and
-``compare`` recordings, ``recover`` one cut short, ``bench accuracy`` and ``bench speed``, ``verify`` (the RiMEA
-tests) and ``export`` (PedPy trajectories)."""
+``compare`` recordings, ``recover`` one cut short, ``bench accuracy`` and ``bench speed``,
+``verify`` (the RiMEA tests) and ``export`` (PedPy trajectories)."""
 from __future__ import annotations
 
 import argparse

@@ -88,7 +88,7 @@ def write_report(results: list[tuple[Test, Verdict]], figures: dict[str, list[Pa
     md = [f"# sweep verify{' --quick' if quick else ''}", "",
           f"Seeds: {', '.join(str(s) for s in seeds)}.", "", "```"]
     md += [line(t, v) for t, v in results] + ["```", ""]
-    for t, v in results:
+    for t, _ in results:
         md += [f"## {t.title}", "", f"Source: {t.source}.", ""]
         for path in figures.get(t.key, []):
             md.append(f"![{path.stem}]({os.path.basename(path)})")
