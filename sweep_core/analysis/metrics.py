@@ -33,7 +33,7 @@ from sweep_core.analysis.arrivals import ArrivalTracker, start_exits, stats, tim
 from sweep_core.analysis.density import MAX_CELLS as MAX_CELLS  # re-exported for the CLI
 from sweep_core.analysis.density import Hist2D
 from sweep_core.analysis.frames import Frame, FrameReader, GapFinder, progress_bar
-from sweep_core.analysis.roster import Roster
+from sweep_core.analysis.roster import Roster, grow
 from sweep_core.analysis.run import NS, RunMeta, Schedule, load_run, scene_with_map
 from sweep_core.errors import RecordingError, SweepError
 from sweep_core.model.geometry import Geometry, gaps
@@ -229,6 +229,8 @@ class _Metrics:
         if step == 0 or not self.n:  # no step taken yet: velocities are zero by definition
             return react_total, math.nan, math.nan
         v = np.hypot(f64["vx"], f64["vy"])
+        if not len(v):  # no agent present (all left at sinks)
+            return react_total, math.nan, math.nan
         self.speed_sum += float(v.sum())
         self.speed_count += len(v)
         self.speed_max = max(self.speed_max, float(v.max()))
@@ -246,10 +248,7 @@ class _Metrics:
             p0, p1, who = self.prev[1], q, np.arange(len(q))
             if self.roster is not None:
                 who, p0, p1 = Roster.common(self.prev_ids, p0, self.ids, q)
-                top = int(self.ids.max(initial=-1)) + 1
-                if top > len(self.evacuation):
-                    self.evacuation = np.concatenate(
-                        [self.evacuation, np.full(top - len(self.evacuation), np.nan)])
+                self.evacuation = grow(self.evacuation, int(self.ids.max(initial=-1)) + 1)
             c = line_crossings(p0, p1, self.line)
             self.positive += int(np.count_nonzero(c > 0))
             self.negative += int(np.count_nonzero(c < 0))
@@ -276,8 +275,7 @@ class _Metrics:
         n, worst = self.n or 0, self.worst
         if self.roster is not None:  # every agent seen, the scene's and the entered
             n = self.roster.total
-            self.evacuation = np.concatenate(
-                [self.evacuation, np.full(max(0, n - len(self.evacuation)), np.nan)])
+            self.evacuation = grow(self.evacuation, n)
         duration = float(table[-1, 0] - table[0, 0])
         dens = self.density.counts / (frames * cell * cell)
         origin = (self.density.ix0 * cell, self.density.iy0 * cell)
@@ -374,18 +372,9 @@ class _Metrics:
         labels = self.tracker.labels
         exits = [labels[k] if k >= 0 else None for k in self.tracker.exit.tolist()]
         arrival = self.arrival
-        if self.roster is not None:
-            # agents followed by id: an arrival is leaving at a sink (its time by id)
-            pop = self.roster.summary()
-            summary["population"] = pop
-            arrival = self.roster.left_at
+        if self.roster is not None:  # by id: an arrival is leaving at a sink
+            arrival = self.roster.report(summary)
             exits = [None] * len(arrival)
-            if pop["left"]:
-                summary["arrivals"] = {
-                    "arrived": pop["left"], "t_first_s": pop["left_t_first_s"],
-                    "t_mean_s": stats(arrival, np.mean), "t_50_s": pop["left_t_50_s"],
-                    "t_90_s": pop["left_t_90_s"], "t_all_s": pop["left_t_all_s"],
-                    "precision": "agents that left at a sink: " + pop["precision"]}
         return Analysis(meta, summary, table, dens, origin, cell, self.hist, arrival,
                         self.evacuation, exits)
 

@@ -15,7 +15,8 @@ from sweep_core.errors import RecordingError
 from sweep_core.model.scene import Scene
 
 
-def _grow(a: np.ndarray, n: int, fill: float) -> np.ndarray:
+def grow(a: np.ndarray, n: int, fill: float = np.nan) -> np.ndarray:
+    """a (M,) extended to length n with ``fill`` (unchanged if M >= n)."""
     if len(a) >= n:
         return a
     return np.concatenate([a, np.full(n - len(a), fill, dtype=a.dtype)])
@@ -49,8 +50,8 @@ class Roster:
     def add(self, ids: np.ndarray, t: float) -> None:
         """Marks the agents ``ids`` present at t (s): new ones entered, missing ones left."""
         top = int(ids.max()) + 1 if len(ids) else 0
-        self.entered_at = _grow(self.entered_at, top, np.nan)
-        self.left_at = _grow(self.left_at, top, np.nan)
+        self.entered_at = grow(self.entered_at, top, np.nan)
+        self.left_at = grow(self.left_at, top, np.nan)
         new = ids[np.isnan(self.entered_at[ids])]
         self.entered_at[new] = 0.0 if self.frames == 0 else t
         gone = np.setdiff1d(self.present, ids, assume_unique=True)
@@ -102,3 +103,15 @@ class Roster:
             "precision": "times of the first recorded frame holding (entry) or no longer "
                          "holding (leaving) an agent, by its /agents id",
         }
+
+    def report(self, summary: dict) -> np.ndarray:
+        """Adds ``population`` (:meth:`summary`) and, when agents left, ``arrivals`` (the
+        leaving times) to an analysis summary; returns the leaving time by id (NaN: stayed)."""
+        pop = summary["population"] = self.summary()
+        if pop["left"]:
+            summary["arrivals"] = {
+                "arrived": pop["left"], "t_first_s": pop["left_t_first_s"],
+                "t_mean_s": stats(self.left_at, np.mean), "t_50_s": pop["left_t_50_s"],
+                "t_90_s": pop["left_t_90_s"], "t_all_s": pop["left_t_all_s"],
+                "precision": "agents that left at a sink: " + pop["precision"]}
+        return self.left_at

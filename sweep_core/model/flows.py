@@ -31,13 +31,13 @@ from sweep_core.model.regions import Region, region_from_spec
 
 #: time gap T (s) of the headway law when the scene gives none: calibrated against Weidmann's
 #: speed-density relation in a ring corridor (docs/flows.md, scripts/calibrate_headway.py)
-DEFAULT_TIME_GAP = 0.9
+DEFAULT_TIME_GAP = 0.5
 #: most agents one source may emit
 MAX_SOURCE_COUNT = 100_000
 #: most legs of a journey
 MAX_LEGS = 64
-_DISTRIBUTIONS = {"normal": ({"mean", "std", "min", "max"}, set()),
-                  "uniform": ({"min", "max"}, set())}
+_DISTRIBUTIONS: dict[str, set[str]] = {"normal": {"mean", "std", "min", "max"},
+                                        "uniform": {"min", "max"}}
 
 
 @dataclass(frozen=True)
@@ -83,7 +83,7 @@ def draw_from_spec(value: Any, field: str, n: int | None, *, positive: bool) -> 
         if dist not in _DISTRIBUTIONS:
             raise SceneError(f"{field}.distribution", f"unknown distribution {show(dist)}",
                              f"use one of {sorted(_DISTRIBUTIONS)}")
-        need, _ = _DISTRIBUTIONS[dist]
+        need = _DISTRIBUTIONS[dist]
         checks.mapping(value, field, required={"distribution"} | need,
                        allowed={"distribution"} | need)
         lo = checks.number(value["min"], f"{field}.min", positive=positive,
@@ -133,7 +133,9 @@ class Source:
 @dataclass(frozen=True, eq=False)
 class Journey:
     """A group's legs (-1: the agents in no group): ``fields[k]`` leads to ``targets[k]`` (a
-    Region, or a goal point (2,) reached within ``arrive_radius`` m)."""
+    Region or a goal point (2,)), reached when the centre is within ``arrive_radius`` m of it
+    (inside a region counts as 0 m; a geodesic field slows to a halt at a region's edge, so
+    the radius is needed for regions too)."""
 
     group: int
     fields: tuple[Field, ...]
@@ -144,8 +146,8 @@ class Journey:
     def reached(self, leg: int, q: np.ndarray) -> np.ndarray:
         """(M,) bool: centres q (M, 2) reached target ``leg``."""
         tg = self.targets[leg]
-        if isinstance(tg, Region):
-            return tg.contains(q)
+        if isinstance(tg, Region):  # the field slows to a halt at the region's edge
+            return tg.distance(q) <= self.arrive_radius
         d = q - tg
         return np.hypot(d[:, 0], d[:, 1]) <= self.arrive_radius
 
@@ -268,8 +270,9 @@ def _journey(value: Any, field: str, names: tuple[str, ...], speed: float, geome
                              "region", f"give {lf}.goal: [x, y] or {lf}.region: {{kind: "
                              "rectangle, min: [x, y], max: [x, y]}")
         if "goal" in leg:
-            tg: Region | np.ndarray = checks.point(leg["goal"], f"{lf}.goal")
-            one = {"goal": tg.tolist()}
+            goal = checks.point(leg["goal"], f"{lf}.goal")
+            tg: Region | np.ndarray = goal
+            one = {"goal": goal.tolist()}
         else:
             tg = region_from_spec(leg["region"], f"{lf}.region")
             one = {"region": tg.spec}

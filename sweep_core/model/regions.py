@@ -33,6 +33,17 @@ class Region:
             return np.all((q >= self.lo) & (q <= self.hi), axis=1)
         return points_in_polygon(q, self.points)
 
+    def distance(self, q: np.ndarray) -> np.ndarray:
+        """(N,) distance (m) from the points q (N, 2) to the region, 0 inside."""
+        q = np.asarray(q, dtype=np.float64).reshape(-1, 2)
+        a, b = self.points, np.roll(self.points, -1, axis=0)
+        ab = b - a
+        rel = q[:, None, :] - a[None]
+        s = np.clip(np.einsum("mkc,kc->mk", rel, ab) / np.einsum("kc,kc->k", ab, ab), 0.0, 1.0)
+        foot = a[None] + s[..., None] * ab[None]
+        d = np.hypot(*(q[:, None, :] - foot).transpose(2, 0, 1)).min(axis=1, initial=np.inf)
+        return np.where(self.contains(q), 0.0, d)
+
     @property
     def area(self) -> float:
         """Area (m^2) of the outline."""
