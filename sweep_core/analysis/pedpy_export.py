@@ -119,7 +119,7 @@ def density_speed(traj: Trajectories, area: Sequence[tuple[float, float]],
     """Mean classic and Voronoi density (1/m^2) and mean and Voronoi speed (m/s) in the
     measurement ``area`` (a polygon, m), by PedPy, over the frames at or after ``since_s``
     seconds; speeds from positions ``frame_step`` frames either side (PedPy's
-    ``compute_individual_speed``, border frames excluded)."""
+    ``compute_individual_speed``; one-sided at the first and last frames of an agent)."""
     import pedpy
 
     data = traj.to_pedpy()
@@ -130,7 +130,9 @@ def density_speed(traj: Trajectories, area: Sequence[tuple[float, float]],
     polygons = pedpy.compute_individual_voronoi_polygons(traj_data=data, walkable_area=wa)
     voronoi, intersecting = pedpy.compute_voronoi_density(individual_voronoi_data=polygons,
                                                           measurement_area=ma)
-    speed = pedpy.compute_individual_speed(traj_data=data, frame_step=frame_step)
+    speed = pedpy.compute_individual_speed(
+        traj_data=data, frame_step=frame_step,
+        speed_calculation=pedpy.SpeedCalculation.BORDER_SINGLE_SIDED)
     mean_speed = pedpy.compute_mean_speed_per_frame(traj_data=data, individual_speed=speed,
                                                     measurement_area=ma)
     v_speed = pedpy.compute_voronoi_speed(traj_data=data, individual_speed=speed,

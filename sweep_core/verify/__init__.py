@@ -9,9 +9,10 @@ test measures, where its numbers come from, and the results of the full run.
 """
 from __future__ import annotations
 
-from sweep_core.verify import rooms
+from sweep_core.verify import crowds, diagrams, rooms
 from sweep_core.verify.base import Test
 
 #: name -> test, in the order they run and print
 TESTS: dict[str, Test] = {t.key: t for t in (
-    rooms.TEST_1, rooms.TEST_6, rooms.TEST_10, rooms.TEST_11, rooms.TEST_12)}
+    rooms.TEST_1, diagrams.TEST_4, crowds.TEST_7, rooms.TEST_6, crowds.TEST_9, rooms.TEST_10, rooms.TEST_11,
+    rooms.TEST_12, crowds.TEST_15, diagrams.TEST_BOTTLENECK)}

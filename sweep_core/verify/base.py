@@ -58,7 +58,8 @@ def set_key(spec: dict, key: str, value: Any) -> None:
 class Case:
     """One run of a test: ``label`` (unique in the test), the scene ``scene`` (a bundled name),
     ``changes`` (dotted key -> value), horizon ``t_end`` (s), ``dt`` (s), ``record_every``
-    (steps between recorded frames), ``stop_when_empty`` (end once every agent left)."""
+    (steps between recorded frames), ``stop_when_empty`` (end once every agent left);
+    ``inline``: a scene dict built by the test instead of a bundled file (``scene`` names it)."""
 
     label: str
     scene: str
@@ -67,10 +68,12 @@ class Case:
     dt: float = 0.05
     record_every: int = 4
     stop_when_empty: bool = False
+    inline: dict | None = None
 
     def spec(self, seed: int, folder: str | None = None) -> dict:
         """The scene dict of this case for a seed (a spawned crowd takes the seed)."""
-        data = load_yaml(scene_text(self.scene, folder))
+        data = self.inline if self.inline is not None else load_yaml(scene_text(self.scene,
+                                                                                folder))
         if not isinstance(data, dict):
             raise SceneError(self.scene, "is not a mapping", "give a scene YAML file")
         spec = copy.deepcopy(data)
@@ -85,7 +88,7 @@ class Case:
 class Trace:
     """What one run left for the verdict: ``traj`` (every recorded frame), ``left_at`` (id ->
     time, s, of leaving at a sink), ``left_xy`` (id -> last centre before leaving, m),
-    ``start`` (id -> centre at t = 0), ``speeds`` (id -> preferred speed, m/s, when the scene
+    ``start`` (id -> centre at t = 0), ``walls`` (the scene's walls spec), ``speeds`` (id -> preferred speed, m/s, when the scene
     draws them), ``t_end`` (s reached), ``error`` (the failure, "" if none), ``wall_s``."""
 
     case: str
@@ -97,6 +100,7 @@ class Trace:
     speeds: dict[int, float] = field(default_factory=dict)
     t_end: float = 0.0
     n0: int = 0
+    walls: list = field(default_factory=list)
     error: str = ""
     wall_s: float = 0.0
 
@@ -113,7 +117,9 @@ def simulate(case: Case, seed: int, folder: str | None = None) -> Trace:
     frames: list[tuple[int, np.ndarray, np.ndarray]] = []
     trace = Trace(case.label, seed, Trajectories.from_frames([], rate))
     try:
-        scene = Scene.from_dict(case.spec(seed, folder), name=case.scene)
+        spec = case.spec(seed, folder)
+        trace.walls = list(spec.get("walls") or [])
+        scene = Scene.from_dict(spec, name=case.scene)
         sim = Simulator(scene, dt=case.dt, seed=seed)
         trace.n0 = scene.n_agents
         last = [sim.ids, sim.positions]

@@ -70,11 +70,9 @@ def _judge_6(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
 
 
 def _plot_6(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> list[Path]:
-    from sweep_core.verify.base import Case as _C
-
     tr = traces["corner"][0]
     fig, ax = figure(5.0, 5.5)
-    walls(ax, _C("c", "rimea06_corner", 1.0).spec(tr.seed))
+    walls(ax, {"walls": tr.walls})
     for i in np.unique(tr.traj.ids):
         _, xy = tr.positions(int(i))
         ax.plot(xy[:, 0], xy[:, 1], lw=0.7)

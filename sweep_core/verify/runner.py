@@ -57,7 +57,12 @@ def verify(tests: Sequence[Test], seeds: Sequence[int], quick: bool, out: Path |
     for t in tests:
         mine = by_test[t.key]
         errors = sorted({tr.error for trs in mine.values() for tr in trs if tr.error})
-        verdict = t.judge(mine, quick)
+        try:
+            verdict = t.judge(mine, quick)
+        except Exception as err:  # noqa: BLE001 - a measurement that fails is a FAIL line
+            verdict = Verdict([math.nan] * len(seeds), [False] * len(seeds),
+                              notes=f"the measurement failed: {type(err).__name__}: "
+                              f"{str(err)[:200]}")
         if errors:
             verdict.passed = [False] * len(verdict.values)
             verdict.notes = (verdict.notes + "; " if verdict.notes else "") + \
