@@ -115,16 +115,18 @@ def rectangle(lo: Sequence[float], hi: Sequence[float]) -> list[tuple[float, flo
 
 def density_speed(traj: Trajectories, area: Sequence[tuple[float, float]],
                   walkable: Sequence[tuple[float, float]], frame_step: int,
-                  since_s: float = 0.0) -> dict[str, float]:
+                  since_s: float = 0.0,
+                  obstacles: Sequence[Sequence[tuple[float, float]]] = ()) -> dict[str, float]:
     """Mean classic and Voronoi density (1/m^2) and mean and Voronoi speed (m/s) in the
-    measurement ``area`` (a polygon, m), by PedPy, over the frames at or after ``since_s``
+    measurement ``area`` (a polygon, m) of the ``walkable`` polygon less the ``obstacles``
+    polygons, by PedPy, over the frames at or after ``since_s``
     seconds; speeds from positions ``frame_step`` frames either side (PedPy's
     ``compute_individual_speed``; one-sided at the first and last frames of an agent)."""
     import pedpy
 
     data = traj.to_pedpy()
     ma = pedpy.MeasurementArea(list(area))
-    wa = pedpy.WalkableArea(list(walkable))
+    wa = pedpy.WalkableArea(list(walkable), obstacles=[list(o) for o in obstacles])
     first = int(math.ceil(since_s * traj.frame_rate))
     classic = pedpy.compute_classic_density(traj_data=data, measurement_area=ma)
     polygons = pedpy.compute_individual_voronoi_polygons(traj_data=data, walkable_area=wa)

@@ -88,8 +88,9 @@ class Case:
 class Trace:
     """What one run left for the verdict: ``traj`` (every recorded frame), ``left_at`` (id ->
     time, s, of leaving at a sink), ``left_xy`` (id -> last centre before leaving, m),
-    ``start`` (id -> centre at t = 0), ``walls`` (the scene's walls spec), ``speeds`` (id -> preferred speed, m/s, when the scene
-    draws them), ``t_end`` (s reached), ``error`` (the failure, "" if none), ``wall_s``."""
+    ``start`` (id -> centre at t = 0), ``walls`` (the scene's walls spec), ``speeds`` (id ->
+    preferred speed, m/s, when the scene draws them), ``t_end`` (s reached), ``error`` (the
+    failure, "" if none), ``wall_s``."""
 
     case: str
     seed: int

@@ -65,23 +65,9 @@ def _cases_4(quick: bool) -> list[Case]:
 
 def _measure_4(tr: Trace) -> tuple[float, float]:
     """PedPy's Voronoi density (1/m^2) and speed (m/s) in the area, after 10 s."""
-    import pedpy
-
     outer, inner = _annulus()
-    data = tr.traj.to_pedpy()
-    wa = pedpy.WalkableArea(outer, obstacles=[inner])
-    ma = pedpy.MeasurementArea(AREA)
-    polygons = pedpy.compute_individual_voronoi_polygons(traj_data=data, walkable_area=wa)
-    dens, inter = pedpy.compute_voronoi_density(individual_voronoi_data=polygons,
-                                                measurement_area=ma)
-    speed = pedpy.compute_individual_speed(
-        traj_data=data, frame_step=2, speed_calculation=pedpy.SpeedCalculation.BORDER_SINGLE_SIDED)
-    vs = pedpy.compute_voronoi_speed(traj_data=data, individual_speed=speed,
-                                     individual_voronoi_intersection=inter, measurement_area=ma)
-    first = int(math.ceil(10.0 * tr.traj.frame_rate))
-    d = dens[dens.index >= first]["density"]
-    v = vs[vs.index >= first]["speed"]
-    return float(d.mean()), float(v.mean())
+    m = density_speed(tr.traj, AREA, outer, frame_step=2, since_s=10.0, obstacles=[inner])
+    return m["voronoi_density"], m["voronoi_speed"]
 
 
 def _diagram(traces: dict[str, list[Trace]], law: str) -> dict[float, list[tuple[float, float]]]:
