@@ -87,3 +87,25 @@ def test_export_pedpy_keeps_ids(tmp_path, capsys):
     np.testing.assert_allclose(first[["x", "y"]].to_numpy(),
                                [[3.0, 1.0], [1.5, 1.0], [0.5, 1.0]], atol=1e-6)
     assert "3 agents" in capsys.readouterr().out
+
+
+def test_pedpy_measurements_on_exact_trajectories():
+    """Agents walking at 1 m/s through a line, one every 0.5 s: PedPy's crossings give the
+    flow 2/s exactly; the classic density of a 2 m x 2 m area holding k of them is k / 4."""
+    from sweep_core.analysis.pedpy_export import Trajectories, classic_density, line_flow
+
+    rate = 10.0  # frames per second
+    frames = []
+    for k in range(60):
+        t = k / rate
+        ids = np.arange(8)
+        x = t - 0.5 * ids - 0.05  # agent i is at x = 0 at t = 0.5 i + 0.05
+        frames.append((k, ids, np.column_stack([x, np.zeros(8)])))
+    traj = Trajectories.from_frames(frames, rate)
+    flow = line_flow(traj, [(0.0, -1.0), (0.0, 1.0)])
+    assert flow["crossed"] == 8
+    assert flow["flow"] == pytest.approx(2.0)
+    assert flow["first_s"] == pytest.approx(0.1)  # the first frame beyond the line
+    dens = classic_density(traj, [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
+    inside = [int(np.sum(np.abs(q[:, 0]) <= 1.0)) for _, _, q in frames]
+    np.testing.assert_allclose(dens, np.asarray(inside) / 4.0)
