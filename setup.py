@@ -9,7 +9,8 @@ setup(
     name=package_name,
     version="0.1.0",
     packages=find_packages(include=["sweep_core", "sweep_core.*", "sweep_ros"]),
-    package_data={"sweep_core": ["scenes/*.yaml", "py.typed"]},
+    package_data={"sweep_core": ["scenes/*.yaml", "scenes/rimea/*.yaml", "verify/data/*.csv",
+                                 "py.typed"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
@@ -32,6 +33,8 @@ setup(
         "numba>=0.60",
         "cvxopt>=1.3",
     ],
+    # sweep verify and sweep export (PedPy needs Python >= 3.11)
+    extras_require={"verify": ["pedpy==1.5.1", "distributed", "pandas"]},
     zip_safe=True,
     maintainer="sweep_ros developers",
     maintainer_email="sweep-ros@example.org",

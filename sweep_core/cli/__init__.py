@@ -1,11 +1,12 @@
 """The ``sweep`` command: ``run`` a scene headless and record it, ``analyze``, ``replay`` and
-``compare`` recordings, ``recover`` one cut short, ``bench accuracy`` and ``bench speed``."""
+``compare`` recordings, ``recover`` one cut short, ``bench accuracy`` and ``bench speed``,
+``verify`` (the RiMEA tests) and ``export`` (PedPy trajectories)."""
 from __future__ import annotations
 
 import argparse
 import sys
 
-from sweep_core.cli import analysis, bench, ensemble, maps, recover, render, run
+from sweep_core.cli import analysis, bench, ensemble, maps, recover, render, run, verify
 from sweep_core.errors import SweepError
 
 
@@ -19,6 +20,7 @@ def build_parser() -> argparse.ArgumentParser:
     maps.register(sub)
     bench.register(sub)
     ensemble.register(sub)
+    verify.register(sub)
     return parser
 
 

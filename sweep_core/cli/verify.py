@@ -1,0 +1,94 @@
+"""``sweep verify`` (the RiMEA tests and the validation against experiments) and ``sweep
+export`` (a recording as PedPy trajectories).
+
+    sweep verify [--quick] [--tests rimea1 rimea6 ...] [--seeds 5] [--seed 0] [--out DIR]
+                 [--scenes DIR] [--workers K | --scheduler tcp://HOST:PORT | --in-process]
+    sweep export RUN.mcap --pedpy OUT.txt
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from sweep_core.errors import SweepError
+
+__all__ = ["register"]
+
+#: seeds of the full run and of --quick
+SEEDS, QUICK_SEEDS = 5, 2
+
+
+def _verify(args: argparse.Namespace) -> int:
+    from sweep_core.numerics import kernels
+    from sweep_core.verify import TESTS
+    from sweep_core.verify.runner import verify
+
+    names = args.tests or [k for k, t in TESTS.items() if not (args.quick and t.slow)]
+    unknown = [n for n in names if n not in TESTS]
+    if unknown:
+        raise SweepError(f"--tests: {unknown[0]!r} is not a test (fix: choose from "
+                         f"{', '.join(TESTS)})")
+    n = args.seeds if args.seeds is not None else (QUICK_SEEDS if args.quick else SEEDS)
+    if n < 1:
+        raise SweepError(f"--seeds: {n} is not a positive number of seeds (fix: e.g. --seeds 3)")
+    seeds = list(range(args.seed, args.seed + n))
+    tests = [TESTS[k] for k in names]
+    kernels.warm_up(lambda text: print(f"sweep: {text}", file=sys.stderr))
+    out = None if args.no_report else Path(args.out)
+    if args.in_process or (args.quick and args.workers is None and args.scheduler is None):
+        results = verify(tests, seeds, args.quick, out, args.scenes)
+    else:
+        from sweep_core.ensemble.cluster import connect
+
+        with connect(scheduler=args.scheduler, workers=args.workers,
+                     log=lambda text: print(f"sweep: {text}", file=sys.stderr)) as client:
+            results = verify(tests, seeds, args.quick, out, args.scenes, client)
+    if out is not None:
+        print(f"report: {out / 'report.md'}")
+    return 1 if any(v.status == "FAIL" for _, v in results) else 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from sweep_core.analysis.pedpy_export import check_pedpy, read_trajectories, write_pedpy_txt
+
+    check_pedpy()
+    traj = read_trajectories(args.recording)
+    path = write_pedpy_txt(traj, args.pedpy, inputs=[args.recording])
+    print(f"{path}: {len(set(traj.ids.tolist()))} agents, {len(traj.ids)} rows, "
+          f"{traj.frame_rate:g} frames/s (pedpy.load_trajectory_from_txt reads it)")
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``verify`` and ``export`` to the ``sweep`` command's subparsers."""
+    p = subparsers.add_parser(
+        "verify", help="the RiMEA tests and the validation against experiments",
+        description="Runs the RiMEA tests (and the validation studies) over several seeds, "
+        "prints one line per test (measured, criterion, value over seeds, PASS/FAIL; DOC: "
+        "documented, no threshold) and writes a report folder. Exit status 1 when any fails.")
+    p.add_argument("--quick", action="store_true",
+                   help=f"{QUICK_SEEDS} seeds, smaller crowds, the fast tests only, in this "
+                   "process (no Dask) unless --workers or --scheduler is given")
+    p.add_argument("--tests", nargs="+", metavar="NAME", help="tests to run (default: all)")
+    p.add_argument("--seeds", type=int, default=None,
+                   help=f"seeds per test (default {SEEDS}, {QUICK_SEEDS} with --quick)")
+    p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    p.add_argument("--out", default="verify_out", help="report folder (default verify_out)")
+    p.add_argument("--no-report", action="store_true", help="print the lines only")
+    p.add_argument("--scenes", metavar="DIR", default=None,
+                   help="a folder of scene files that replace the bundled ones of the same "
+                   "name (e.g. rimea06_corner.yaml)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None,
+                       help="local Dask worker processes (default: the cores)")
+    where.add_argument("--scheduler", default=None, help="a running Dask scheduler's address")
+    where.add_argument("--in-process", action="store_true", help="no Dask: run here")
+    p.set_defaults(func=_verify)
+
+    e = subparsers.add_parser("export", help="a recording as PedPy trajectories",
+                              description="Writes a recording's trajectories in PedPy's text "
+                              "format (id frame x y z; frame rate 1 / (dt record_every)).")
+    e.add_argument("recording", help="an MCAP recording of sweep run or the node")
+    e.add_argument("--pedpy", required=True, metavar="OUT.txt", help="the file to write")
+    e.set_defaults(func=_export)

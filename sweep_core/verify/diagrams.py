@@ -1,0 +1,252 @@
+"""RiMEA test 4 (the fundamental diagram) and the bottleneck validation (specific flow
+against width, with the experiments of Seyfried et al. 2009 and Kretz et al. 2006), each with
+the headway speed law at its default time gap and without it (the pure model).
+
+Fundamental diagram: the ring corridor of :func:`sweep_core.model.ring.ring_corridor` (inner
+radius 3 m, outer 5 m, disks of 0.2 m) holds a fixed density N / area; RiMEA asks for the
+mean speed over 60 s after a 10 s transient at 0.5 to 6 per m^2. Densities above about 4.3 per
+m^2 cannot be placed at random with 0.2 m disks (random sequential addition jams at a
+coverage of 0.547), so the diagram stops at 4 per m^2. Speed and density are measured by
+PedPy (Voronoi density and speed) in a 2 m x 1.5 m area of the ring. Target: with the
+headway law, the mean speed within 15 % of Weidmann's at 0.5 to 3 per m^2.
+
+Bottleneck: a 10 m x 8 m room, a 2 m long bottleneck of width w (0.8, 1.0, 1.2 m), 150
+people; the flow J (1/s) where the bottleneck ends, by PedPy's crossings, between the 10th and
+the 90th percent of the crossings; specific flow J / w. Target: with the headway law, J within
+15 % of Seyfried et al.'s at the same width.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from sweep_core.analysis.pedpy_export import density_speed, line_flow, rectangle
+from sweep_core.model.flows import DEFAULT_TIME_GAP
+from sweep_core.model.ring import ring_corridor, weidmann
+from sweep_core.verify.base import Case, Test, Trace, Verdict
+from sweep_core.verify.figures import figure, save
+
+#: relative departure from the experiments still within the target
+TARGET = 0.15
+LAWS = ("headway", "pure")
+
+# -- test 4 -------------------------------------------------------------------------------------
+
+DENSITIES = (0.5, 1.0, 2.0, 3.0, 4.0)
+QUICK_DENSITIES = (0.5, 2.0)
+#: the densities the target covers (1/m^2)
+TARGET_MAX_DENSITY = 3.0
+#: measurement area in the ring (m) and the ring's walkable area
+AREA = rectangle((-1.0, 3.3), (1.0, 4.8))
+SIDES = 96
+
+
+def _annulus() -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
+    ang = 2.0 * math.pi * np.arange(SIDES) / SIDES
+    outer = 5.0 / math.cos(math.pi / SIDES)
+    inner = 3.0 / math.cos(math.pi / SIDES)  # the polygon round the inner circle
+    return ([(outer * math.cos(a), outer * math.sin(a)) for a in ang],
+            [(inner * math.cos(a), inner * math.sin(a)) for a in ang])
+
+
+def _cases_4(quick: bool) -> list[Case]:
+    out = []
+    for rho in QUICK_DENSITIES if quick else DENSITIES:
+        for law in LAWS:
+            gap = DEFAULT_TIME_GAP if law == "headway" else None
+            out.append(Case(f"{law}/{rho:g}", "ring", 30.0 if quick else 70.0,
+                            inline=ring_corridor(rho, time_gap=gap), record_every=5))
+    return out
+
+
+def _measure_4(tr: Trace) -> tuple[float, float]:
+    """PedPy's Voronoi density (1/m^2) and speed (m/s) in the area, after 10 s."""
+    outer, inner = _annulus()
+    m = density_speed(tr.traj, AREA, outer, frame_step=2, since_s=10.0, obstacles=[inner])
+    return m["voronoi_density"], m["voronoi_speed"]
+
+
+def _diagram(traces: dict[str, list[Trace]], law: str) -> dict[float, list[tuple[float, float]]]:
+    """Nominal density -> [(Voronoi density, Voronoi speed) per seed]."""
+    out: dict[float, list[tuple[float, float]]] = {}
+    for label, trs in traces.items():
+        name, rho = label.split("/")
+        if name == law:
+            out[float(rho)] = [_measure_4(tr) if not tr.error else (math.nan, math.nan)
+                               for tr in trs]
+    return out
+
+
+def _judge_4(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
+    head = _diagram(traces, "headway")
+    pure = _diagram(traces, "pure")
+    n_seeds = len(next(iter(head.values())))
+    values, ok = [], []
+    for k in range(n_seeds):
+        worst = 0.0
+        for rho, per_seed in head.items():
+            if rho <= TARGET_MAX_DENSITY:
+                worst = max(worst, abs(per_seed[k][1] / float(weidmann(rho)) - 1.0))
+        values.append(worst)
+        ok.append(worst <= TARGET)
+
+    def row(d: dict[float, list[tuple[float, float]]]) -> str:
+        return ", ".join(f"{rho:g}: {np.nanmean([v for _, v in s]):.2f}" for rho, s in
+                         sorted(d.items()))
+
+    notes = (f"speeds (m/s) with the headway law {row(head)}; pure model {row(pure)}; "
+             "Weidmann " + ", ".join(f"{r:g}: {float(weidmann(r)):.2f}" for r in sorted(head)))
+    verdict = Verdict(values, ok, "", notes)
+    verdict.figures = {"headway": head, "pure": pure}
+    return verdict
+
+
+def _plot_4(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> list[Path]:
+    rho = np.linspace(0.3, 5.4, 200)
+    paths = []
+    for what in ("speed", "flow"):
+        fig, ax = figure()
+        ref = weidmann(rho) * (rho if what == "flow" else 1.0)
+        ax.plot(rho, ref, color="black", label="Weidmann 1993")
+        for law, marker in (("headway", "o"), ("pure", "s")):
+            pts = [p for s in verdict.figures[law].values() for p in s]
+            d = np.asarray([p[0] for p in pts])
+            v = np.asarray([p[1] for p in pts])
+            ax.scatter(d, v * (d if what == "flow" else 1.0), marker=marker, s=18,
+                       label=f"{'headway law (default time gap)' if law == 'headway' else 'pure model'}")
+        ax.set_xlabel("Voronoi density (1/m^2)")
+        ax.set_ylabel("speed (m/s)" if what == "speed" else "specific flow (1/(m s))")
+        ax.set_title(f"RiMEA 4: fundamental diagram in a ring corridor ({what})")
+        ax.legend(fontsize=8)
+        paths.append(save(fig, folder / f"rimea4_fundamental_{what}.png"))
+    return paths
+
+
+TEST_4 = Test(
+    "rimea4", "RiMEA 4 fundamental diagram",
+    "largest relative departure of the mean speed (headway law) from Weidmann's at "
+    "0.5-3 /m^2 (ring corridor, PedPy Voronoi)", f"<= {TARGET:.0%} (target; RiMEA sets none)",
+    _cases_4, _judge_4, _plot_4,
+    source="RiMEA 3.0 test 4; Weidmann 1993; the ring corridor of sweep_core.model.ring",
+    slow=True)
+
+# -- bottleneck ---------------------------------------------------------------------------------
+
+WIDTHS = (0.8, 1.0, 1.2)
+PEOPLE = 150
+
+
+def bottleneck_scene(width: float, time_gap: float | None, people: int = PEOPLE) -> dict:
+    """A 10 m x 8 m room, a 2 m long bottleneck of ``width`` m centred at y = 4 m, open space
+    beyond it, where agents leave 1 m after the bottleneck; the headway law with
+    ``time_gap`` (s; None: the pure model)."""
+    lo, hi = 4.0 - width / 2, 4.0 + width / 2
+    spec: dict = {
+        "name": f"bottleneck_{width:g}",
+        "agents": {"spawn": {"region": {"kind": "rectangle", "min": [0.0, 0.0],
+                                        "max": [8.0, 8.0]},
+                             "count": people, "radius": 0.2, "seed": 0}, "speed": 1.34},
+        "walls": [{"kind": "polyline", "points": [[12.0, lo], [10.0, lo], [10.0, 0.0],
+                                                  [0.0, 0.0], [0.0, 8.0], [10.0, 8.0],
+                                                  [10.0, hi], [12.0, hi]]}],
+        "drift": {"kind": "geodesic", "region": {"kind": "rectangle", "min": [14.0, 2.0],
+                                                  "max": [15.0, 6.0]}, "speed": 1.34},
+        "noise": {"sigma": 0.05},
+        "flows": {"speeds": {"distribution": "normal", "mean": 1.34, "std": 0.26,
+                             "min": 0.58, "max": 1.61},
+                  "sinks": [{"kind": "rectangle", "min": [13.0, 0.0], "max": [15.0, 8.0]}]},
+    }
+    if time_gap is not None:
+        spec["flows"]["headway"] = {"time_gap": time_gap}
+    return spec
+
+
+def experiments() -> list[tuple[str, float, float]]:
+    """(source, width m, flow 1/s) of the bundled experimental data."""
+    text = resources.files("sweep_core").joinpath("verify/data/bottleneck_flow.csv").read_text()
+    rows = csv.DictReader(ln for ln in text.splitlines() if not ln.startswith("#"))
+    return [(r["source"], float(r["width_m"]), float(r["flow_per_s"])) for r in rows]
+
+
+def _cases_b(quick: bool) -> list[Case]:
+    people = 60 if quick else PEOPLE
+    return [Case(f"{law}/{w:g}", "bottleneck", 400.0,
+                 inline=bottleneck_scene(w, DEFAULT_TIME_GAP if law == "headway" else None,
+                                         people),
+                 record_every=2, stop_when_empty=True)
+            for w in WIDTHS for law in LAWS]
+
+
+def steady_flow(tr: Trace, width: float) -> float:
+    """Flow (1/s) where the bottleneck ends, between 10 % and 90 % of the crossings."""
+    lo, hi = 4.0 - width / 2, 4.0 + width / 2
+    import pedpy
+
+    _, crossing = pedpy.compute_n_t(traj_data=tr.traj.to_pedpy(),
+                                    measurement_line=pedpy.MeasurementLine([(12.0, lo),
+                                                                            (12.0, hi)]))
+    t = np.sort(np.asarray(crossing["frame"], dtype=np.float64)) / tr.traj.frame_rate
+    if len(t) < 10:
+        return line_flow(tr.traj, [(12.0, lo), (12.0, hi)])["flow"]
+    a, b = int(0.1 * len(t)), int(0.9 * len(t)) - 1
+    return (b - a) / (t[b] - t[a]) if t[b] > t[a] else math.nan
+
+
+def _seyfried(width: float) -> float:
+    pts = [(w, j) for s, w, j in experiments() if s == "seyfried2009"]
+    return float(np.interp(width, [w for w, _ in pts], [j for _, j in pts]))
+
+
+def _judge_b(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
+    flows: dict[str, dict[float, list[float]]] = {law: {} for law in LAWS}
+    for label, trs in traces.items():
+        law, w = label.split("/")
+        flows[law][float(w)] = [steady_flow(tr, float(w)) if not tr.error else math.nan
+                                for tr in trs]
+    n_seeds = len(next(iter(traces.values())))
+    values, ok = [], []
+    for k in range(n_seeds):
+        worst = max(abs(flows["headway"][w][k] / _seyfried(w) - 1.0) for w in WIDTHS)
+        values.append(worst)
+        ok.append(worst <= TARGET)
+    notes = "; ".join(
+        f"{law}: " + ", ".join(f"w {w:g} m J/w {np.nanmean(js) / w:.2f}" for w, js in
+                               sorted(flows[law].items())) for law in LAWS)
+    notes += "; Seyfried 2009 J/w " + ", ".join(f"{w:g}: {_seyfried(w) / w:.2f}"
+                                                for w in WIDTHS)
+    verdict = Verdict(values, ok, "", notes)
+    verdict.figures = flows
+    return verdict
+
+
+def _plot_b(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> list[Path]:
+    fig, ax = figure()
+    for source, marker in (("seyfried2009", "^"), ("kretz2006", "v")):
+        pts = [(w, j / w) for s, w, j in experiments() if s == source]
+        ax.scatter([p[0] for p in pts], [p[1] for p in pts], marker=marker, color="gray",
+                   label={"seyfried2009": "Seyfried et al. 2009",
+                          "kretz2006": "Kretz et al. 2006"}[source])
+    for law in LAWS:
+        ws = sorted(verdict.figures[law])
+        js = [np.asarray(verdict.figures[law][w]) / w for w in ws]
+        ax.errorbar(ws, [np.nanmean(j) for j in js], yerr=[np.nanstd(j) for j in js],
+                    marker="o", capsize=3,
+                    label="headway law (default time gap)" if law == "headway" else "pure model")
+    ax.set_xlabel("bottleneck width w (m)")
+    ax.set_ylabel("specific flow J / w (1/(m s))")
+    ax.set_title("Bottleneck: specific flow against width")
+    ax.legend(fontsize=8)
+    return [save(fig, folder / "bottleneck_specific_flow.png")]
+
+
+TEST_BOTTLENECK = Test(
+    "bottleneck", "Bottleneck flow against width (validation)",
+    "largest relative departure of the flow (headway law) from Seyfried et al. 2009 at "
+    "widths 0.8, 1.0, 1.2 m (150 people)", f"<= {TARGET:.0%} (target)",
+    _cases_b, _judge_b, _plot_b,
+    source="Seyfried et al. 2009, Kretz et al. 2006 (data as in JuPedSim's validation folder)",
+    slow=True)

@@ -1,0 +1,101 @@
+"""Runs verification tests over seeds (on Dask, or in this process), prints one line per
+test and writes the report folder: ``summary.csv`` (one row per test), ``report.md`` (the
+lines and the figures) and the figures."""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from sweep_core.errors import SweepError
+from sweep_core.io.outputs import write_text
+from sweep_core.verify.base import Case, Test, Trace, Verdict, simulate
+
+
+def line(test: Test, verdict: Verdict) -> str:
+    """The printed line of a test: name, what is measured, criterion, value, status."""
+    text = (f"{test.key:<9} {verdict.status:<4}  {test.title}: {test.measures} | criterion "
+            f"{test.criterion} | {verdict.spread()}")
+    return text + (f" | {verdict.notes}" if verdict.notes else "")
+
+
+def run_traces(tasks: Sequence[tuple[Case, int]], folder: str | None, client: Any) -> list[Trace]:
+    """The traces of (case, seed) tasks: on the Dask ``client`` when given, else here."""
+    if client is None:
+        return [simulate(case, seed, folder) for case, seed in tasks]
+    futures = [client.submit(simulate, case, seed, folder, pure=False) for case, seed in tasks]
+    return list(client.gather(futures))
+
+
+def verify(tests: Sequence[Test], seeds: Sequence[int], quick: bool, out: Path | None,
+           folder: str | None = None, client: Any = None,
+           say: Callable[[str], None] = print) -> list[tuple[Test, Verdict]]:
+    """Runs every case of every test with every seed, judges, prints a line per test and (when
+    ``out`` is given) writes the report folder. Returns (test, verdict) pairs."""
+    if folder is not None and not Path(folder).is_dir():
+        raise SweepError(f"--scenes: {folder!r} is not a folder (fix: give a folder of scene "
+                         "YAML files named as the bundled ones, e.g. rimea06_corner.yaml)")
+    tasks = [(case, seed) for t in tests for case in t.cases(quick) for seed in seeds]
+    traces = run_traces(tasks, folder, client)
+    by_test: dict[str, dict[str, list[Trace]]] = {}
+    k = 0
+    for t in tests:
+        mine: dict[str, list[Trace]] = {}
+        for case in t.cases(quick):
+            for _ in seeds:
+                mine.setdefault(case.label, []).append(traces[k])
+                k += 1
+        by_test[t.key] = mine
+    results = []
+    figures: dict[str, list[Path]] = {}
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+    for t in tests:
+        mine = by_test[t.key]
+        errors = sorted({tr.error for trs in mine.values() for tr in trs if tr.error})
+        try:
+            verdict = t.judge(mine, quick)
+        except Exception as err:  # noqa: BLE001 - a measurement that fails is a FAIL line
+            verdict = Verdict([math.nan] * len(seeds), [False] * len(seeds),
+                              notes=f"the measurement failed: {type(err).__name__}: "
+                              f"{str(err)[:200]}")
+        if errors:
+            verdict.passed = [False] * len(verdict.values)
+            verdict.notes = (verdict.notes + "; " if verdict.notes else "") + \
+                "failed runs: " + errors[0][:200]
+        results.append((t, verdict))
+        say(line(t, verdict))
+        if out is not None and t.plot is not None and not errors:
+            figures[t.key] = t.plot(mine, verdict, out)
+    if out is not None:
+        write_report(results, figures, seeds, quick, out)
+    return results
+
+
+def write_report(results: list[tuple[Test, Verdict]], figures: dict[str, list[Path]],
+                 seeds: Sequence[int], quick: bool, out: Path) -> None:
+    """``summary.csv`` and ``report.md`` in ``out``."""
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(["test", "status", "measures", "criterion", "mean", "min", "max", "values",
+                "notes"])
+    for t, v in results:
+        vals = [x for x in v.values if math.isfinite(x)]
+        w.writerow([t.key, v.status, t.measures, t.criterion,
+                    f"{sum(vals) / len(vals):.6g}" if vals else "",
+                    f"{min(vals):.6g}" if vals else "", f"{max(vals):.6g}" if vals else "",
+                    " ".join(f"{x:.6g}" for x in v.values), v.notes])
+    write_text(out / "summary.csv", buf.getvalue())
+    md = [f"# sweep verify{' --quick' if quick else ''}", "",
+          f"Seeds: {', '.join(str(s) for s in seeds)}.", "", "```"]
+    md += [line(t, v) for t, v in results] + ["```", ""]
+    for t, _ in results:
+        md += [f"## {t.title}", "", f"Source: {t.source}.", ""]
+        for path in figures.get(t.key, []):
+            md.append(f"![{path.stem}]({os.path.basename(path)})")
+        md.append("")
+    write_text(out / "report.md", "\n".join(md))

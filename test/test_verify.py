@@ -1,0 +1,111 @@
+"""``sweep verify --quick`` (the fast RiMEA tests pass; a corner with a gap in its wall fails
+them) and ``sweep export --pedpy`` (a recording with agents leaving, read back by PedPy)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sweep_core.cli import main
+from sweep_core.model.yaml_files import dump_yaml, load_yaml
+from sweep_core.verify.base import scene_text
+
+pedpy = pytest.importorskip("pedpy")
+
+FAST = ["rimea1", "rimea6", "rimea10"]
+
+
+def _lines(out: str) -> dict[str, str]:
+    return {ln.split()[0]: ln for ln in out.splitlines() if ln.startswith("rimea")}
+
+
+def test_quick_passes(tmp_path, capsys):
+    rc = main(["verify", "--quick", "--tests", *FAST, "--out", str(tmp_path / "rep")])
+    out = capsys.readouterr().out
+    lines = _lines(out)
+    assert sorted(lines) == sorted(FAST), out
+    for name in FAST:
+        assert lines[name].split()[1] == "PASS", lines[name]
+    assert rc == 0
+    assert "criterion 26-34 s" in lines["rimea1"]
+    summary = (tmp_path / "rep" / "summary.csv").read_text().splitlines()
+    assert summary[0].startswith("test,status") and len(summary) == 1 + len(FAST)
+    assert (tmp_path / "rep" / "rimea6_corner_trajectories.png").stat().st_size > 0
+
+
+def test_corner_with_gap_fails(tmp_path, capsys):
+    """A 2 m gap in the inner wall of the first corridor: the shortest way to the exit leaves
+    the corridors through it, and test 6 must say FAIL with exit status 1."""
+    spec = load_yaml(scene_text("rimea06_corner"))
+    inner = spec["walls"][0]
+    assert inner["points"][:2] == [[0.0, 2.0], [10.0, 2.0]]
+    spec["walls"][0] = {"kind": "polyline", "points": [[6.0, 2.0], [10.0, 2.0], [10.0, 14.0]]}
+    spec["walls"].append({"kind": "segment", "a": [0.0, 2.0], "b": [4.0, 2.0]})
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    (folder / "rimea06_corner.yaml").write_text(dump_yaml(spec))
+    rc = main(["verify", "--quick", "--tests", "rimea6", "--scenes", str(folder),
+               "--no-report"])
+    line = _lines(capsys.readouterr().out)["rimea6"]
+    assert rc == 1
+    assert line.split()[1] == "FAIL", line
+    outside = float(line.split("| ")[2].split()[0])  # the mean count of people outside
+    assert outside > 0, line
+
+
+def test_unknown_test_is_refused(capsys):
+    assert main(["verify", "--quick", "--tests", "rimea99"]) == 2
+    err = capsys.readouterr().err
+    assert "--tests: 'rimea99' is not a test" in err and "rimea1" in err
+
+
+def test_export_pedpy_keeps_ids(tmp_path, capsys):
+    """Three agents in a corridor, the front one leaves at a sink: PedPy reads the export
+    with the recording's frame rate, every id, and the leaver's rows ending when it left."""
+    scene = {
+        "agents": {"positions": [[3.0, 1.0], [1.5, 1.0], [0.5, 1.0]], "radius": 0.2},
+        "walls": [{"kind": "polyline", "points": [[8.0, 0.0], [0.0, 0.0], [0.0, 2.0],
+                                                    [8.0, 2.0]]}],
+        "drift": {"kind": "uniform", "velocity": [1.0, 0.0]},
+        "flows": {"sinks": [{"kind": "rectangle", "min": [4.0, 0.0], "max": [8.0, 2.0]}]},
+    }
+    path = tmp_path / "s.yaml"
+    path.write_text(dump_yaml(scene))
+    rec = tmp_path / "run.mcap"
+    assert main(["run", str(path), "--t-end", "3", "--dt", "0.05", "--record-every", "2",
+                 "--out", str(rec), "--quiet"]) == 0
+    out = tmp_path / "traj.txt"
+    assert main(["export", str(rec), "--pedpy", str(out)]) == 0
+    data = pedpy.load_trajectory_from_txt(trajectory_file=out)
+    assert data.frame_rate == pytest.approx(10.0)
+    df = data.data
+    assert sorted(set(df["id"])) == [0, 1, 2]
+    # agent 0 starts 1 m before the sink and walks 1 m/s: it is gone after t = 1 s
+    last0 = df[df["id"] == 0]["frame"].max() / data.frame_rate
+    assert 0.8 <= last0 < 1.05
+    assert df[df["id"] == 2]["frame"].max() == df["frame"].max()
+    first = df[df["frame"] == 0].sort_values("id")
+    np.testing.assert_allclose(first[["x", "y"]].to_numpy(),
+                               [[3.0, 1.0], [1.5, 1.0], [0.5, 1.0]], atol=1e-6)
+    assert "3 agents" in capsys.readouterr().out
+
+
+def test_pedpy_measurements_on_exact_trajectories():
+    """Agents walking at 1 m/s through a line, one every 0.5 s: PedPy's crossings give the
+    flow 2/s exactly; the classic density of a 2 m x 2 m area holding k of them is k / 4."""
+    from sweep_core.analysis.pedpy_export import Trajectories, classic_density, line_flow
+
+    rate = 10.0  # frames per second
+    frames = []
+    for k in range(60):
+        t = k / rate
+        ids = np.arange(8)
+        x = t - 0.5 * ids - 0.05  # agent i is at x = 0 at t = 0.5 i + 0.05
+        frames.append((k, ids, np.column_stack([x, np.zeros(8)])))
+    traj = Trajectories.from_frames(frames, rate)
+    flow = line_flow(traj, [(0.0, -1.0), (0.0, 1.0)])
+    assert flow["crossed"] == 8
+    assert flow["flow"] == pytest.approx(2.0)
+    assert flow["first_s"] == pytest.approx(0.1)  # the first frame beyond the line
+    dens = classic_density(traj, [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
+    inside = [int(np.sum(np.abs(q[:, 0]) <= 1.0)) for _, _, q in frames]
+    np.testing.assert_allclose(dens, np.asarray(inside) / 4.0)
