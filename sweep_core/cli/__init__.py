@@ -1,11 +1,12 @@
-"""The ``sweep`` command: ``run`` a scene headless and record it, ``analyze``, ``replay`` and
-``compare`` recordings, ``recover`` one cut short, ``bench accuracy`` and ``bench speed``."""
+"""The ``sweep`` command: ``run`` a scene headless and record it (``scenes`` lists the bundled
+ones), ``analyze``, ``replay`` and ``compare`` recordings, ``recover`` one cut short, ``bench
+accuracy`` and ``bench speed``."""
 from __future__ import annotations
 
 import argparse
 import sys
 
-from sweep_core.cli import analysis, bench, ensemble, maps, recover, run
+from sweep_core.cli import analysis, bench, ensemble, maps, recover, run, scenes
 from sweep_core.errors import SweepError
 
 
@@ -13,6 +14,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="sweep", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     run.register(sub)
+    scenes.register(sub)
     analysis.register(sub)
     recover.register(sub)
     maps.register(sub)

@@ -37,6 +37,7 @@ import numpy as np
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.fields import DEFAULT_SPEED, Field, field_from_spec
+from sweep_core.model.gallery import resolve_scene_path
 from sweep_core.model.geometry import Geometry, gaps
 from sweep_core.model.groups import scene_drift
 from sweep_core.model.maps import OccupancyMap, map_from_spec, read_bounded
@@ -434,5 +435,6 @@ def default_scene_path() -> Path:
 
 
 def load_scene(path: str | None) -> Scene:
-    """A scene file, or the bundled default when path is None or empty."""
-    return Scene.from_yaml(path or default_scene_path())
+    """A scene file, a bundled scene's name when no such file exists (``sweep scenes`` lists
+    them), or the bundled default when path is None or empty."""
+    return Scene.from_yaml(resolve_scene_path(path) if path else default_scene_path())
