@@ -134,7 +134,7 @@ def write_times(times: dict[str, float], machine: str) -> None:
     text = index.read_text()
     text = re.sub(r"(?m)^measured_on: .*$", f"measured_on: {machine}", text)
     for name, wall in times.items():
-        text = re.sub(rf"(?ms)^(- name: {re.escape(name)}\n(?:  .*\n)*?  run_s: )\S+$",
+        text = re.sub(rf"(?m)^(- name: {re.escape(name)}\n(?:  .*\n)*?  run_s: )\S+$",
                       lambda m, w=wall: f"{m[1]}{int(np.ceil(w))}", text)
     index.write_text(text)
 
