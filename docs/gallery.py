@@ -5,9 +5,10 @@ For every bundled scene (``sweep scenes``) this runs ``sweep run NAME`` (10 s si
 0.01, every step recorded, as a user would), times it, and draws ``docs/gallery/NAME.png``
 from the recording: walls and obstacles (where they are at the snapshot), each agent's path
 over the last seconds before the snapshot, and the disks at the snapshot with their radii,
-coloured by group. The README's picture (``docs/crowd_at_door.png``) is the bundled
-``room_door`` drawn the same way. The wall times go into ``sweep_core/scenes/gallery.yaml``
-(``run_s``) with the machine they were measured on (``measured_on``, from ``--machine``):
+coloured by group, and writes the page ``docs/gallery.md``. The README's picture
+(``docs/crowd_at_door.png``) is the bundled ``room_door`` drawn the same way. The wall times
+go into ``sweep_core/scenes/gallery.yaml`` (``run_s``) with the machine they were measured
+on (``measured_on``, from ``--machine``):
 
     python docs/gallery.py --machine "a 2-core x86-64 VM shared with other jobs"
     python docs/gallery.py --only bottleneck --no-times     # one picture, index untouched
@@ -33,16 +34,17 @@ from matplotlib.patches import Circle  # noqa: E402
 
 from sweep_core.analysis.frames import FrameReader  # noqa: E402
 from sweep_core.analysis.run import load_run  # noqa: E402
-from sweep_core.model.gallery import INDEX, bundled_scenes, scenes_dir  # noqa: E402
+from sweep_core.model.gallery import INDEX, bundled_scenes, measured_on, scenes_dir  # noqa: E402
+from sweep_core.model.yaml_files import load_yaml  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 OUT = REPO / "docs" / "gallery"
 #: the simulated time of every gallery run (s), as ``sweep scenes`` states
 T_END = 10.0
 #: snapshot time (s) per scene, and how long a trail each agent draws before it (s)
-SNAPSHOT = {"room_door": 6.0, "corridor_groups": 8.0, "bottleneck": 10.0,
-            "four_exit_hall": 8.0, "crossing_flows": 8.0, "moving_obstacle": 8.0,
-            "map_two_rooms": 10.0}
+SNAPSHOT = {"room_door": 6.0, "corridor_groups": 8.0, "bottleneck": 6.0,
+            "four_exit_hall": 3.5, "crossing_flows": 8.0, "moving_obstacle": 8.0,
+            "map_two_rooms": 5.0}
 TRAIL = 3.0
 COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
 
@@ -139,6 +141,38 @@ def write_times(times: dict[str, float], machine: str) -> None:
     index.write_text(text)
 
 
+def page_text() -> str:
+    """docs/gallery.md: each bundled scene with its picture, description, agents and measured
+    run time, from the index and the scene files."""
+    out = ["# Scene gallery", "",
+           "Every scene here is bundled with the package: `sweep scenes` lists them with their "
+           "agent counts",
+           "and expected run times, `sweep run NAME` runs one, and `sweep scenes` prints the "
+           "folder they are",
+           "in, to copy one as the start of your own (the [schema reference](schema.md) lists "
+           "every key).",
+           "Each picture is drawn from a 10 s run of its scene by `docs/gallery.py`: the walls "
+           "and",
+           "obstacles, each agent's path over the three seconds before the snapshot, and the "
+           "disks at the",
+           "snapshot with their radii, coloured by group. Every scene runs in the test suite.",
+           "",
+           "Run times: `sweep run NAME` for 10 s of simulated time at dt = 0.01 s, every step "
+           "recorded,",
+           f"measured on {measured_on()}; an idle machine is faster.", ""]
+    for s in bundled_scenes():
+        spec = load_yaml(s.path.read_text())
+        desc = " ".join(str(spec.get("description", "")).split())
+        out += [f"## {s.name}", "", f"![{s.name}](gallery/{s.name}.png)", "", desc, "",
+                f"`sweep run {s.name}`: {s.agents} agents, about {round(s.run_s)} s.", ""]
+    return "\n".join(out)
+
+
+def write_page() -> None:
+    """Writes docs/gallery.md (:func:`page_text`)."""
+    (REPO / "docs" / "gallery.md").write_text(page_text())
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="*", help="these scenes only")
@@ -159,6 +193,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{s.name}: {wall:.1f} s, {OUT / (s.name + '.png')}")
     if not args.no_times:
         write_times(times, args.machine)
+    write_page()
     return 0
 
 

@@ -1,5 +1,6 @@
 """The bundled scene gallery: every scene in it runs, ``sweep scenes`` lists each one as its
 index says, and ``sweep run NAME`` runs a bundled scene by name when no such file exists."""
+import importlib.util
 import json
 import shutil
 from pathlib import Path
@@ -13,6 +14,7 @@ from sweep_core.model.gallery import bundled_scenes, resolve_scene_path, scenes_
 from sweep_core.model.scene import load_scene
 from sweep_core.numerics.simulator import Simulator
 
+REPO = Path(__file__).resolve().parents[1]
 SCENES = bundled_scenes()
 #: what the gallery must show at least (the docs' gallery page shows each)
 REQUIRED = {"room_door", "corridor_groups", "bottleneck", "four_exit_hall", "crossing_flows",
@@ -85,3 +87,22 @@ def test_an_unknown_name_is_a_one_line_error(tmp_path, monkeypatch, capsys) -> N
 def test_run_help_says_a_name_is_a_bundled_scene() -> None:
     run = build_parser()._subparsers._group_actions[0].choices["run"]
     assert "bundled scene" in " ".join(run.format_help().split())
+
+
+def test_the_gallery_page_shows_every_scene_with_its_picture() -> None:
+    spec = importlib.util.spec_from_file_location("docs_gallery", REPO / "docs" / "gallery.py")
+    page = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(page)
+    # the page is what docs/gallery.py writes from the index today (regenerate it if not)
+    assert (REPO / "docs" / "gallery.md").read_text() == page.page_text()
+    for entry in SCENES:
+        assert (REPO / "docs" / "gallery" / f"{entry.name}.png").stat().st_size > 10_000
+
+
+def test_the_node_takes_a_bundled_scene_name(tmp_path, monkeypatch) -> None:
+    params = pytest.importorskip("sweep_ros.params")
+    monkeypatch.chdir(tmp_path)
+    assert params.check_value("scene", "corridor_groups") is None
+    problem = params.check_value("scene", "no_such_scene")
+    assert problem.startswith("scene:") and "corridor_groups" in problem
+    assert "no file" in params.check_value("scene", "/no/such/scene.yaml")

@@ -1,7 +1,7 @@
 """Scenes: the one schema shared by YAML files, dicts, the CLI and the node.
 
 A scene is validated completely when it is built; nothing steps an invalid scene. Units:
-metres and seconds. The keys are a public contract, documented in the README:
+metres and seconds. The keys are a public contract, documented in docs/schema.md:
 
     name, description                      free text (at most 200 and 10 000 characters)
     horizon                                optional end time (s) the scene is meant for
