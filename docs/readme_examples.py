@@ -1,10 +1,11 @@
-"""The example outputs quoted in README.md, regenerated from the commands they quote.
+"""The example outputs quoted in README.md and docs/*.md, regenerated from the commands they
+quote.
 
-Each example is a block of README.md between ``<!-- example: NAME -->`` and
-``<!-- /example -->``; this script runs the seeded commands behind it and writes the block
-(default) or, with ``--check``, exits 1 with a diff when the README differs from a fresh run.
+Each example is a block between ``<!-- example: NAME -->`` and ``<!-- /example -->``, once in
+README.md or one page of docs/; this script runs the seeded commands behind it and writes the
+block (default) or, with ``--check``, exits 1 with a diff when a file differs from a fresh run.
 The test suite runs ``--check`` (test/test_readme.py), so a change of the engine that changes
-a quoted number fails CI until the README is regenerated:
+a quoted number fails CI until the files are regenerated:
 
     python docs/readme_examples.py            # rewrite the blocks
     python docs/readme_examples.py --check    # verify them
@@ -23,6 +24,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
+#: the files whose example blocks are generated
+FILES = (README, *sorted((REPO / "docs").glob("*.md")))
 BLOCK = re.compile(r"(<!-- example: (?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- /example -->)", re.S)
 
 #: the lines of ``sweep analyze``'s summary the README quotes
@@ -30,6 +33,9 @@ ANALYZE_KEYS = ("status", "frames", "duration_s", "min_gap.min_m", "min_gap.betw
                 "touching.mean", "reaction.pressure_mean_m_per_s", "speed.mean_m_per_s",
                 "speed.p50_m_per_s", "flow.net", "flow.per_s", "arrivals.arrived",
                 "density.max_per_m2")
+#: the shorter summary of the README's tour (the same run)
+TOUR_KEYS = ("status", "min_gap.min_m", "touching.mean", "flow.net", "flow.per_s",
+             "arrivals.arrived", "density.max_per_m2")
 
 
 def sweep(*args: str, cwd: Path) -> str:
@@ -41,18 +47,34 @@ def sweep(*args: str, cwd: Path) -> str:
     return done.stdout
 
 
-def analyze(work: Path) -> str:
-    """The bundled scene recorded every 5 steps, analysed with a line across the door."""
-    sweep("run", "--record-every", "5", "--out", "run.mcap", cwd=work)
-    out = sweep("analyze", "run.mcap", "--line", "10,4.4,10,5.6", "--no-plots", "--quiet",
-                "--json", cwd=work)
-    flat = _flatten(json.loads(out))
-    missing = [k for k in ANALYZE_KEYS if k not in flat]
+def _door_analysis(work: Path) -> dict:
+    """``sweep analyze --json`` of the bundled scene recorded every 5 steps, with a line across
+    the door, flattened (run once per work folder)."""
+    saved = work / "door_analysis.json"
+    if not saved.exists():
+        sweep("run", "--record-every", "5", "--out", "run.mcap", cwd=work)
+        saved.write_text(sweep("analyze", "run.mcap", "--line", "10,4.4,10,5.6", "--no-plots",
+                               "--quiet", "--json", cwd=work))
+    return _flatten(json.loads(saved.read_text()))
+
+
+def _summary(flat: dict, keys: tuple[str, ...]) -> str:
+    missing = [k for k in keys if k not in flat]
     if missing:
         raise SystemExit(f"sweep analyze --json has no {', '.join(missing)}")
-    width = max(map(len, ANALYZE_KEYS)) + 2
-    lines = [f"{k:<{width}}{_text(flat[k])}" for k in ANALYZE_KEYS]
+    width = max(map(len, keys)) + 2
+    lines = [f"{k:<{width}}{_text(flat[k])}" for k in keys]
     return "```\n" + "\n".join(lines) + "\n```\n"
+
+
+def analyze(work: Path) -> str:
+    """The bundled scene recorded every 5 steps, analysed with a line across the door."""
+    return _summary(_door_analysis(work), ANALYZE_KEYS)
+
+
+def tour(work: Path) -> str:
+    """The same analysis, the lines the README's tour quotes."""
+    return _summary(_door_analysis(work), TOUR_KEYS)
 
 
 def compare(work: Path) -> str:
@@ -73,7 +95,8 @@ def compare(work: Path) -> str:
             f"`--path-dt` (two different paths).\n")
 
 
-EXAMPLES: dict[str, Callable[[Path], str]] = {"analyze": analyze, "compare": compare}
+EXAMPLES: dict[str, Callable[[Path], str]] = {"analyze": analyze, "compare": compare,
+                                              "tour": tour}
 
 
 def _flatten(tree: dict, prefix: str = "") -> dict:
@@ -97,27 +120,35 @@ def _text(value: object) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--check", action="store_true", help="exit 1 if README.md differs")
+    parser.add_argument("--check", action="store_true", help="exit 1 if a file differs")
     args = parser.parse_args(argv)
-    text = README.read_text()
-    found = {m["name"] for m in BLOCK.finditer(text)}
-    if found != set(EXAMPLES):
-        print(f"README.md blocks {sorted(found)} != examples {sorted(EXAMPLES)}", file=sys.stderr)
+    texts = {path: path.read_text() for path in FILES}
+    found = [m["name"] for text in texts.values() for m in BLOCK.finditer(text)]
+    if sorted(found) != sorted(EXAMPLES):
+        print(f"example blocks {sorted(found)} != examples {sorted(EXAMPLES)} (each once in "
+              "README.md and docs/*.md)", file=sys.stderr)
         return 1
     with tempfile.TemporaryDirectory() as tmp:
         bodies = {name: make(Path(tmp)) for name, make in EXAMPLES.items()}
-    fresh = BLOCK.sub(lambda m: m[1] + bodies[m["name"]] + m[4], text)
-    if fresh == text:
-        print("README.md examples are up to date")
+    stale = 0
+    for path, text in texts.items():
+        fresh = BLOCK.sub(lambda m: m[1] + bodies[m["name"]] + m[4], text)
+        if fresh == text:
+            continue
+        stale += 1
+        name = str(path.relative_to(REPO))
+        if args.check:
+            sys.stdout.writelines(difflib.unified_diff(text.splitlines(True),
+                                                       fresh.splitlines(True), name, "fresh run"))
+        else:
+            path.write_text(fresh)
+            print(f"{name}: examples rewritten")
+    if not stale:
+        print("examples are up to date")
         return 0
     if args.check:
-        sys.stdout.writelines(difflib.unified_diff(text.splitlines(True), fresh.splitlines(True),
-                                                   "README.md", "fresh run"))
-        print("README.md examples differ from a fresh run: python docs/readme_examples.py",
-              file=sys.stderr)
+        print("examples differ from a fresh run: python docs/readme_examples.py", file=sys.stderr)
         return 1
-    README.write_text(fresh)
-    print("README.md examples rewritten")
     return 0
 
 

@@ -3,7 +3,7 @@
     dq + N(Q(t), q) ∋ U(t, q) dt + sigma dB_t,  q(0) ∈ Q(t)
 
 discretised by the projected Euler scheme on the linearised feasible set, one convex QP per
-step. No ROS import anywhere in this package. See the README for the scene schema.
+step. No ROS import anywhere in this package. The scene schema: docs/schema.md.
 """
 from __future__ import annotations
 

@@ -32,6 +32,7 @@ from sweep_core import SceneError, SolverOptions
 from sweep_core.errors import show
 from sweep_core.io.limits import DT_MAX, DT_MIN
 from sweep_core.model import geodesic
+from sweep_core.model.gallery import resolve_scene_path
 from sweep_core.model.yaml_files import SAFE_LOADER, YAMLError, compose_yaml, yaml_fix, yaml_problem
 from sweep_core.numerics.projection.options import check_backend
 
@@ -59,8 +60,9 @@ class ParamSpec:
 _DEFAULT_SOLVER = SolverOptions()
 
 SPECS: tuple[ParamSpec, ...] = (
-    ParamSpec("scene", "", "Scene YAML file; empty = the bundled room with a door (200 agents).",
-              False, constraints="readable scene YAML (see the README's scene schema)"),
+    ParamSpec("scene", "", "Scene YAML file, or a bundled scene's name (sweep scenes) when no "
+              "such file exists; empty = the bundled room with a door (200 agents).",
+              False, constraints="readable scene YAML or a bundled scene's name"),
     ParamSpec("map_topic", "", "nav_msgs/OccupancyGrid topic (e.g. map, as nav2's map_server "
               "publishes it, transient-local) whose maps replace the scene's map walls between "
               "two steps; empty = off.", False,
@@ -205,8 +207,14 @@ def check_value(name: str, value: Any) -> str | None:
             check_backend(value, name)
         except SceneError as err:
             return str(err)
-    if name == "scene" and value and not os.path.isfile(os.path.expanduser(value)):
-        return f"{name}: no file {value!r} (fix: give a scene YAML path, or '' for the default)"
+    if name == "scene" and value:
+        try:  # a bundled scene's name (sweep scenes) when no such file exists
+            path = resolve_scene_path(os.path.expanduser(value))
+        except SceneError as err:
+            return f"{name}: {err}"
+        if not path.is_file():
+            return (f"{name}: no file {value!r} (fix: give a scene YAML path, a bundled "
+                    "scene's name, or '' for the default)")
     return None
 
 

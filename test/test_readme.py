@@ -1,5 +1,6 @@
-"""The README's quoted outputs are what the quoted commands print today (docs/readme_examples.py
-regenerates them; here it only checks), and its two set-up commands are where CI finds them."""
+"""The quoted outputs of the README and the docs are what the quoted commands print today
+(docs/readme_examples.py regenerates them; here it only checks), the README's two set-up
+commands are where CI finds them, and the test command builds the documentation strictly."""
 import re
 import subprocess
 import sys
@@ -18,3 +19,20 @@ def test_readme_keeps_its_two_setup_commands() -> None:
     text = (REPO / "README.md").read_text()
     for marker in ("main-command", "test-command"):
         assert len(re.findall(f"<!-- {marker} -->", text)) == 1, marker
+
+
+def test_readme_test_command_builds_the_docs_strictly() -> None:
+    text = (REPO / "README.md").read_text()
+    command = text.split("<!-- test-command -->", 1)[1].split("```", 2)[1]
+    assert re.search(r"mkdocs build --strict\b", command)
+    assert "python -m pytest" in command.split("mkdocs build", 1)[1]
+
+
+def test_the_site_lists_every_page_and_builds_nowhere_in_the_tree() -> None:
+    """Every page of docs/ is in mkdocs.yml's nav (a page left out is a page nobody finds), and
+    site/ is ignored by git (the build is never committed)."""
+    nav = (REPO / "mkdocs.yml").read_text().split("\nnav:", 1)[1]
+    pages = {p.name for p in (REPO / "docs").glob("*.md")}
+    listed = set(re.findall(r"([\w-]+\.md)", nav))
+    assert pages <= listed, sorted(pages - listed)
+    assert "site/" in (REPO / ".gitignore").read_text().split()

@@ -1,12 +1,13 @@
-"""The ``sweep`` command: ``run`` a scene headless and record it, ``analyze``, ``replay`` and
-``compare`` recordings, ``recover`` one cut short, ``bench accuracy`` and ``bench speed``,
-``verify`` (the RiMEA tests) and ``export`` (PedPy trajectories)."""
+"""The ``sweep`` command: ``run`` a scene headless and record it (``scenes`` lists the bundled
+ones), ``analyze``, ``render``, ``replay`` and ``compare`` recordings, ``recover`` one cut short,
+``bench accuracy`` and ``bench speed``, ``verify`` (the RiMEA tests) and ``export`` (PedPy
+trajectories)."""
 from __future__ import annotations
 
 import argparse
 import sys
 
-from sweep_core.cli import analysis, bench, ensemble, maps, recover, render, run, verify
+from sweep_core.cli import analysis, bench, ensemble, maps, recover, render, run, scenes, verify
 from sweep_core.errors import SweepError
 
 
@@ -14,6 +15,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="sweep", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     run.register(sub)
+    scenes.register(sub)
     analysis.register(sub)
     render.register(sub)
     recover.register(sub)

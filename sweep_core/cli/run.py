@@ -21,6 +21,7 @@ from sweep_core.io import limits
 from sweep_core.io.metadata import run_metadata
 from sweep_core.io.outputs import check_output, write_text
 from sweep_core.io.recording.runs import record_run
+from sweep_core.model.gallery import resolve_scene_path
 from sweep_core.model.scene import Scene, load_scene
 from sweep_core.numerics import kernels, paths
 from sweep_core.numerics.projection import SolverOptions
@@ -129,7 +130,7 @@ def _run(args: argparse.Namespace) -> int:
 def scene_files(path: str | None, scene: Scene) -> list[str]:
     """The files a scene was read from: its YAML (none for the bundled scene) and the map
     YAML it names (outputs may be none of them)."""
-    files = [path] if path else []
+    files = [str(resolve_scene_path(path))] if path else []
     source = (scene.spec.get("map") or {}).get("source")
     if source and Path(source).is_file():
         files.append(source)
@@ -197,7 +198,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "a different number. A run of more than 1e6 steps, or whose recording would exceed "
         "2 GB, is refused unless --force.")
     parser.add_argument("scene", nargs="?", default=None,
-                        help="scene YAML (default: the bundled room with a door, 200 agents)")
+                        help="scene YAML, or the name of a bundled scene when no such file "
+                             "exists (sweep scenes lists them; default: room_door, a room "
+                             "with a door, 200 agents)")
     parser.add_argument("--t-end", type=float, default=10.0, help="simulated time, s (default 10)")
     parser.add_argument("--dt", type=float, default=0.01,
                         help=f"time step, s, in [{limits.DT_MIN:g}, {limits.DT_MAX:g}] as the "

@@ -1,7 +1,7 @@
 """The grid of an ensemble: ``--vary KEY=V1,V2,...`` over scene keys and run options.
 
 A key is a run option (``dt`` in s, ``scheme``) or a dotted path into the scene's normalised
-dict (``Scene.spec``, the README's schema), list items by index: ``noise.sigma``,
+dict (``Scene.spec``, docs/schema.md), list items by index: ``noise.sigma``,
 ``agents.radius``, ``agents.radius_law.rate``, ``walls.0.velocity``. The grid is the product
 of the value lists in the order given; a grid point is a dict key -> value.
 """

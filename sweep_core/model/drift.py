@@ -18,7 +18,7 @@ def field_from_spec(spec: dict | None, n_agents: int, field: str = "drift",
                     geometry: Any = None, grid: Any = None,
                     positions: np.ndarray | None = None,
                     speed: float = DEFAULT_SPEED) -> Field:
-    """Build a drift field from its scene dict (see the README's scene schema). The
+    """Build a drift field from its scene dict (see docs/schema.md). The
     navigation kinds (geodesic, exits) need the scene's geometry (a
     :class:`~sweep_core.model.geometry.Geometry`), its map (an
     :class:`~sweep_core.model.maps.OccupancyMap` or None) and the agents' positions (N, 2) m.

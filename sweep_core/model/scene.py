@@ -1,7 +1,7 @@
 """Scenes: the one schema shared by YAML files, dicts, the CLI and the node.
 
 A scene is validated completely when it is built; nothing steps an invalid scene. Units:
-metres and seconds. The keys are a public contract, documented in the README:
+metres and seconds. The keys are a public contract, documented in docs/schema.md:
 
     name, description                      free text (at most 200 and 10 000 characters)
     horizon                                optional end time (s) the scene is meant for
@@ -40,6 +40,7 @@ from sweep_core.errors import SceneError, show
 from sweep_core.model.drift import field_from_spec, scene_drift
 from sweep_core.model.fields import DEFAULT_SPEED, Field
 from sweep_core.model.flows import Flows, flows_from_spec
+from sweep_core.model.gallery import resolve_scene_path
 from sweep_core.model.geometry import Geometry, gaps
 from sweep_core.model.maps import OccupancyMap, map_from_spec, read_bounded
 from sweep_core.model.outlines import chain_points
@@ -440,5 +441,6 @@ def default_scene_path() -> Path:
 
 
 def load_scene(path: str | None) -> Scene:
-    """A scene file, or the bundled default when path is None or empty."""
-    return Scene.from_yaml(path or default_scene_path())
+    """A scene file, a bundled scene's name when no such file exists (``sweep scenes`` lists
+    them), or the bundled default when path is None or empty."""
+    return Scene.from_yaml(resolve_scene_path(path) if path else default_scene_path())

@@ -67,7 +67,7 @@ class SolverOptions:
         ``exact_vars``, or past its step cap), through qpsolvers: any installed solver
         (:func:`available_backends`; "proxsuite" is read as "proxqp"). "clarabel" (default,
         interior point): in ``sweep bench speed``'s backend table it solves the jams' QPs to
-        about 1e-8 m of the certified answer in tens of ms; see README (Performance) for the
+        about 1e-8 m of the certified answer in tens of ms; see docs/performance.md for the
         others.
     exact_vars: clusters of up to this many variables (2 per agent) that reach the cluster
         solvers are solved first by the exact active-set solver

@@ -1,0 +1,89 @@
+"""The bundled scenes (``sweep_core/scenes/``): their index, and scene names resolved to files.
+
+``scenes/gallery.yaml`` lists each bundled scene once: ``name`` (its file is ``NAME.yaml``),
+``shows`` (one line: what it shows), ``agents`` (its agent count, checked against the scene by
+the tests) and ``run_s``, the wall time of ``sweep run NAME`` (10 s simulated, dt 0.01, every
+step recorded) measured by ``docs/gallery.py`` on the machine that ``measured_on`` names.
+
+A scene argument (``sweep run NAME``, the node's ``scene``, an ensemble's scene) is a path
+first: a name resolves to a bundled scene only when no such file exists.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+from sweep_core import checks
+from sweep_core.errors import SceneError
+from sweep_core.model.yaml_files import load_yaml
+
+#: the index of the bundled scenes, beside them
+INDEX = "gallery.yaml"
+
+
+@dataclass(frozen=True)
+class BundledScene:
+    """One bundled scene: name, what it shows, agents, the measured wall time (s) of
+    ``sweep run NAME`` (10 s simulated) and its file."""
+
+    name: str
+    shows: str
+    agents: int
+    run_s: float
+    path: Path
+
+
+def scenes_dir() -> Path:
+    """The folder of the bundled scenes (inside the installed package)."""
+    return Path(str(resources.files("sweep_core") / "scenes"))
+
+
+def measured_on() -> str:
+    """Where and how the run times of the index were measured."""
+    return str(_index().get("measured_on", ""))
+
+
+def bundled_scenes() -> list[BundledScene]:
+    """The bundled scenes, in the index's order."""
+    folder = scenes_dir()
+    out = []
+    for k, item in enumerate(checks.mapping(_index(), INDEX, required={"scenes"})["scenes"]):
+        field = f"{INDEX}: scenes[{k}]"
+        checks.mapping(item, field, allowed={"name", "shows", "agents", "run_s"},
+                       required={"name", "shows", "agents", "run_s"})
+        out.append(BundledScene(str(item["name"]), str(item["shows"]),
+                                checks.integer(item["agents"], f"{field}.agents", low=0),
+                                checks.number(item["run_s"], f"{field}.run_s", positive=True),
+                                folder / f"{item['name']}.yaml"))
+    return out
+
+
+def bundled_names() -> list[str]:
+    """The names of the bundled scenes."""
+    return [s.name for s in bundled_scenes()]
+
+
+def resolve_scene_path(scene: str | Path) -> Path:
+    """``scene`` as a path when such a file (or anything) exists there; else the bundled scene
+    of that name (with or without ``.yaml``); else, for a path with a folder, ``scene``
+    unchanged (loading it then fails naming the path).
+
+    Raises:
+        SceneError: a bare name that is neither a file nor a bundled scene (the error lists
+            the bundled names).
+    """
+    path = Path(scene)
+    if path.exists() or str(path.parent) != ".":
+        return path
+    name = path.name[:-5] if path.name.endswith(".yaml") else path.name
+    names = bundled_names()
+    if name in names:
+        return scenes_dir() / f"{name}.yaml"
+    raise SceneError("scene", f"no file {str(scene)!r} here, and no bundled scene of that name",
+                     f"give the path of a scene YAML file, or a bundled scene: "
+                     f"{', '.join(names)} (sweep scenes describes them)")
+
+
+def _index() -> dict:
+    return load_yaml((scenes_dir() / INDEX).read_text()) or {}
