@@ -18,6 +18,7 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise
 from sweep_core.numerics.population import Population
 from sweep_core.numerics.projection import SolverOptions
+from sweep_core.numerics.robots.fleet import robot_fleet
 from sweep_core.numerics.schemes import SCHEMES, Scheme, StepResult
 
 #: largest true-constraint violation (m) ever accepted after a step
@@ -78,6 +79,8 @@ class Simulator:
         self.seed = checks.integer(seed, "seed")
         self.scheme = _scheme_class(scheme)(scene, solver or SolverOptions())
         self.check = bool(check)
+        #: the robots (None without): numerics/robots/fleet.py
+        self.robots = robot_fleet(scene, self.dt, self.seed, self.scheme)
         self.reset()
 
     # -- state -------------------------------------------------------------------------
@@ -100,6 +103,10 @@ class Simulator:
         self.last: StepResult | None = None
         # flows (sinks, sources, speeds, delays, journeys, headway): who is present
         self._pop = Population(self.scene, self.seed) if self.scene.flows is not None else None
+        if self.robots is not None:
+            self.robots.seed = self.seed
+            self.robots.reset()
+            self.robots.after_step(0.0, self._q, self.scene.radii(0.0))
 
     def _live(self) -> Scene:
         """The scene the scheme steps: the present agents' (flows), else the scene."""
@@ -311,7 +318,10 @@ class Simulator:
             self.scheme.scene = scene
         if dB is None and np.any(sigma):
             dB = noise.increments(self._rng, h, len(self._q))
-        res = self.scheme.step(t, self._q, h, dB, drift, sigma)
+        if self.robots is not None:
+            res = self.robots.step(self.scheme, t, self._q, h, dB, drift, sigma)
+        else:
+            res = self.scheme.step(t, self._q, h, dB, drift, sigma)
         y = res.q_new
         if not np.all(np.isfinite(y)):
             bad = np.nonzero(~np.all(np.isfinite(y), axis=1))[0]
@@ -333,6 +343,8 @@ class Simulator:
             min_gap = g.min_gap
         self._v = (y - self._q) / h
         self._reaction = res.prediction - y
+        if self.robots is not None:  # the step's agents, before any leave or enter
+            self.robots.after_step(t1, y, r1)
         if self._pop is not None:
             changed, y, (self._v, self._reaction) = self._pop.after_step(
                 scene, t1, y, self._v, self._reaction)
