@@ -31,6 +31,7 @@ setup(
         "numba>=0.60",
         "cvxopt>=1.3",
     ],
+    extras_require={"gym": ["gymnasium==1.4.0"]},
     zip_safe=True,
     maintainer="sweep_ros developers",
     maintainer_email="sweep-ros@example.org",

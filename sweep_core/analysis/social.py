@@ -30,8 +30,8 @@ ZONES = (("intimate", 0.0, 0.45), ("personal", 0.45, 1.2), ("social", 1.2, 3.6),
          ("public", 3.6, math.inf))
 #: a clearance below this (m) counts as discomfort (CrowdNav's discomfort distance)
 DISCOMFORT = 0.2
-#: goal radius (m) when neither the scene nor the command line gives one
-DEFAULT_GOAL_RADIUS = 0.3
+#: goal radius (m) when neither the scene nor the command line gives one (the scene's default)
+DEFAULT_GOAL_RADIUS = 0.5
 #: a clearance at most this (m) is a contact (the analysis' tolerance on true constraints)
 CONTACT_TOL = 1e-6
 
@@ -68,6 +68,19 @@ def time_to_collision(rel_pos: np.ndarray, rel_vel: np.ndarray, reach: np.ndarra
         tau = np.where(approaching, c / (-pw + np.sqrt(np.where(approaching, disc, 0.0))),
                        np.inf)
     return np.where(c <= 0, 0.0, tau)
+
+
+def nearest(position: np.ndarray, velocity: np.ndarray, radius: float, people: np.ndarray,
+            radii: np.ndarray, velocities: np.ndarray) -> tuple[float, float]:
+    """One robot at one instant: the clearance (m) to the nearest of the people and the
+    smallest time to collision (s) with any of them (:func:`time_to_collision`); inf, inf
+    without people. ``position`` (2,) m, ``velocity`` (2,) m/s, ``people`` (N, 2) m,
+    ``radii`` (N,) m, ``velocities`` (N, 2) m/s (NaN: unknown, no time to collision)."""
+    if len(people) == 0:
+        return math.inf, math.inf
+    cl = clearance(position[None, :], np.array([radius]), people, radii)[0]
+    ttc = time_to_collision(people - position, velocities - velocity, radius + radii)
+    return float(cl.min()), float(np.nanmin(ttc)) if np.isfinite(velocities).all() else math.nan
 
 
 def wrap(angle: np.ndarray) -> np.ndarray:
@@ -221,20 +234,28 @@ def episode_metrics(spec: RobotSpec, s: Series, geodesic: float | None) -> dict[
     return out
 
 
-def geodesic_distance(scene: Scene, start: np.ndarray, goal: np.ndarray, radius: float
-                      ) -> tuple[float | None, str | None]:
-    """The shortest distance (m) from ``start`` to ``goal`` round the scene's walls, obstacles
-    and map for a disk of ``radius`` m: the travel distance T of the engine's geodesic field
-    (:mod:`sweep_core.model.geodesic`, wall_buffer = the radius; its metrication error is at
-    most +2.75 %), or (None, why) when the field cannot be built or does not reach the start."""
+def goal_field(scene: Scene, goal: np.ndarray, radius: float, start: np.ndarray) -> Any:
+    """The engine's geodesic field (:mod:`sweep_core.model.geodesic`) towards ``goal`` round
+    the scene's walls, obstacles and map for a disk of ``radius`` m (wall_buffer = the radius,
+    at least the grid's minimum), checked to reach ``start`` (2,); its ``travel_distance`` is
+    the shortest distance (m; metrication error at most +2.75 %). Raises SweepError when it
+    cannot be built."""
     buffer = max(float(radius), buffer_cells(NEIGHBOURS) * CELL)
     spec = {"kind": "geodesic", "goal": [float(goal[0]), float(goal[1])], "speed": 1.0,
             "wall_buffer": buffer}
+    grid = (map_from_spec(scene.spec["map"], "map", None, files=False)
+            if scene.spec.get("map") else None)
+    return navigation_from_spec(spec, "robots.goal", scene.geometry, grid,
+                                np.asarray(start, dtype=np.float64).reshape(1, 2))
+
+
+def geodesic_distance(scene: Scene, start: np.ndarray, goal: np.ndarray, radius: float
+                      ) -> tuple[float | None, str | None]:
+    """The shortest distance (m) from ``start`` to ``goal`` round the scene's walls, obstacles
+    and map for a disk of ``radius`` m by :func:`goal_field`, or (None, why) when the field
+    cannot be built or does not reach the start."""
     try:
-        grid = (map_from_spec(scene.spec["map"], "map", None, files=False)
-                if scene.spec.get("map") else None)
-        nav = navigation_from_spec(spec, "robots.goal", scene.geometry, grid,
-                                   np.asarray(start, dtype=np.float64).reshape(1, 2))
+        nav = goal_field(scene, goal, radius, start)
     except SweepError as err:
         return None, str(err)
     d = float(nav.travel_distance(np.asarray(start, dtype=np.float64).reshape(1, 2))[0])
@@ -243,19 +264,19 @@ def geodesic_distance(scene: Scene, start: np.ndarray, goal: np.ndarray, radius:
 
 def robot_specs(scene: Scene | None, goal_radius: float | None = None,
                 time_limit: float | None = None) -> list[RobotSpec]:
-    """The robots of a recorded scene (its ``robots:`` list), with ``goal_radius`` and
-    ``time_limit`` overriding the scene's when given."""
+    """The robots of a recorded scene (its ``robots:`` list: name, radius, goal,
+    goal_radius), with ``goal_radius`` overriding the scene's when given; ``time_limit`` (s)
+    None: the whole recording."""
     raw = scene.spec.get("robots") if scene is not None else None
     out = []
     for r in raw or []:
         goal = r.get("goal")
-        limit = time_limit if time_limit is not None else r.get("time_limit")
         out.append(RobotSpec(
             name=str(r["name"]), radius=float(r["radius"]),
             goal=None if goal is None else np.asarray(goal, dtype=np.float64)[:2],
             goal_radius=float(goal_radius if goal_radius is not None
                                else r.get("goal_radius", DEFAULT_GOAL_RADIUS)),
-            time_limit=None if limit is None else float(limit)))
+            time_limit=None if time_limit is None else float(time_limit)))
     return out
 
 
@@ -301,15 +322,10 @@ class SocialMetrics:
             if state is None:
                 continue
             x, y, yaw, vx, vy = state
-            p = np.array([[x, y]])
-            cl = clearance(p, np.array([spec.radius]), q, radii)[0]
-            ttc = time_to_collision(q - p, v - np.array([vx, vy]), spec.radius + radii)
+            near, ttc = nearest(np.array([x, y]), np.array([vx, vy]), spec.radius, q, radii, v)
             ids, imp = self.touch[k].get(fr.log_ns, (np.zeros(0), np.zeros(0)))
-            self.rows[k].append((k, t, x, y, yaw, vx, vy,
-                                 float(cl.min()) if len(cl) else math.inf,
-                                 float(ttc.min()) if len(ttc) else math.inf,
-                                 len(ids), float(imp.sum()),
-                                 float(imp.max()) if len(imp) else 0.0))
+            self.rows[k].append((k, t, x, y, yaw, vx, vy, near, ttc, len(ids),
+                                 float(imp.sum()), float(imp.max()) if len(imp) else 0.0))
             self.touched[k].append(ids)
 
     def series(self, k: int) -> Series:
