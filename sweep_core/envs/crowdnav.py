@@ -33,6 +33,7 @@ holds the people's velocities in float32).
 from __future__ import annotations
 
 import math
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -46,7 +47,7 @@ from sweep_core.model.scene import Scene, load_scene
 from sweep_core.numerics.simulator import Simulator
 
 #: the bundled scene of ``gymnasium.make("sweep/CrowdNav-v0")`` without a scene
-DEFAULT_SCENE = Path(__file__).resolve().parents[1] / "scenes" / "crowdnav.yaml"
+DEFAULT_SCENE = Path(str(resources.files("sweep_core") / "scenes" / "crowdnav.yaml"))
 
 
 def _scene(scene: Scene | dict | str | Path | None) -> Scene:
