@@ -117,13 +117,14 @@ class CrowdNavEnv(gymnasium.Env):
         vmax = float(kin.get("max_speed", 1.0))
         wmax = float(kin.get("max_angular_speed", 1.0))
         high = np.array([vmax, vmax, wmax] if self.holonomic else [vmax, wmax])
-        self.action_space = spaces.Box(-high, high, dtype=np.float64)
+        self.box = spaces.Box(-high, high, dtype=np.float64)
+        self.action_space = self.box
         self.range_max = float(spec["scan"].get("range_max", 10.0))
         self.sim = Simulator(self.scene, self.dt, 0, scheme=self.scheme)
-        beams = len(self._ranges())
+        self.beams = len(self._ranges())
         self.observation_space = spaces.Dict({
             "odom": spaces.Box(-np.inf, np.inf, shape=(6,), dtype=np.float64),
-            "scan": spaces.Box(0.0, self.range_max, shape=(beams,), dtype=np.float64),
+            "scan": spaces.Box(0.0, self.range_max, shape=(self.beams,), dtype=np.float64),
             "goal": spaces.Box(-np.inf, np.inf, shape=(2,), dtype=np.float64),
         })
         self.rows: list[tuple] = []
@@ -150,8 +151,8 @@ class CrowdNavEnv(gymnasium.Env):
         c, s = math.cos(yaw), math.sin(yaw)
         d = self.spec_robot.goal - np.array([x, y])
         ranges = self._ranges()
-        if len(ranges) != self.observation_space["scan"].shape[0]:
-            ranges = np.full(self.observation_space["scan"].shape[0], self.range_max)
+        if len(ranges) != self.beams:  # no scan taken yet
+            ranges = np.full(self.beams, self.range_max)
         return {"odom": np.array([x, y, yaw, *(float(v) for v in st.twist)]),
                 "scan": ranges,
                 "goal": np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])}
@@ -195,10 +196,10 @@ class CrowdNavEnv(gymnasium.Env):
     def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool,
                                          dict[str, Any]]:
         a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != self.action_space.shape or not np.isfinite(a).all():
-            raise SceneError("action", f"must be {self.action_space.shape[0]} finite numbers, "
+        if a.shape != self.box.shape or not np.isfinite(a).all():
+            raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, "
                              f"got {a.tolist()}", "give an element of env.action_space")
-        a = np.clip(a, self.action_space.low, self.action_space.high)
+        a = np.clip(a, self.box.low, self.box.high)
         cmd = (a[0], a[1], a[2]) if self.holonomic else (a[0], 0.0, a[1])
         assert self.sim.robots is not None
         self.sim.robots.command(self.name, tuple(float(v) for v in cmd))
