@@ -107,7 +107,7 @@ def test_a_straight_drive_reaches_the_goal_with_the_metrics_of_a_clear_path():
     assert total == pytest.approx(progress + 1.0, abs=1e-9)
     assert m["time_to_goal_s"] == pytest.approx(steps * 0.1, abs=1e-9)
     assert m["path_length_m"] == pytest.approx(x - 0.5, abs=1e-9)
-    assert m["heading_change_rad"] == 0.0 and m["contacts"]["frames"] == 0
+    assert m["heading_change_rad"] == 0.0 and m["contact"]["frames"] == 0
 
 
 def test_a_scene_without_a_robot_goal_or_scan_is_refused():

@@ -50,3 +50,36 @@ def test_the_robots_key_of_the_grid():
         grid.parse_vary(["robots=with,none"])
     with pytest.raises(SceneError, match="no robots"):
         grid.grid({"robots": ["with", "without"]}, {"name": "s"})
+
+
+def test_a_robot_that_never_meets_the_crowd_changes_nothing(tmp_path):
+    """Runs with and without a robot parked far from everyone are paired seed by seed: the
+    people's final positions are equal bit for bit, every difference is 0."""
+    from distributed import Client, LocalCluster
+
+    from sweep_core.ensemble import run
+
+    scene = {"name": "parked",
+             "agents": {"positions": [[1.0, 1.0], [2.0, 1.5]], "radius": 0.25},
+             "drift": {"kind": "goal", "goal": [4.0, 1.5], "speed": 0.8},
+             "noise": {"sigma": 0.1},
+             "walls": [{"kind": "segment", "a": [-1.0, 0.0], "b": [6.0, 0.0]},
+                       {"kind": "segment", "a": [-1.0, 3.0], "b": [6.0, 3.0]}],
+             "robots": [{"name": "bot", "radius": 0.3, "pose": [-0.5, 2.5, 0.0]}]}
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=None) as lc, Client(lc) as cl:
+        table = run(scene, runs=2, t_end=1.0, dt=0.1, vary={"robots": ["with", "without"]},
+                    client=cl, out=tmp_path / "ens", plots=False, line=(3.0, 0.0, 3.0, 3.0))
+    assert (table["status"] == "ok").all()
+    by = table.set_index(["robots", "seed"])["final_sha256"]
+    assert by["with", 0] == by["without", 0] and by["with", 1] == by["without", 1]
+    assert by["with", 0] != by["with", 1]  # the seeds differ
+    diff = pd.read_csv(tmp_path / "ens" / "paired.csv")
+    assert list(diff["seed"]) == [0, 1]
+    cols = [c for c in diff if c.endswith(".difference")]
+    assert "pressure_mean_m_per_s.difference" in cols
+    assert (diff[cols].fillna(0.0) == 0.0).all().all()
+    # the robot's own metrics are in the rows with it
+    mine = table[table["robots"] == "with"]
+    assert mine["robots.bot.frames"].notna().all()
+    assert (mine["robots.bot.collided"] == 0.0).all()  # a flag: 1 or 0

@@ -139,7 +139,7 @@ def test_metrics_of_a_robot_passing_a_standing_person(tmp_path):
     assert m["zones"] == pytest.approx({"intimate": 0.0, "personal": 27 / 101,
                                         "social": 52 / 101, "public": 22 / 101}, abs=1e-15)
     assert m["discomfort_frequency"] == 0.0
-    assert m["contacts"] == {"frames": 0, "events": 0, "people": 0, "impulse_total": 0.0,
+    assert m["contact"] == {"frames": 0, "events": 0, "people": 0, "impulse_total": 0.0,
                              "impulse_max": 0.0}
     # person 1 closes at 2 m/s: at frame k their clearance is 30 - 2 x - 0.5, smallest
     # (9.5 m, 4.75 s) at the last frame; person 0 is passed 1 m off (more than 0.5 m): never
@@ -164,7 +164,7 @@ def test_metrics_of_a_robot_pushing_someone(tmp_path):
     assert m["reached_goal"] and m["collided"] and not m["success"]
     assert m["spl"] == 0.0 and m["time_to_goal_s"] == pytest.approx(10.0, abs=1e-12)
     # contacts at frames 20 .. 25 and 28 .. 30: 9 frames, begun twice, one person
-    c = m["contacts"]
+    c = m["contact"]
     assert (c["frames"], c["events"], c["people"]) == (9, 2, 1)
     assert c["impulse_total"] == pytest.approx(9 * 0.005, rel=1e-6)  # float32 components
     assert c["impulse_max"] == pytest.approx(0.005, rel=1e-6)

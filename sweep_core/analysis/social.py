@@ -216,7 +216,7 @@ def episode_metrics(spec: RobotSpec, s: Series, geodesic: float | None) -> dict[
         },
         "zones": zones,
         "discomfort_frequency": float(np.count_nonzero(cl < DISCOMFORT)) / frames,
-        "contacts": {
+        "contact": {
             "frames": int(np.count_nonzero(s.contacts[e] > 0)),
             "events": events,
             "people": int(np.unique(ids).size),

@@ -120,7 +120,7 @@ class CrowdNavEnv(gymnasium.Env):
         self.box = spaces.Box(-high, high, dtype=np.float64)
         self.action_space = self.box
         self.range_max = float(spec["scan"].get("range_max", 10.0))
-        self.sim = Simulator(self.scene, self.dt, 0, scheme=self.scheme)
+        self.sim = self._simulator(0)
         self.beams = len(self._ranges())
         self.observation_space = spaces.Dict({
             "odom": spaces.Box(-np.inf, np.inf, shape=(6,), dtype=np.float64),
@@ -132,6 +132,14 @@ class CrowdNavEnv(gymnasium.Env):
         self.steps, self.togo = 0, self.geodesic
 
     # -- the engine ---------------------------------------------------------------------
+
+    def _simulator(self, seed: int) -> Simulator:
+        """A new run of the scene; this robot is driven by the actions (its controller, if the
+        scene gives one, is set aside; the scene's other robots keep theirs)."""
+        sim = Simulator(self.scene, self.dt, seed, scheme=self.scheme)
+        assert sim.robots is not None
+        sim.robots.controllers.pop(self.name, None)
+        return sim
 
     def _state(self) -> Any:
         assert self.sim.robots is not None
@@ -188,7 +196,7 @@ class CrowdNavEnv(gymnasium.Env):
               ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         super().reset(seed=seed)
         engine_seed = int(self.np_random.integers(0, 2**31 - 1))
-        self.sim = Simulator(self.scene, self.dt, engine_seed, scheme=self.scheme)
+        self.sim = self._simulator(engine_seed)
         self.rows, self.touched, self.steps = [], [], 0
         near, contacts, self.togo = self._record()
         return self._observe(), self._info(near, contacts)
@@ -230,7 +238,6 @@ class CrowdNavEnv(gymnasium.Env):
 
 def _contacts(st: Any) -> tuple[np.ndarray, np.ndarray]:
     """A robot state's contacts: person ids (K,) and |impulse| (K,) m/s."""
-    ids, _, impulses = st.contacts
-    ids = np.asarray(ids, dtype=np.int64).reshape(-1)
-    imp = np.asarray(impulses, dtype=np.float64).reshape(-1, 2)
+    ids = np.asarray(st.contact_ids, dtype=np.int64).reshape(-1)
+    imp = np.asarray(st.contact_impulse, dtype=np.float64).reshape(-1, 2)
     return ids, np.hypot(imp[:, 0], imp[:, 1])
