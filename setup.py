@@ -35,8 +35,9 @@ setup(
         "numba>=0.60",
         "cvxopt>=1.3",
     ],
-    # sweep verify and sweep export (PedPy needs Python >= 3.11)
-    extras_require={"verify": ["pedpy==1.5.1", "distributed", "pandas"]},
+    # sweep verify and sweep export (PedPy needs Python >= 3.11); the Gymnasium environment
+    extras_require={"verify": ["pedpy==1.5.1", "distributed", "pandas"],
+                    "gym": ["gymnasium==1.4.0"]},
     zip_safe=True,
     maintainer="sweep_ros developers",
     maintainer_email="sweep-ros@example.org",

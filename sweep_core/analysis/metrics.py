@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from sweep_core.analysis import social
 from sweep_core.analysis.arrivals import ArrivalTracker, start_exits, stats, time_for
 from sweep_core.analysis.crowd import Fundamental, FundamentalDiagram, Tracks
 from sweep_core.analysis.density import MAX_CELLS as MAX_CELLS  # re-exported for the CLI
@@ -115,6 +116,8 @@ class Analysis:
     track_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
     #: local density against speed, every agent of every frame after step 0
     fundamental: FundamentalDiagram | None = None
+    #: the robots' frames (:attr:`SocialMetrics.COLUMNS`), None without robots
+    robots: np.ndarray | None = None
 
 
 def _quantile(hist: np.ndarray, p: float) -> float | None:
@@ -397,7 +400,8 @@ class _Metrics:
 
 def analyze(path: str | Path, line: tuple[float, float, float, float] | None = None,
             arrive_radius: float | None = None, cell: float = 0.5,
-            progress: bool = False) -> Analysis:
+            progress: bool = False, goal_radius: float | None = None,
+            time_limit: float | None = None) -> Analysis:
     """Reads a recording and computes every metric (see the module docstring).
 
     Args:
@@ -409,6 +413,9 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
             slow_radius.
         cell: side of the density map cells (m).
         progress: a progress bar on stderr (shown on a terminal only).
+        goal_radius, time_limit: a robot has reached its goal within this distance (m; default
+            the scene's), within this time (s from the first frame; default the scene's, else
+            the whole recording): :mod:`sweep_core.analysis.social`.
     """
     if isinstance(cell, bool) or not isinstance(cell, (int, float)) or not (
             cell > 0 and math.isfinite(cell)):
@@ -418,15 +425,22 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
                          f"got {arrive_radius!r}")
     meta = load_run(path)
     metrics = _Metrics(meta, line, arrive_radius, float(cell))
+    robots = social.for_run(meta, goal_radius, time_limit)
     reader, finder = FrameReader(meta), GapFinder(meta.record_every)
     with progress_bar(meta.frames or None, "frame", progress) as bar:
         for fr in reader:
             metrics.add(fr)
             finder.add(fr, meta.segment_of(fr.log_ns), int(metrics.rows[-1][1]))
+            if robots is not None:
+                robots.add(fr, meta.segment_of(fr.log_ns), int(metrics.rows[-1][1]))
             bar.update()
     an = metrics.result(reader)
+    if robots is not None:
+        an.summary["robots"], an.robots = robots.summary(), robots.table()
     # states the file lacks (gaps) or holds unreadably (skipped), each listed on stderr
     an.summary["gaps"] = finder.to_dict()
     an.summary["skipped_messages"] = reader.bad
     an.problems = reader.problems + finder.lines(meta.path)
+    if robots is not None:
+        an.problems += robots.problems
     return an

@@ -12,6 +12,7 @@ import numpy as np
 
 from sweep_core.analysis.metrics import Analysis
 from sweep_core.analysis.plots import plot_analysis
+from sweep_core.analysis.social import SocialMetrics
 from sweep_core.io.outputs import check_output, replacing
 
 
@@ -45,11 +46,13 @@ def write_table(path: Path, header: tuple[str, ...] | list[str], rows: np.ndarra
 
 def write_outputs(an: Analysis, plots: bool = True) -> dict[str, str]:
     """``RUN.analysis.csv`` (per frame), ``RUN.density.csv`` (x, y of each cell centre,
-    agents/m^2), ``RUN.analysis.png``; returns their paths."""
+    agents/m^2), ``RUN.robots.csv`` (the robots' frames, when there are robots),
+    ``RUN.analysis.png``; returns their paths."""
     out = output_paths(an.meta.path, ".analysis")
     dens_path = output_paths(an.meta.path, ".density")["csv"]
     inputs = [an.meta.path]
-    for p in (out["csv"], dens_path) + ((out["png"],) if plots else ()):
+    robots = (output_paths(an.meta.path, ".robots")["csv"],) if an.robots is not None else ()
+    for p in (out["csv"], dens_path) + robots + ((out["png"],) if plots else ()):
         check_output(p, inputs, other=OTHER)  # all checked before any is written
     write_table(out["csv"], Analysis.COLUMNS, an.table, inputs)
     iy, ix = np.nonzero(an.density)
@@ -57,6 +60,10 @@ def write_outputs(an: Analysis, plots: bool = True) -> dict[str, str]:
                              an.density_origin[1] + (iy + 0.5) * an.cell, an.density[iy, ix]])
     write_table(dens_path, ("x_m", "y_m", "agents_per_m2"), cells, inputs)
     files = {"csv": str(out["csv"]), "density_csv": str(dens_path)}
+    if an.robots is not None:  # the robots' frames: docs/social_metrics.md
+        robots_path = output_paths(an.meta.path, ".robots")["csv"]
+        write_table(robots_path, SocialMetrics.COLUMNS, an.robots, inputs)
+        files["robots_csv"] = str(robots_path)
     if plots:
         plot_analysis(an, out["png"])
         files["png"] = str(out["png"])

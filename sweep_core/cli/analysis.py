@@ -25,7 +25,8 @@ def _analyze(args: argparse.Namespace) -> int:
     _kernels()
     line = metrics.parse_line(args.line) if args.line else None
     an = metrics.analyze(args.recording, line=line, arrive_radius=args.arrive_radius,
-                          cell=args.cell, progress=not args.quiet)
+                          cell=args.cell, progress=not args.quiet,
+                          goal_radius=args.goal_radius, time_limit=args.time_limit)
     for line in an.problems:  # skipped chunks and messages, gaps: one line each
         print(line, file=sys.stderr)
     an.summary["outputs"] = report.write_outputs(an, plots=not args.no_plots)
@@ -92,6 +93,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cell", type=float, default=0.5,
                    help=f"density map cell, m (default 0.5; the map has at most "
                         f"{metrics.MAX_CELLS:g} cells)")
+    p.add_argument("--goal-radius", type=float, default=None, metavar="R",
+                   help="a robot has reached its goal within R m of it (default: the "
+                        "scene's goal_radius; docs/social_metrics.md)")
+    p.add_argument("--time-limit", type=float, default=None, metavar="S",
+                   help="a robot's episode ends S s after the first frame (default: the "
+                        "scene's time_limit, else the whole recording)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

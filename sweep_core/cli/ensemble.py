@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from sweep_core.ensemble import grid
+from sweep_core.ensemble import grid, paired
 from sweep_core.ensemble.task import RECORD
 from sweep_core.numerics.schemes import SCHEMES
 
@@ -38,6 +38,11 @@ def _ensemble(args: argparse.Namespace) -> int:
           f"grid points {table['point'].nunique()}  out {args.out}")
     for _, row in table[table["status"] != "ok"].head(3).iterrows():
         print(f"  {row['status']}: point {row['point']} seed {row['seed']}: {row['error']}")
+    if paired.KEY in vary and len(table):  # the robots' effect, seed by seed
+        keys = list(vary)
+        print("with - without the robots (paired by seed):")
+        print(paired.summary(paired.differences(table, keys), keys).to_string(
+            index=False, float_format=lambda x: f"{x:.6g}"))
     if lost:
         _say(f"sweep ensemble: {lost} runs lost by the cluster (not by the simulation; the "
              "scheduler and every worker need this sweep_core installed); re-run the same "
@@ -67,7 +72,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--vary", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="a grid over a run option (dt, scheme) or a dotted scene key "
                         "(noise.sigma, agents.radius, walls.0.velocity); repeatable: the grid is "
-                        "the product")
+                        "the product; robots=with,without pairs each seed's run with and "
+                        "without the scene's robots (DIR/paired.csv, paired_summary.csv: "
+                        "evacuation time, flow, pressure, with - without)")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, default=None, metavar="K",
                        help="worker processes of the local cluster (default: the cores)")

@@ -15,6 +15,7 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+from sweep_core.ensemble import paired
 from sweep_core.errors import SceneError
 from sweep_core.numerics.schemes import SCHEMES
 
@@ -70,6 +71,9 @@ def check_key(key: str, spec: dict) -> None:
     """Refuse a key that is neither a run option nor present in the scene dict."""
     if key in RUN_OPTIONS:
         return
+    if key == paired.KEY and not spec.get(key):
+        raise SceneError("--vary", "robots: the scene has no robots to run with and without",
+                         "add a robot to the scene's robots list, or drop --vary robots")
     if not key or _container(spec, key) is None:
         known = ", ".join(list(RUN_OPTIONS) + [k for k in _leaves(spec)
                                                if not k.startswith(("agents.positions",
@@ -88,6 +92,9 @@ def check_value(key: str, value: Any) -> Value:
     if key == "dt" and (isinstance(value, str) or value <= 0):
         raise SceneError("--vary", f"dt: value {value!r} is not a positive number of seconds",
                          "e.g. dt=0.02,0.01")
+    if key == paired.KEY and value not in (paired.WITH, paired.WITHOUT):
+        raise SceneError("--vary", f"robots: value {value!r} is neither with nor without",
+                         "pair runs with and without the scene's robots: robots=with,without")
     if key == "scheme" and value not in SCHEMES:
         raise SceneError("--vary", f"scheme: unknown scheme {value!r}",
                          f"use names from {sorted(SCHEMES)}")
@@ -176,6 +183,9 @@ def apply(spec: dict, point: Point) -> dict:
     out = copy.deepcopy(spec)
     for key, value in point.items():
         if key in RUN_OPTIONS:
+            continue
+        if key == paired.KEY:  # with / without the robots: paired.py
+            out = paired.apply(out, value)
             continue
         found = _container(out, key)
         if found is None:  # checked by grid(); kept for direct callers

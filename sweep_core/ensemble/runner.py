@@ -19,7 +19,7 @@ import pandas as pd
 
 from sweep_core import checks
 from sweep_core.analysis.metrics import parse_line
-from sweep_core.ensemble import cluster, grid, store
+from sweep_core.ensemble import cluster, grid, paired, store
 from sweep_core.ensemble.task import RECORD, Task, simulate
 from sweep_core.errors import SceneError
 from sweep_core.io.outputs import write_text
@@ -182,6 +182,8 @@ def _run(base: Scene, spec: dict, points: list, keys: list[str], out_dir: Path |
         table = _table(heads, rows, keys)
         if out_dir is not None and len(table):
             files = store.write_tables(out_dir, table, keys)
+            if paired.is_paired(keys, points):  # with and without the robots, seed by seed
+                files.update(paired.write(out_dir, table, keys))
             if plots:
                 from sweep_core.ensemble.plots import write_plots
                 files.update(write_plots(out_dir, table, keys))

@@ -68,7 +68,8 @@ class Task:
 
 
 def flatten(summary: dict, prefix: str = "") -> dict[str, float]:
-    """The numeric leaves of an analysis summary as ``section.key`` -> float (None -> NaN)."""
+    """The numeric leaves of an analysis summary as ``section.key`` -> float (None -> NaN,
+    True / False -> 1 / 0)."""
     out: dict[str, float] = {}
     for key, value in summary.items():
         name = prefix + key
@@ -78,7 +79,9 @@ def flatten(summary: dict, prefix: str = "") -> dict[str, float]:
             out.update(flatten(value, name + "."))
         elif value is None:
             out[name] = math.nan
-        elif isinstance(value, (int, float)) and not isinstance(value, bool):
+        elif isinstance(value, bool):  # e.g. a robot's success: 1 or 0, its mean a rate
+            out[name] = float(value)
+        elif isinstance(value, (int, float)):
             out[name] = value
     return out
 

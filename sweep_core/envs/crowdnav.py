@@ -1,0 +1,243 @@
+"""``sweep/CrowdNav-v0``: one robot of a scene driven through its crowd, headless and seeded.
+
+An episode is one run of the scene: :meth:`CrowdNavEnv.reset` builds a
+:class:`~sweep_core.numerics.simulator.Simulator` with an engine seed drawn from the
+environment's generator (so ``reset(seed=s)`` fixes the whole episode: the crowd's noise and the
+scan's noise), and each :meth:`CrowdNavEnv.step` holds the action as the robot's command for one
+step of ``dt`` s, as ``sweep run`` does with a controller. A seeded episode is reproduced bit for
+bit (the engine's steps are).
+
+Spaces (float64):
+
+* action: the robot's command in its own frame (base_link): ``(v, omega)`` for a
+  ``diff_drive`` robot, ``(vx, vy, omega)`` for a ``holonomic`` one (m/s, rad/s), boxed by its
+  ``max_speed`` and ``max_angular_speed``; the engine clips it further (acceleration limits,
+  |(vx, vy)| <= max_speed) and counts the clipped commands (``info["clipped"]``).
+* observation, a dict: ``odom`` (x, y, yaw, vx, vy, omega: the pose in the map frame (m, rad)
+  and the twist achieved over the last step in base_link (m/s, rad/s)), ``scan`` (the latest
+  scan's ranges (m), clipped to [0, range_max]: nothing within range reads range_max), ``goal``
+  (the goal in base_link, m).
+
+Reward per step: the progress along the geodesic distance to the goal (m, round the walls), plus
+``success_reward`` on reaching the goal, minus ``contact_penalty`` for a step ending in contact
+with someone, minus ``discomfort_penalty * dt * (0.2 - clearance)`` when closer than 0.2 m (the
+CrowdNav reward's shape). The episode terminates when the robot is within its ``goal_radius`` of
+the goal, and is truncated after ``max_steps`` steps.
+
+``info``: ``t_s``, ``clearance_m`` (to the nearest person), ``ttc_s``, ``contacts``,
+``clipped``, ``blocked``; at the end of an episode also ``metrics``, the social-navigation
+metrics of :mod:`sweep_core.analysis.social` (docs/social_metrics.md), computed by the functions
+``sweep analyze`` uses on a recording (here from the engine's float64 state, where a recording
+holds the people's velocities in float32).
+"""
+from __future__ import annotations
+
+import math
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+
+from sweep_core.analysis import social
+from sweep_core.errors import SceneError
+from sweep_core.model.scene import Scene, load_scene
+from sweep_core.numerics.simulator import Simulator
+
+#: the bundled scene of ``gymnasium.make("sweep/CrowdNav-v0")`` without a scene
+DEFAULT_SCENE = Path(str(resources.files("sweep_core") / "scenes" / "crowdnav.yaml"))
+
+
+def _scene(scene: Scene | dict | str | Path | None) -> Scene:
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, dict):
+        return Scene.from_dict(scene)
+    return load_scene(str(scene if scene is not None else DEFAULT_SCENE))
+
+
+class CrowdNavEnv(gymnasium.Env):
+    """One robot of a scene among its people (module docstring).
+
+    Args:
+        scene: a Scene, a scene dict or a YAML path (default: the bundled ``crowdnav.yaml``);
+            it needs a robot with a goal and a scan.
+        robot: the robot's name (default: the scene's first robot).
+        dt: time step (s) of the engine, one per :meth:`step`.
+        max_steps: steps before the episode is truncated.
+        scheme: the engine's scheme.
+        success_reward, contact_penalty, discomfort_penalty: the reward's terms.
+    """
+
+    metadata: dict[str, Any] = {"render_modes": []}
+
+    def __init__(self, scene: Scene | dict | str | Path | None = None, robot: str | None = None,
+                 dt: float = 0.1, max_steps: int = 500, scheme: str = "projected_euler",
+                 success_reward: float = 1.0, contact_penalty: float = 0.25,
+                 discomfort_penalty: float = 0.5) -> None:
+        self.scene = _scene(scene)
+        robots = self.scene.spec.get("robots") or []
+        if not robots:
+            raise SceneError("robots", "the scene has no robot",
+                             "add a robot with a goal and a scan to the scene's robots list")
+        names = [r["name"] for r in robots]
+        name = names[0] if robot is None else robot
+        if name not in names:
+            raise SceneError("robot", f"{name!r} is not a robot of the scene",
+                             f"give one of {', '.join(names)}")
+        self.name, self.index = name, names.index(name)
+        spec = robots[self.index]
+        field = f"robots[{self.index}]"
+        if spec.get("goal") is None:
+            raise SceneError(f"{field}.goal", "is missing: the environment drives to a goal",
+                             f"give {field}.goal: [x, y]")
+        if not spec.get("scan"):
+            raise SceneError(f"{field}.scan", "is missing: the observation holds a scan",
+                             f"give {field}.scan (range_max, angle_min, angle_max, increment)")
+        self.dt, self.max_steps, self.scheme = float(dt), int(max_steps), scheme
+        if not (self.dt > 0 and math.isfinite(self.dt)):
+            raise SceneError("dt", f"must be a positive number of seconds, got {dt!r}",
+                             "e.g. dt=0.1")
+        if self.max_steps < 1:
+            raise SceneError("max_steps", f"must be at least 1, got {max_steps!r}",
+                             "e.g. max_steps=500")
+        self.rewards = (float(success_reward), float(contact_penalty), float(discomfort_penalty))
+        self.spec_robot = social.RobotSpec(name, float(spec["radius"]),
+                                           np.asarray(spec["goal"], dtype=np.float64)[:2],
+                                           float(spec.get("goal_radius",
+                                                          social.DEFAULT_GOAL_RADIUS)))
+        start = np.asarray(spec["pose"], dtype=np.float64)[:2]
+        self.field = social.goal_field(self.scene, self.spec_robot.goal, self.spec_robot.radius,
+                                       start)
+        self.geodesic = float(self.field.travel_distance(start[None, :])[0])
+        kin = spec.get("kinematics") or {}
+        self.holonomic = kin.get("type") == "holonomic"
+        vmax = float(kin.get("max_speed", 1.0))
+        wmax = float(kin.get("max_angular_speed", 1.0))
+        high = np.array([vmax, vmax, wmax] if self.holonomic else [vmax, wmax])
+        self.box = spaces.Box(-high, high, dtype=np.float64)
+        self.action_space = self.box
+        self.range_max = float(spec["scan"].get("range_max", 10.0))
+        self.sim = self._simulator(0)
+        self.beams = len(self._ranges())
+        self.observation_space = spaces.Dict({
+            "odom": spaces.Box(-np.inf, np.inf, shape=(6,), dtype=np.float64),
+            "scan": spaces.Box(0.0, self.range_max, shape=(self.beams,), dtype=np.float64),
+            "goal": spaces.Box(-np.inf, np.inf, shape=(2,), dtype=np.float64),
+        })
+        self.rows: list[tuple] = []
+        self.touched: list[np.ndarray] = []
+        self.steps, self.togo = 0, self.geodesic
+
+    # -- the engine ---------------------------------------------------------------------
+
+    def _simulator(self, seed: int) -> Simulator:
+        """A new run of the scene; this robot is driven by the actions (its controller, if the
+        scene gives one, is set aside; the scene's other robots keep theirs)."""
+        sim = Simulator(self.scene, self.dt, seed, scheme=self.scheme)
+        assert sim.robots is not None
+        sim.robots.controllers.pop(self.name, None)
+        return sim
+
+    def _state(self) -> Any:
+        assert self.sim.robots is not None
+        return self.sim.robots.state(self.name)
+
+    def _ranges(self) -> np.ndarray:
+        scan = self._state().scan
+        if scan is None:
+            return np.full(0, self.range_max)
+        return np.clip(np.nan_to_num(np.asarray(scan.ranges, dtype=np.float64),
+                                     nan=self.range_max, posinf=self.range_max),
+                       0.0, self.range_max)
+
+    def _observe(self) -> dict[str, np.ndarray]:
+        st = self._state()
+        x, y, yaw = (float(v) for v in st.pose)
+        c, s = math.cos(yaw), math.sin(yaw)
+        d = self.spec_robot.goal - np.array([x, y])
+        ranges = self._ranges()
+        if len(ranges) != self.beams:  # no scan taken yet
+            ranges = np.full(self.beams, self.range_max)
+        return {"odom": np.array([x, y, yaw, *(float(v) for v in st.twist)]),
+                "scan": ranges,
+                "goal": np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])}
+
+    def _record(self) -> tuple[float, int, float]:
+        """Appends this instant to the episode's series; (clearance, contacts, distance to
+        go along the geodesic field)."""
+        st, people = self._state(), self.sim.state
+        x, y, yaw = (float(v) for v in st.pose)
+        u, w = float(st.twist[0]), float(st.twist[1])
+        c, s = math.cos(yaw), math.sin(yaw)
+        vel = np.array([c * u - s * w, s * u + c * w])
+        near, ttc = social.nearest(np.array([x, y]), vel, self.spec_robot.radius,
+                                   people.positions, people.radii, people.velocities)
+        ids, imp = _contacts(st)
+        self.rows.append((self.steps * self.dt, x, y, yaw, vel[0], vel[1], near, ttc, len(ids),
+                          float(imp.sum()), float(imp.max()) if len(imp) else 0.0))
+        self.touched.append(ids)
+        togo = float(self.field.travel_distance(np.array([[x, y]]))[0])
+        return near, len(ids), togo
+
+    def metrics(self) -> dict[str, Any]:
+        """The social-navigation metrics of the episode so far (docs/social_metrics.md)."""
+        a = np.array(self.rows, dtype=np.float64).reshape(-1, 11)
+        series = social.Series(t=a[:, 0], pose=a[:, 1:4], vel=a[:, 4:6], clearance=a[:, 6],
+                               ttc=a[:, 7], contacts=a[:, 8], impulse=a[:, 9],
+                               impulse_max=a[:, 10], touched=self.touched)
+        return social.episode_metrics(self.spec_robot, series, self.geodesic)
+
+    # -- gymnasium ----------------------------------------------------------------------
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        super().reset(seed=seed)
+        engine_seed = int(self.np_random.integers(0, 2**31 - 1))
+        self.sim = self._simulator(engine_seed)
+        self.rows, self.touched, self.steps = [], [], 0
+        near, contacts, self.togo = self._record()
+        return self._observe(), self._info(near, contacts)
+
+    def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool,
+                                         dict[str, Any]]:
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.shape != self.box.shape or not np.isfinite(a).all():
+            raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, "
+                             f"got {a.tolist()}", "give an element of env.action_space")
+        a = np.clip(a, self.box.low, self.box.high)
+        cmd = (a[0], a[1], a[2]) if self.holonomic else (a[0], 0.0, a[1])
+        assert self.sim.robots is not None
+        self.sim.robots.command(self.name, tuple(float(v) for v in cmd))
+        self.sim.step()
+        self.steps += 1
+        before = self.togo
+        near, contacts, self.togo = self._record()
+        goal = self.spec_robot
+        x, y = self.rows[-1][1], self.rows[-1][2]
+        reached = math.hypot(x - goal.goal[0], y - goal.goal[1]) <= goal.goal_radius
+        success, contact, discomfort = self.rewards
+        reward = before - self.togo
+        reward += success if reached else 0.0
+        reward -= contact if contacts else 0.0
+        reward -= discomfort * self.dt * (social.DISCOMFORT - near) if near < social.DISCOMFORT \
+            else 0.0
+        truncated = not reached and self.steps >= self.max_steps
+        info = self._info(near, contacts)
+        if reached or truncated:
+            info["metrics"] = self.metrics()
+        return self._observe(), float(reward), bool(reached), bool(truncated), info
+
+    def _info(self, near: float, contacts: int) -> dict[str, Any]:
+        st, row = self._state(), self.rows[-1]
+        return {"t_s": row[0], "clearance_m": near, "ttc_s": row[7], "contacts": contacts,
+                "clipped": int(st.clipped), "blocked": int(st.blocked)}
+
+
+def _contacts(st: Any) -> tuple[np.ndarray, np.ndarray]:
+    """A robot state's contacts: person ids (K,) and |impulse| (K,) m/s."""
+    ids = np.asarray(st.contact_ids, dtype=np.int64).reshape(-1)
+    imp = np.asarray(st.contact_impulse, dtype=np.float64).reshape(-1, 2)
+    return ids, np.hypot(imp[:, 0], imp[:, 1])

@@ -1,0 +1,123 @@
+"""The Gymnasium environment sweep/CrowdNav-v0: gymnasium's own checker, seeded episodes
+reproduced bit for bit, the reward and the metrics at the end of an episode."""
+import math
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import sweep_core.envs  # noqa: F401  (registers sweep/CrowdNav-v0)
+from sweep_core.envs import CrowdNavEnv
+from sweep_core.errors import SceneError
+
+
+def small_scene(sigma: float = 0.1, holonomic: bool = False) -> dict:
+    """A 6 m x 3 m corridor, two people walking west, a robot heading east (few scan beams)."""
+    return {
+        "name": "small_crowdnav",
+        "agents": {"positions": [[3.5, 1.0], [4.5, 2.0]], "radius": 0.25},
+        "drift": {"kind": "goal", "goal": [-1.0, 1.5], "speed": 0.8},
+        "noise": {"sigma": sigma},
+        "walls": [{"kind": "segment", "a": [-2.0, 0.0], "b": [8.0, 0.0]},
+                  {"kind": "segment", "a": [-2.0, 3.0], "b": [8.0, 3.0]}],
+        "robots": [{
+            "name": "bot", "radius": 0.3, "pose": [0.5, 1.5, 0.0],
+            "kinematics": {"type": "holonomic" if holonomic else "diff_drive",
+                           "max_speed": 1.0, "max_angular_speed": 1.5,
+                           "max_acceleration": 10.0, "max_angular_acceleration": 10.0},
+            "goal": [5.0, 1.5], "goal_radius": 0.3,
+            "scan": {"range_min": 0.05, "range_max": 5.0, "angle_min": -1.0, "angle_max": 1.0,
+                     "increment": 0.25, "rate": 10.0, "noise_std": 0.01}}],
+    }
+
+
+def test_the_environment_passes_gymnasiums_checker():
+    env = CrowdNavEnv(small_scene(), dt=0.1, max_steps=10)
+    check_env(env, skip_render_check=True)
+    assert env.observation_space["scan"].shape[0] >= 2
+
+
+def episode(env: gymnasium.Env, seed: int, steps: int) -> list:
+    obs, info = env.reset(seed=seed)
+    out = [obs, info]
+    for k in range(steps):
+        action = np.array([0.8, 0.3 * math.sin(k)])  # a fixed, deterministic sequence
+        obs, reward, terminated, truncated, info = env.step(action)
+        out += [obs, reward, terminated, truncated, info]
+        if terminated or truncated:
+            break
+    return out
+
+
+def same(a, b) -> bool:
+    """Equal bit for bit: arrays by their bytes, floats by repr, containers elementwise."""
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
+    if isinstance(a, np.ndarray):
+        return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+    return repr(a) == repr(b)
+
+
+def test_a_seeded_episode_is_reproduced_bit_for_bit():
+    make = lambda: gymnasium.make("sweep/CrowdNav-v0", scene=small_scene(), dt=0.1,  # noqa: E731
+                                  max_steps=12)
+    first, second = episode(make(), 7, 12), episode(make(), 7, 12)
+    assert same(first, second)
+    # the seed matters: the crowd's noise and the scan's noise follow it
+    other = episode(make(), 8, 12)
+    assert not same(first, other)
+    # and reset(seed) on a used environment starts the same episode again
+    env = make()
+    episode(env, 3, 5)
+    assert same(episode(env, 7, 12), first)
+    # the last step of the truncated episode carries the metrics
+    info = first[-1]
+    assert first[-2] is True and "metrics" in info  # truncated
+    m = info["metrics"]
+    assert m["frames"] == 13 and not m["success"]
+    assert m["path_length_m"] > 0 and m["clearance"]["min_m"] == pytest.approx(
+        min(i["clearance_m"] for i in first[1::5]))
+
+
+def test_a_straight_drive_reaches_the_goal_with_the_metrics_of_a_clear_path():
+    # no noise, no people near the robot's lane (they walk along y = 1 and 2 west, the robot
+    # drives along y = 1.5 east... so clear them: put them far off)
+    scene = small_scene(sigma=0.0, holonomic=True)
+    scene["agents"]["positions"] = [[7.0, 0.5], [7.0, 2.5]]
+    scene["drift"] = {"kind": "none"}
+    env = CrowdNavEnv(scene, dt=0.1, max_steps=100)
+    obs, _ = env.reset(seed=1)
+    assert obs["goal"] == pytest.approx([4.5, 0.0], abs=1e-12)  # 4.5 m ahead, in base_link
+    total, steps = 0.0, 0
+    while True:
+        obs, reward, terminated, truncated, info = env.step(np.array([1.0, 0.0, 0.0]))
+        total += reward
+        steps += 1
+        if terminated or truncated:
+            break
+    m = info["metrics"]
+    assert terminated and m["success"] and not m["collided"]
+    # the episode's reward: the geodesic progress plus the success reward
+    x = obs["odom"][0]
+    progress = env.unwrapped.geodesic - float(env.unwrapped.field.travel_distance(
+        np.array([[x, 1.5]]))[0])
+    assert total == pytest.approx(progress + 1.0, abs=1e-9)
+    assert m["time_to_goal_s"] == pytest.approx(steps * 0.1, abs=1e-9)
+    assert m["path_length_m"] == pytest.approx(x - 0.5, abs=1e-9)
+    assert m["heading_change_rad"] == 0.0 and m["contact"]["frames"] == 0
+
+
+def test_a_scene_without_a_robot_goal_or_scan_is_refused():
+    scene = small_scene()
+    del scene["robots"][0]["scan"]
+    with pytest.raises(SceneError, match=r"robots\[0\]\.scan"):
+        CrowdNavEnv(scene)
+    scene = small_scene()
+    scene["robots"] = []
+    with pytest.raises(SceneError, match="robots"):
+        CrowdNavEnv(scene)
+    with pytest.raises(SceneError, match="'nobody' is not a robot"):
+        CrowdNavEnv(small_scene(), robot="nobody")
