@@ -924,7 +924,7 @@ def test_goal_builds_a_geodesic_field_round_the_wall(installed, probe, tmp_path)
     from sweep_core.cli import main as sweep_main
     from sweep_core.model.fields import field_from_spec
     from sweep_core.model.scene import Scene
-    from sweep_ros import messages
+    from sweep_ros.clouds import grid_from_cloud
 
     clouds = navigation_probe(probe)
     scene_path = tmp_path / "gap.yaml"
@@ -965,7 +965,7 @@ def test_goal_builds_a_geodesic_field_round_the_wall(installed, probe, tmp_path)
         np.testing.assert_allclose(cols["T"], field.travel_distance(nodes), rtol=1e-6,
                                    atol=1e-5)
         # the cloud reads back as a velocity_field grid: the drift at its nodes
-        grid = messages.grid_from_cloud(cloud, 10.0)
+        grid = grid_from_cloud(cloud, 10.0)
         np.testing.assert_allclose(grid(0.0, nodes), field(0.0, nodes), atol=1e-5)
         # round the wall: left of it, below the gap, the field heads up to the gap
         k = int(np.argmin(np.hypot(nodes[:, 0] - 4.5, nodes[:, 1] - 1.0)))
