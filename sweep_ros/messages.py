@@ -61,7 +61,7 @@ def check_speed(topic: str, speed: float, max_speed: float) -> None:
                                   "(fix: send a slower field or raise the max_speed parameter)")
 
 
-def uniform_from_twist(msg: Any, max_speed: float, topic: str = "cmd_vel") -> Uniform:
+def uniform_from_twist(msg: Any, max_speed: float, topic: str = "crowd/cmd_vel") -> Uniform:
     """geometry_msgs/Twist -> uniform field (linear.x, linear.y); the other components must be
     finite and are ignored."""
     values = [msg.linear.x, msg.linear.y, msg.linear.z,

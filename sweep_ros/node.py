@@ -102,6 +102,9 @@ DIAGNOSTICS_PERIOD_S = 1.0
 #: a full queue drops is counted (diagnostics: commands_lost) where the middleware gives
 #: publication sequence numbers
 COMMAND_QUEUE_DEPTH = 100
+#: the crowd's uniform velocity command: off the name ``cmd_vel``, which ROS users expect to drive
+#: a robot (each robot has its own, ``NAME/cmd_vel``)
+CROWD_CMD_VEL = "crowd/cmd_vel"
 #: rclpy's own parameters, never reported as unknown
 _RCLPY_PARAMS = ("use_sim_time", "start_type_description_service", "qos_overrides.")
 
@@ -183,7 +186,7 @@ class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin
         self.pub_clock = (self.create_publisher(Clock, "clock", reliable)
                           if self._p["publish_clock"] else None)
         self.sub_cmd_vel = self.create_subscription(
-            Twist, "cmd_vel", self._on_cmd_vel, inbound, raw=True)
+            Twist, CROWD_CMD_VEL, self._on_cmd_vel, inbound, raw=True)
         self.sub_goal = self.create_subscription(
             PointStamped, "goal", self._on_goal, inbound, raw=True)
         #: the scene's groups (agents.groups), whose goals come on goal/<name>
