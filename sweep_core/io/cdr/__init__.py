@@ -11,6 +11,9 @@ Message types:
 * ``geometry_msgs/msg/PoseArray``: agent positions (z = 0) and heading (yaw about z).
 * ``sensor_msgs/msg/PointCloud2``: per-agent scalar fields as an unorganised FLOAT32 cloud.
 * ``rosgraph_msgs/msg/Clock``: simulated time.
+* the robot's ``nav_msgs/msg/Odometry``, ``geometry_msgs/msg/TwistStamped``,
+  ``sensor_msgs/msg/LaserScan``, ``tf2_msgs/msg/TFMessage`` and
+  ``geometry_msgs/msg/PoseWithCovarianceStamped`` (:mod:`sweep_core.io.cdr.robot`).
 
 ``SCHEMAS`` maps each type name to its ``ros2msg`` definition text (the top-level ``.msg`` followed
 by every dependency under a line of 80 ``=`` and ``MSG: pkg/Type``), as rosbag2 stores it in
@@ -37,14 +40,60 @@ from sweep_core.io.cdr.encode import encode_clock, encode_point_cloud2, encode_p
 from sweep_core.io.cdr.msgdefs import (
                                       CLOCK,
                                       CLOCK_MSGDEF,
+                                      LASER_SCAN,
+                                      ODOMETRY,
                                       POINT_CLOUD2,
                                       POINT_CLOUD2_MSGDEF,
                                       POSE_ARRAY,
                                       POSE_ARRAY_MSGDEF,
+                                      POSE_WITH_COVARIANCE_STAMPED,
                                       SCHEMAS,
+                                      TF_MESSAGE,
+                                      TWIST_STAMPED,
+)
+from sweep_core.io.cdr.robot import (
+                                      LaserScan,
+                                      Odometry,
+                                      PoseWithCovariance,
+                                      Transform,
+                                      Twist,
+                                      decode_laser_scan,
+                                      decode_odometry,
+                                      decode_pose_with_covariance_stamped,
+                                      decode_tf_message,
+                                      decode_twist_stamped,
+                                      encode_laser_scan,
+                                      encode_odometry,
+                                      encode_pose_with_covariance_stamped,
+                                      encode_tf_message,
+                                      encode_twist_stamped,
+                                      quaternion_yaw,
+                                      yaw_quaternion,
 )
 
 __all__ = [
+    "LASER_SCAN",
+    "ODOMETRY",
+    "POSE_WITH_COVARIANCE_STAMPED",
+    "TF_MESSAGE",
+    "TWIST_STAMPED",
+    "LaserScan",
+    "Odometry",
+    "PoseWithCovariance",
+    "Transform",
+    "Twist",
+    "decode_laser_scan",
+    "decode_odometry",
+    "decode_pose_with_covariance_stamped",
+    "decode_tf_message",
+    "decode_twist_stamped",
+    "encode_laser_scan",
+    "encode_odometry",
+    "encode_pose_with_covariance_stamped",
+    "encode_tf_message",
+    "encode_twist_stamped",
+    "quaternion_yaw",
+    "yaw_quaternion",
     "CLOCK",
     "CLOCK_MSGDEF",
     "Cloud",

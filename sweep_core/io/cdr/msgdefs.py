@@ -5,6 +5,11 @@ from __future__ import annotations
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
 CLOCK = "rosgraph_msgs/msg/Clock"
+ODOMETRY = "nav_msgs/msg/Odometry"
+TWIST_STAMPED = "geometry_msgs/msg/TwistStamped"
+LASER_SCAN = "sensor_msgs/msg/LaserScan"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+POSE_WITH_COVARIANCE_STAMPED = "geometry_msgs/msg/PoseWithCovarianceStamped"
 
 # ---------------------------------------------------------------------------------------------
 # Message definitions (ros2msg), comments stripped.
@@ -72,8 +77,97 @@ POINT_CLOUD2_MSGDEF = _compose(
 )
 CLOCK_MSGDEF = _compose(_CLOCK_MSG, [("builtin_interfaces/Time", _TIME_MSG)])
 
+
+# The robot's messages (odometry, velocity commands, laser scans, transforms, initial pose).
+_VECTOR3_MSG = "float64 x\nfloat64 y\nfloat64 z\n"
+_TWIST_MSG = "Vector3  linear\nVector3  angular\n"
+_TRANSFORM_MSG = "Vector3 translation\nQuaternion rotation\n"
+_LOCAL_DEFS: dict[str, str] = {
+    "builtin_interfaces/Time": _TIME_MSG,
+    "std_msgs/Header": _HEADER_MSG,
+    "geometry_msgs/Point": _POINT_MSG,
+    "geometry_msgs/Quaternion": _QUATERNION_MSG,
+    "geometry_msgs/Pose": _POSE_MSG,
+    "geometry_msgs/Vector3": _VECTOR3_MSG,
+    "geometry_msgs/Twist": _TWIST_MSG,
+    "geometry_msgs/PoseWithCovariance": "Pose pose\nfloat64[36] covariance\n",
+    "geometry_msgs/TwistWithCovariance": "Twist twist\nfloat64[36] covariance\n",
+    "geometry_msgs/TwistStamped": "std_msgs/Header header\nTwist twist\n",
+    "geometry_msgs/PoseWithCovarianceStamped":
+        "std_msgs/Header header\nPoseWithCovariance pose\n",
+    "geometry_msgs/Transform": _TRANSFORM_MSG,
+    "geometry_msgs/TransformStamped":
+        "std_msgs/Header header\nstring child_frame_id\nTransform transform\n",
+    "nav_msgs/Odometry": (
+        "std_msgs/Header header\n"
+        "string child_frame_id\n"
+        "geometry_msgs/PoseWithCovariance pose\n"
+        "geometry_msgs/TwistWithCovariance twist\n"
+    ),
+    "sensor_msgs/LaserScan": (
+        "std_msgs/Header header\n"
+        "float32 angle_min\n"
+        "float32 angle_max\n"
+        "float32 angle_increment\n"
+        "float32 time_increment\n"
+        "float32 scan_time\n"
+        "float32 range_min\n"
+        "float32 range_max\n"
+        "float32[] ranges\n"
+        "float32[] intensities\n"
+    ),
+    "tf2_msgs/TFMessage": "geometry_msgs/TransformStamped[] transforms\n",
+}
+_PRIMITIVES = frozenset({"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16",
+                         "uint16", "int32", "uint32", "int64", "uint64", "string", "wstring"})
+
+
+def _direct_dependencies(name: str) -> list[str]:
+    """The ``pkg/Type`` names a local definition uses, sorted (``Header`` is std_msgs')."""
+    pkg = name.split("/")[0]
+    deps = set()
+    for line in _LOCAL_DEFS[name].splitlines():
+        words = line.split()
+        if len(words) < 2 or "=" in line:
+            continue
+        typ = words[0].split("[")[0].split("<")[0]
+        if typ in _PRIMITIVES:
+            continue
+        if "/" not in typ:
+            typ = "std_msgs/Header" if typ == "Header" else f"{pkg}/{typ}"
+        deps.add(typ)
+    return sorted(deps)
+
+
+def _local_definition(msgtype: str) -> str:
+    """rosbag2's text of a local type: depth first, each type's direct dependencies in sorted
+    order, each type once."""
+    top = msgtype.replace("/msg/", "/")
+    seen: list[str] = []
+
+    def visit(name: str) -> None:
+        for dep in _direct_dependencies(name):
+            if dep not in seen:
+                seen.append(dep)
+                visit(dep)
+
+    visit(top)
+    return _compose(_LOCAL_DEFS[top], [(name, _LOCAL_DEFS[name]) for name in seen])
+
+
+ODOMETRY_MSGDEF = _local_definition(ODOMETRY)
+TWIST_STAMPED_MSGDEF = _local_definition(TWIST_STAMPED)
+LASER_SCAN_MSGDEF = _local_definition(LASER_SCAN)
+TF_MESSAGE_MSGDEF = _local_definition(TF_MESSAGE)
+POSE_WITH_COVARIANCE_STAMPED_MSGDEF = _local_definition(POSE_WITH_COVARIANCE_STAMPED)
+
 SCHEMAS: dict[str, str] = {
     POSE_ARRAY: POSE_ARRAY_MSGDEF,
     POINT_CLOUD2: POINT_CLOUD2_MSGDEF,
     CLOCK: CLOCK_MSGDEF,
+    ODOMETRY: ODOMETRY_MSGDEF,
+    TWIST_STAMPED: TWIST_STAMPED_MSGDEF,
+    LASER_SCAN: LASER_SCAN_MSGDEF,
+    TF_MESSAGE: TF_MESSAGE_MSGDEF,
+    POSE_WITH_COVARIANCE_STAMPED: POSE_WITH_COVARIANCE_STAMPED_MSGDEF,
 }
