@@ -29,6 +29,11 @@ import numpy as np
 
 from sweep_core.analysis.frames import FrameReader, GapFinder, progress_bar
 from sweep_core.analysis.report import jsonable
+from sweep_core.analysis.robot_replay import (
+    apply_commands,
+    drive_by_recording,
+    recorded_commands,
+)
 from sweep_core.analysis.run import MapChange, RunMeta, load_run, require_replayable, scene_with_map
 from sweep_core.errors import InfeasibleError, RecordingError, SweepError
 from sweep_core.io.versions import SHAPING, platform_record, versions
@@ -146,6 +151,8 @@ class _Replayer:
         self.noise_sigma = self.meta.parameters.get("noise_sigma", -1.0)
         self.map_index: int | None = None  # the recorded map in effect (None: the scene's)
         self.maps_applied = 0
+        self.robot_commands = recorded_commands(meta)  # robots' /NAME/cmd_vel, if any
+        drive_by_recording(self.sim)
         self._start(0)
 
     def _map(self, change: MapChange) -> None:
@@ -204,6 +211,7 @@ class _Replayer:
                     self._map(what)
                 else:
                     self._sigma(what.value)
+            apply_commands(self.sim, self.robot_commands, self.segment, k + 1)
             for attempt in range(MAX_ATTEMPTS):
                 try:
                     if self.path is not None:

@@ -42,6 +42,7 @@ from sweep_core.model.groups import scene_drift
 from sweep_core.model.maps import OccupancyMap, map_from_spec, read_bounded
 from sweep_core.model.outlines import chain_points
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
+from sweep_core.model.robots import CrowdReaction, Robot, reaction_from_spec, robots_from_spec
 from sweep_core.model.spawn import spawn
 from sweep_core.model.user import check_constraint, constraint_name
 from sweep_core.model.yaml_files import YAMLError, dump_yaml, load_yaml, yaml_fix, yaml_problem
@@ -55,7 +56,7 @@ MAX_SCENE_BYTES = 256 << 20
 MAX_NAME, MAX_DESCRIPTION = 200, 10_000
 
 _TOP_KEYS = {"name", "description", "horizon", "agents", "walls", "obstacles", "map", "drift",
-             "noise", "constraints"}
+             "noise", "constraints", "robots", "crowd_reaction"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,6 +80,9 @@ class Scene:
     speed: float
     horizon: float | None
     spec: dict
+    #: the robots (:mod:`sweep_core.model.robots`) and the crowd's reaction to them
+    robots: tuple[Robot, ...] = ()
+    reaction: CrowdReaction = CrowdReaction()
 
     @property
     def n_agents(self) -> int:
@@ -260,6 +264,12 @@ def _build(data: Any, default_name: str, base: Path | None = None, files: bool =
     # a sine law's trough counts from t = 0; a linear shrink is checked against each horizon
     scene.check_horizon(horizon if horizon is not None else 0.0)
     _check_initial(scene)
+    if data.get("robots") or data.get("crowd_reaction"):  # robots: model/robots.py
+        robots, spec["robots"] = robots_from_spec(data.get("robots"), geometry, positions,
+                                                  scene.radii(0.0),
+                                                  None if grid is None else grid.is_blocked)
+        reaction, spec["crowd_reaction"] = reaction_from_spec(data.get("crowd_reaction"))
+        scene = replace(scene, robots=robots, reaction=reaction)
     return scene
 
 

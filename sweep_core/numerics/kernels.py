@@ -29,10 +29,11 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import schemes
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clusters import solve_active
+from sweep_core.numerics.robots import scan as robot_scan
 from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
-MODULES: tuple[ModuleType, ...] = (neighbours, dual, schemes)
+MODULES: tuple[ModuleType, ...] = (neighbours, dual, schemes, robot_scan)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -124,6 +125,9 @@ def _exercise() -> None:
     # the exact path of small clusters: two agents pressed together against a wall
     rows = sp.csr_matrix(np.array([[1.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0]]))
     solve_active(np.array([0.1, -0.2, -0.1, 0.0]), rows, np.array([0.05, 0.0]))
+    # a robot's scan (the ray cast against disks, segments and half-planes)
+    robot_scan.ray_cast(0.0, 0.0, np.ones(2), np.zeros(2), np.ones((1, 2)), np.ones(1),
+                        np.ones((1, 2)), 2 * np.ones((1, 2)), np.ones((1, 2)), np.ones(1), 5.0)
 
 
 def warm_up(notify: Callable[[str], None] | None = None) -> WarmUp:

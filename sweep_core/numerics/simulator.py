@@ -17,6 +17,7 @@ from sweep_core.model.maps import map_from_spec
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise
 from sweep_core.numerics.projection import SolverOptions
+from sweep_core.numerics.robots.fleet import robot_fleet
 from sweep_core.numerics.schemes import SCHEMES, Scheme, StepResult
 
 #: largest true-constraint violation (m) ever accepted after a step
@@ -75,6 +76,8 @@ class Simulator:
         self.seed = checks.integer(seed, "seed")
         self.scheme = _scheme_class(scheme)(scene, solver or SolverOptions())
         self.check = bool(check)
+        #: the robots (None without): numerics/robots/fleet.py
+        self.robots = robot_fleet(scene, self.dt, self.seed, self.scheme)
         self.reset()
 
     # -- state -------------------------------------------------------------------------
@@ -95,6 +98,10 @@ class Simulator:
         g = gaps(self.scene.geometry, 0.0, self._q, self.scene.radii(0.0))
         self._min_gap = g.min_gap
         self.last: StepResult | None = None
+        if self.robots is not None:
+            self.robots.seed = self.seed
+            self.robots.reset()
+            self.robots.after_step(0.0, self._q, self.scene.radii(0.0))
 
     @property
     def t(self) -> float:
@@ -284,7 +291,10 @@ class Simulator:
                              f"t = {t1:.6g} s", "stop earlier or shrink the radii more slowly")
         if dB is None and np.any(self._sigma):
             dB = noise.increments(self._rng, h, self.scene.n_agents)
-        res = self.scheme.step(t, self._q, h, dB, self._drift, self._sigma)
+        if self.robots is not None:
+            res = self.robots.step(self.scheme, t, self._q, h, dB, self._drift, self._sigma)
+        else:
+            res = self.scheme.step(t, self._q, h, dB, self._drift, self._sigma)
         y = res.q_new
         if not np.all(np.isfinite(y)):
             bad = np.nonzero(~np.all(np.isfinite(y), axis=1))[0]
@@ -311,6 +321,8 @@ class Simulator:
         self._contacts = res.projection.active
         self._min_gap = min_gap
         self.last = res
+        if self.robots is not None:
+            self.robots.after_step(t1, y, r1)
 
 
 def violating_agents(scene: Scene, t: float, q: np.ndarray) -> list[int]:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from sweep_core.errors import RecordingError, SweepError
-from sweep_core.io import cdr, topics
+from sweep_core.io import cdr, robot_topics, topics
 from sweep_core.io.metadata import STATUS_RECORD, status_metadata
 from sweep_core.io.recording.background import BackgroundRecorder
 from sweep_core.io.recording.format import qos_profiles
@@ -61,12 +61,30 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
             rec.add_channel("/" + topics.NAVIGATION, cdr.POINT_CLOUD2,
                             offered_qos_profiles=qos_profiles(1, transient_local=True))
             navigation.append(None)
+        for name, msgtype in robot_topics.channels(sim.scene).items():  # robots, if any
+            if name == robot_topics.TF_STATIC:
+                rec.add_channel(name, msgtype,
+                                offered_qos_profiles=qos_profiles(1, transient_local=True))
+            else:
+                rec.add_channel(name, msgtype)
+        if sim.robots is not None:
+            ns0 = topics.stamp_ns(sim.t)
+            rec.write(robot_topics.TF_STATIC, ns0,
+                      robot_topics.encode_static(sim.scene, ns0, frame_id))
 
         def record(s: Simulator) -> None:
             nonlocal steps
             state = s.state
             if state.step % record_every == 0:
                 topics.record_state(rec.write, state, frame_id)
+                if s.robots is not None:
+                    ns = topics.stamp_ns(state.t)
+                    for name, data in robot_topics.encode_step(s.robots, ns, frame_id):
+                        rec.write(name, ns, data)
+            elif s.robots is not None:  # the applied commands every step, for the replay
+                ns = topics.stamp_ns(state.t)
+                for name, data in robot_topics.encode_commands(s.robots, ns):
+                    rec.write(name, ns, data)
                 if navigation and topics.navigation_key(s.drift, state.t) != navigation[0]:
                     navigation[0] = topics.navigation_key(s.drift, state.t)
                     ns = topics.stamp_ns(state.t)

@@ -1,0 +1,261 @@
+"""Robots of a scene (the ``robots:`` list) and how the crowd reacts to them
+(``crowd_reaction:``): schema, validation, placement checks.
+
+A robot is a disk of ``radius`` m that takes part in the projection as an extra disk, with a
+``weight`` w in its metric min sum_i w_i |x_i - p_i|^2 (people have weight 1): ``inf`` means its
+motion is prescribed (the crowd must yield), 1 that it is pushed like a person. It is not an
+agent: the crowd's arrays, ``/poses`` and ``/agents`` hold people only. Footprints are disks
+only (a polygon footprint is not supported: its contact rows with disks are not convex in the
+robot's pose once it turns).
+
+Kinematics: ``diff_drive`` takes (v, omega), ``holonomic`` (vx, vy, omega), in the robot's
+frame (base_link), m/s and rad/s, clipped to ``max_speed``, ``max_angular_speed`` and, against
+the last applied command, ``max_acceleration`` / ``max_angular_acceleration`` (per second).
+
+The crowd's reaction ``avoid``: every person within ``radius`` m of the segment from a robot's
+centre to where its current velocity takes it in ``horizon`` s gets a term added to its wished
+velocity, ``strength`` (1 - d / radius) m/s along the direction from the nearest point of that
+segment to the person (d the distance to the segment, m): people step aside from where the
+robot is going, more the closer they are.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from sweep_core import checks
+from sweep_core.errors import SceneError, show
+from sweep_core.model.geometry import Geometry, gaps
+
+KINEMATICS = ("diff_drive", "holonomic")
+CONTROLLERS = ("none", "pursuit")
+REACTIONS = ("none", "avoid")
+NAME = re.compile(r"[a-z][a-z0-9_]*\Z")
+MAX_ROBOTS = 16
+#: most beams of one scan
+MAX_BEAMS = 20_000
+_KEYS = {"name", "radius", "pose", "kinematics", "weight", "goal", "goal_radius", "controller",
+         "scan"}
+_KIN_KEYS = {"type", "max_speed", "max_angular_speed", "max_acceleration",
+             "max_angular_acceleration"}
+_SCAN_KEYS = {"range_min", "range_max", "angle_min", "angle_max", "increment", "rate",
+              "noise_std"}
+
+
+@dataclass(frozen=True)
+class ScanSpec:
+    """A planar laser scanner at the robot's centre: ranges in [range_min, range_max] m, beams
+    at angle_min + k increment (rad, robot frame) for k = 0 .. beams - 1, ``rate`` Hz,
+    Gaussian range noise of ``noise_std`` m."""
+
+    range_min: float
+    range_max: float
+    angle_min: float
+    angle_max: float
+    increment: float
+    rate: float
+    noise_std: float
+
+    @property
+    def beams(self) -> int:
+        return int(math.floor((self.angle_max - self.angle_min) / self.increment + 1e-9)) + 1
+
+    def angles(self) -> np.ndarray:
+        """(beams,) beam angles in the robot frame (rad)."""
+        return self.angle_min + self.increment * np.arange(self.beams, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class Robot:
+    """One robot of the scene (see the module docstring); lengths m, angles rad, speeds m/s and
+    rad/s, accelerations m/s^2 and rad/s^2; ``weight`` > 0 or inf."""
+
+    name: str
+    radius: float
+    pose: tuple[float, float, float]
+    kinematics: str
+    max_speed: float
+    max_angular_speed: float
+    max_acceleration: float
+    max_angular_acceleration: float
+    weight: float
+    goal: tuple[float, float] | None
+    goal_radius: float
+    controller: str
+    scan: ScanSpec | None
+
+    @property
+    def prescribed(self) -> bool:
+        return math.isinf(self.weight)
+
+
+@dataclass(frozen=True)
+class CrowdReaction:
+    """How people react to robots: ``kind`` none or avoid (module docstring); radius m,
+    horizon s, strength m/s."""
+
+    kind: str = "none"
+    radius: float = 2.0
+    horizon: float = 1.0
+    strength: float = 0.8
+
+
+def _weight(value: Any, field: str) -> float:
+    if isinstance(value, str) and value.strip().lower() in ("inf", ".inf", "infinity"):
+        return math.inf
+    if isinstance(value, float) and value == math.inf:
+        return math.inf
+    return checks.number(value, field, positive=True,
+                         fix=f"set {field} to a number > 0 (1: pushed like a person) or inf "
+                             "(prescribed motion)")
+
+
+def _scan(value: Any, field: str) -> ScanSpec:
+    d = checks.mapping(value, field, allowed=_SCAN_KEYS)
+    r0 = checks.length(d.get("range_min", 0.05), f"{field}.range_min", nonnegative=True)
+    r1 = checks.length(d.get("range_max", 10.0), f"{field}.range_max", positive=True)
+    if r1 <= r0:
+        raise SceneError(f"{field}.range_max", f"{show(r1)} m is not above range_min {show(r0)} m",
+                         f"set {field}.range_max above {field}.range_min")
+    a0 = checks.number(d.get("angle_min", -math.pi), f"{field}.angle_min")
+    a1 = checks.number(d.get("angle_max", math.pi), f"{field}.angle_max")
+    if not -2 * math.pi <= a0 <= a1 <= 2 * math.pi or a1 - a0 > 2 * math.pi + 1e-9:
+        raise SceneError(f"{field}.angle_max", f"[{show(a0)}, {show(a1)}] rad is not an "
+                         "interval of at most one turn within [-2 pi, 2 pi]",
+                         f"give {field}.angle_min <= angle_max, at most 2 pi apart")
+    inc = checks.number(d.get("increment", math.pi / 180), f"{field}.increment", positive=True)
+    spec = ScanSpec(r0, r1, a0, a1, inc,
+                    checks.number(d.get("rate", 10.0), f"{field}.rate", positive=True),
+                    checks.number(d.get("noise_std", 0.0), f"{field}.noise_std",
+                                  nonnegative=True))
+    if spec.beams > MAX_BEAMS:
+        raise SceneError(f"{field}.increment", f"{show(inc)} rad gives {spec.beams} beams, more "
+                         f"than {MAX_BEAMS}", f"set {field}.increment to at least "
+                         f"{(a1 - a0) / (MAX_BEAMS - 1):.3g} rad")
+    return spec
+
+
+def _robot(value: Any, field: str) -> tuple[Robot, dict]:
+    d = checks.mapping(value, field, allowed=_KEYS, required={"name", "radius", "pose"})
+    name = d["name"]
+    if not isinstance(name, str) or not NAME.match(name) or len(name) > 64:
+        raise SceneError(f"{field}.name", f"{show(name)} is not a robot name",
+                         "use lowercase letters, digits and _, starting with a letter "
+                         "(it becomes a ROS namespace)")
+    radius = checks.length(d["radius"], f"{field}.radius", positive=True, what="radius")
+    pose = checks.array(d["pose"], f"{field}.pose", (3,), "as [x, y, yaw]")
+    checks.within_bound(pose[:2], f"{field}.pose")
+    kin = checks.mapping(d.get("kinematics") or {}, f"{field}.kinematics", allowed=_KIN_KEYS)
+    kind = kin.get("type", "diff_drive")
+    if kind not in KINEMATICS:
+        raise SceneError(f"{field}.kinematics.type", f"unknown kinematics {show(kind)}",
+                         f"use one of {list(KINEMATICS)}")
+    limits = {key: checks.number(kin.get(key, default), f"{field}.kinematics.{key}",
+                                 positive=True)
+              for key, default in (("max_speed", 1.0), ("max_angular_speed", 1.5),
+                                   ("max_acceleration", 2.0), ("max_angular_acceleration", 4.0))}
+    weight = _weight(d.get("weight", "inf"), f"{field}.weight")
+    goal = None
+    if d.get("goal") is not None:
+        g = checks.point(d["goal"], f"{field}.goal")
+        goal = (float(g[0]), float(g[1]))
+    goal_radius = checks.length(d.get("goal_radius", 0.5), f"{field}.goal_radius", positive=True)
+    controller = d.get("controller", "none")
+    if controller not in CONTROLLERS:
+        raise SceneError(f"{field}.controller", f"unknown controller {show(controller)}",
+                         f"use one of {list(CONTROLLERS)}")
+    if controller == "pursuit" and goal is None:
+        raise SceneError(f"{field}.goal", "missing: controller pursuit drives to a goal",
+                         f"add {field}.goal: [x, y], or set {field}.controller: none")
+    scan = _scan(d["scan"], f"{field}.scan") if d.get("scan") is not None else None
+    robot = Robot(name, radius, (float(pose[0]), float(pose[1]), float(pose[2])), kind,
+                  weight=weight, goal=goal, goal_radius=goal_radius, controller=controller,
+                  scan=scan, **limits)
+    spec: dict = {"name": name, "radius": radius, "pose": pose.tolist(),
+                  "kinematics": {"type": kind, **limits},
+                  "weight": "inf" if math.isinf(weight) else weight,
+                  "goal_radius": goal_radius, "controller": controller}
+    if goal is not None:
+        spec["goal"] = list(goal)
+    if scan is not None:
+        spec["scan"] = {k: getattr(scan, k) for k in ("range_min", "range_max", "angle_min",
+                                                      "angle_max", "increment", "rate",
+                                                      "noise_std")}
+    return robot, spec
+
+
+def robots_from_spec(value: Any, geometry: Geometry, positions: np.ndarray,
+                     radii: np.ndarray, blocked: Any = None) -> tuple[tuple[Robot, ...], list]:
+    """The scene's ``robots`` list validated, and its normalised spec. Each robot must not
+    overlap a person (``positions`` (N, 2), ``radii`` (N,) at t = 0), another robot, a wall or
+    an obstacle, nor stand in a blocked map cell (``blocked(points) -> (n,) bool``)."""
+    if value is None:
+        return (), []
+    if not isinstance(value, list):
+        raise SceneError("robots", f"must be a list, got {type(value).__name__} {show(value)}",
+                         "write robots as a list of mappings, one '- name: ...' per robot")
+    if len(value) > MAX_ROBOTS:
+        raise SceneError("robots", f"has {len(value)} robots, more than {MAX_ROBOTS}",
+                         f"keep at most {MAX_ROBOTS} robots")
+    robots: list[Robot] = []
+    specs: list[dict] = []
+    for k, item in enumerate(value):
+        robot, spec = _robot(item, f"robots[{k}]")
+        if any(r.name == robot.name for r in robots):
+            raise SceneError(f"robots[{k}].name", f"{show(robot.name)} is used twice",
+                             "give every robot its own name")
+        robots.append(robot)
+        specs.append(spec)
+    for k, robot in enumerate(robots):
+        others = [(r.pose[0], r.pose[1], r.radius, f"robot {r.name}") for r in robots[:k]]
+        problem = overlap(robot, robot.pose[:2], geometry, positions, radii, others, blocked)
+        if problem:
+            raise SceneError(f"robots[{k}].pose", problem,
+                             f"move robot {robot.name} to free space, at least its radius "
+                             f"{robot.radius:g} m from walls and clear of people")
+    return tuple(robots), specs
+
+
+def overlap(robot: Robot, xy: Any, geometry: Geometry, positions: np.ndarray, radii: np.ndarray,
+            others: list[tuple[float, float, float, str]], blocked: Any = None,
+            t: float = 0.0, tol: float = 1e-9) -> str:
+    """What the robot's disk at ``xy`` (m) overlaps, as a message ('' when nothing): a person,
+    another robot (``others``: (x, y, radius, label)), a wall or obstacle at time t, or a
+    blocked map cell."""
+    c = np.array([[float(xy[0]), float(xy[1])]])
+    where = f"robot {robot.name} at {show(c[0])} (radius {robot.radius:g} m)"
+    if len(positions):
+        d = np.hypot(*(positions - c).T) - radii - robot.radius
+        a = int(np.argmin(d))
+        if d[a] < -tol:
+            return f"{where} overlaps agent {a} at {show(positions[a])} by {-d[a]:.3g} m"
+    for x, y, r, label in others:
+        gap = math.hypot(c[0, 0] - x, c[0, 1] - y) - r - robot.radius
+        if gap < -tol:
+            return f"{where} overlaps {label} by {-gap:.3g} m"
+    if not geometry.is_empty:
+        g = gaps(geometry, t, c, np.array([robot.radius]))
+        if g.worst_single is not None and g.min_single < -tol:
+            _, kind, item, gap = g.worst_single
+            return f"{where} overlaps {geometry.describe(kind, item)} by {-gap:.3g} m"
+    if blocked is not None and bool(blocked(c)[0]):
+        return f"{where} has its centre in a blocked (occupied or unknown) cell of the map"
+    return ""
+
+
+def reaction_from_spec(value: Any) -> tuple[CrowdReaction, dict]:
+    """The scene's ``crowd_reaction`` validated, and its normalised spec."""
+    d = checks.mapping(value or {}, "crowd_reaction",
+                       allowed={"kind", "radius", "horizon", "strength"})
+    kind = checks.kind(d, "crowd_reaction", REACTIONS, default="none")
+    reaction = CrowdReaction(
+        kind,
+        checks.length(d.get("radius", 2.0), "crowd_reaction.radius", positive=True),
+        checks.number(d.get("horizon", 1.0), "crowd_reaction.horizon", nonnegative=True),
+        checks.number(d.get("strength", 0.8), "crowd_reaction.strength", nonnegative=True))
+    return reaction, {"kind": kind, "radius": reaction.radius, "horizon": reaction.horizon,
+                      "strength": reaction.strength}

@@ -1,0 +1,107 @@
+"""Robot controllers without ROS: what a controller sees (:class:`Observation`), what it is
+(:class:`Controller`, any callable of an observation returning (vx, vy, omega) in the robot's
+frame, m/s and rad/s; the fleet clips it to the limits), and the bundled :class:`Pursuit`.
+
+``Pursuit`` follows a geodesic field to the goal (computed once, round the walls, obstacles and
+map cells, keeping ``wall_buffer`` = the robot's radius + 0.1 m from them): it turns towards the
+field's direction at ``turn_gain`` times the heading error (rad/s per rad), drives at the
+field's speed (the robot's max_speed, slowing within 0.5 m of the goal) times cos(error) (not
+backwards), and slows for the scan's nearest return within 90 degrees of its direction of
+travel: speed factor min(1, max(0, (range - radius - stop_margin) / slow_distance)). It stops
+inside the goal radius.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from sweep_core.model.geodesic import navigation_from_spec
+from sweep_core.model.maps import map_from_spec
+from sweep_core.model.robots import Robot
+from sweep_core.model.scene import Scene
+from sweep_core.numerics.robots.kinematics import wrap
+from sweep_core.numerics.robots.scan import Scan
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What a controller sees at time ``t`` (s): the robot's ``pose`` (x, y, yaw) m, rad
+    (exact odometry), ``twist`` (vx, vy, omega) of the last step in its frame, its latest
+    ``scan`` (or None), its ``goal`` (x, y) or None, ``goal_radius`` and ``radius`` (m)."""
+
+    t: float
+    pose: tuple[float, float, float]
+    twist: tuple[float, float, float]
+    scan: Scan | None
+    goal: tuple[float, float] | None
+    goal_radius: float
+    radius: float
+
+
+class Controller(Protocol):
+    def __call__(self, obs: Observation) -> tuple[float, float, float]: ...
+
+
+def observe(state: Any, t: float) -> Observation:
+    """The observation of a fleet's ``RobotState`` at time t (s)."""
+    r = state.robot
+    return Observation(t, state.pose, state.twist, state.scan, r.goal, r.goal_radius, r.radius)
+
+
+class Pursuit:
+    """The bundled controller (module docstring) of ``robot`` in ``scene``."""
+
+    def __init__(self, scene: Scene, robot: Robot, *, turn_gain: float = 2.0,
+                 slow_distance: float = 1.0, stop_margin: float = 0.1) -> None:
+        if robot.goal is None:
+            raise ValueError(f"robot {robot.name} has no goal to pursue")
+        grid = map_from_spec(scene.spec["map"], "map", None) if scene.spec.get("map") else None
+        index = scene.robots.index(robot)
+        self.field = navigation_from_spec(
+            {"kind": "geodesic", "goal": list(robot.goal), "speed": robot.max_speed,
+             "wall_buffer": robot.radius + 0.1}, f"robots[{index}].goal", scene.geometry, grid,
+            np.array([robot.pose[:2]]))
+        self.robot = robot
+        self.turn_gain = turn_gain
+        self.slow_distance = slow_distance
+        self.stop_margin = stop_margin
+
+    def __call__(self, obs: Observation) -> tuple[float, float, float]:
+        x, y, yaw = obs.pose
+        if obs.goal is not None and math.hypot(obs.goal[0] - x, obs.goal[1] - y) <= \
+                obs.goal_radius:
+            return (0.0, 0.0, 0.0)
+        u = self.field(obs.t, np.array([[x, y]]))[0]
+        speed = float(math.hypot(u[0], u[1]))
+        if speed == 0.0:
+            return (0.0, 0.0, 0.0)
+        heading = math.atan2(u[1], u[0])
+        error = wrap(heading - yaw)
+        omega = self.turn_gain * error
+        slow = 1.0
+        if obs.scan is not None:
+            rel = wrap_all(obs.scan.spec.angles() + obs.scan.pose[2] - heading)
+            ahead = obs.scan.ranges[np.abs(rel) < 0.5 * math.pi]
+            if len(ahead):
+                nearest = float(ahead.min())
+                slow = min(1.0, max(0.0, (nearest - obs.radius - self.stop_margin)
+                                    / self.slow_distance))
+        if self.robot.kinematics == "holonomic":
+            c, s = math.cos(yaw), math.sin(yaw)
+            v = speed * slow
+            return (v * (c * u[0] + s * u[1]) / speed, v * (-s * u[0] + c * u[1]) / speed,
+                    omega)
+        return (speed * slow * max(0.0, math.cos(error)), 0.0, omega)
+
+
+def wrap_all(angles: np.ndarray) -> np.ndarray:
+    """Angles (rad) in [-pi, pi)."""
+    return (angles + math.pi) % (2 * math.pi) - math.pi
+
+
+def controllers_of(scene: Scene) -> dict[str, Controller]:
+    """The controllers the scene names (``controller: pursuit``), by robot name."""
+    return {r.name: Pursuit(scene, r) for r in scene.robots if r.controller == "pursuit"}

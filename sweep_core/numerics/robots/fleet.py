@@ -1,0 +1,339 @@
+"""The robots of a running simulation (``Simulator.robots``): their commands, poses, contacts
+and scans, and the step that moves people and robots together.
+
+One step from t to t1 = t + h (the simulator's ``_advance`` calls :meth:`Fleet.step` in place
+of the scheme's own step):
+
+1. each robot's command is the one held (set by :meth:`Fleet.command` or asked of its
+   controller), clipped to its limits (:func:`.kinematics.clip`); its target pose is the exact
+   arc of that command over h (:func:`.kinematics.arc`);
+2. the people's prediction is the scheme's (drift, noise, correction), plus, with
+   ``crowd_reaction: avoid``, h times the avoidance term (:mod:`sweep_core.model.robots`);
+3. the projection min sum_i w_i |x_i - p_i|^2 over the people (w = 1) and the robots of
+   finite weight (appended after the people, their prediction the target); a robot of weight
+   inf is not a variable: its target disk is an obstacle for this step, whose linearised rows
+   <n, y_a> >= <n, c1> + R + r_a (n from c1 to the person at t) are single rows of the people
+   (:mod:`.weighted` solves a scene with a weight other than 1 and inf);
+4. a prescribed target that overlaps a wall, an obstacle, a map cell or another prescribed
+   robot, or that makes the projection infeasible (a person pinned between it and a wall),
+   is refused: that robot stops for the step (its applied command becomes (0, 0, 0), its pose
+   does not change), ``blocked`` counts the step and ``stopped`` says so;
+5. the true gaps of people and robots together are checked (no overlap beyond 1e-9 m) and
+   no robot's centre path crosses a wall segment.
+
+Contact impulse of a robot-person row with multiplier lam (m) and unit normal e (from the
+robot to the person): lam e / h, in m/s: the velocity change the contact imposed on that
+person (weight 1) over the step; a person's mass in kg times it is the impulse in N s.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from sweep_core.errors import InfeasibleError, SceneError, show
+from sweep_core.model.crossing import crossings
+from sweep_core.model.geometry import CIRCLE, Geometry, gaps
+from sweep_core.model.maps import map_from_spec
+from sweep_core.model.robots import Robot, overlap
+from sweep_core.model.scene import Scene
+from sweep_core.numerics.projection import Projection, project
+from sweep_core.numerics.robots import kinematics
+from sweep_core.numerics.robots.control import controllers_of, observe
+from sweep_core.numerics.robots.reaction import avoidance
+from sweep_core.numerics.robots.scan import Scan, scan
+from sweep_core.numerics.robots.weighted import project_weighted
+from sweep_core.numerics.schemes import Scheme, StepResult
+
+Command = tuple[float, float, float]
+#: largest true-constraint violation (m) accepted after a step (as the simulator's)
+TOLERANCE = 1e-9
+
+
+@dataclass
+class RobotState:
+    """One robot now: ``pose`` (x, y, yaw) m, rad; ``twist`` (vx, vy, omega) in its own frame
+    over the last step (the applied command, plus the push of the crowd for a robot of finite
+    weight: its reaction / h turned into the robot's frame); ``command`` the command applied in
+    the last step (after clipping); ``held`` the command held for the next steps; ``clipped``
+    commands changed by clipping so far; ``blocked`` steps its prescribed motion was refused so
+    far; ``stopped`` the last step was one; ``contact_ids`` (K,) people touching it in the last
+    step, ``contact_xy`` (K, 2) m their positions, ``contact_impulse`` (K, 2) m/s (module
+    docstring); ``scan`` the latest scan or None."""
+
+    robot: Robot
+    pose: tuple[float, float, float]
+    twist: Command = (0.0, 0.0, 0.0)
+    command: Command = (0.0, 0.0, 0.0)
+    held: Command = (0.0, 0.0, 0.0)
+    raw: bool = False
+    clipped: int = 0
+    blocked: int = 0
+    stopped: bool = False
+    contact_ids: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    contact_xy: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    contact_impulse: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    scan: Scan | None = None
+
+    @property
+    def goal_reached(self) -> bool:
+        g = self.robot.goal
+        return g is not None and math.hypot(self.pose[0] - g[0],
+                                            self.pose[1] - g[1]) <= self.robot.goal_radius
+
+
+class Fleet:
+    """The robots of ``scene`` stepped with time step ``dt`` (s); ``seed`` seeds the scans'
+    noise. ``controllers`` maps a robot's name to a callable of a
+    :class:`~sweep_core.numerics.robots.control.Observation` returning its command, asked at the
+    start of every step in place of the held command; it starts with the scene's own
+    (``controller: pursuit``); clear it to drive the robots by :meth:`command` alone."""
+
+    def __init__(self, scene: Scene, dt: float, seed: int) -> None:
+        self.scene = scene
+        self.dt = dt
+        self.seed = seed
+        for k, robot in enumerate(scene.robots):
+            if robot.max_speed * dt >= robot.radius:
+                raise SceneError(f"robots[{k}].kinematics.max_speed",
+                                 f"{robot.max_speed:g} m/s covers {robot.max_speed * dt:g} m "
+                                 f"in a step of {dt:g} s, not less than the radius "
+                                 f"{robot.radius:g} m (a step could jump a wall)",
+                                 f"use dt < {robot.radius / robot.max_speed:g} s or a lower "
+                                 "max_speed")
+        self.every = [max(1, round(1.0 / (r.scan.rate * dt))) if r.scan else 0
+                      for r in scene.robots]
+        self.controllers: dict[str, Callable] = dict(controllers_of(scene))
+        grid = map_from_spec(scene.spec["map"], "map", None) if scene.spec.get("map") else None
+        self._blocked = None if grid is None else grid.is_blocked
+        self.reset()
+
+    def reset(self) -> None:
+        self.states = {r.name: RobotState(r, r.pose) for r in self.scene.robots}
+        self.step_index = 0
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.states)
+
+    def state(self, name: str) -> RobotState:
+        return self.states[self._name(name)]
+
+    def _name(self, name: str) -> str:
+        if name not in self.states:
+            raise SceneError("robot", f"unknown robot {show(name)}",
+                             f"use one of {list(self.states)}")
+        return name
+
+    def command(self, name: str, twist: Command, clip: bool = True) -> None:
+        """Hold ``twist`` (vx, vy, omega) (m/s, m/s, rad/s, robot frame) from the next step on;
+        ``clip=False`` applies it as given (a replay of applied commands)."""
+        st = self.state(name)
+        try:
+            values = tuple(float(v) for v in twist)
+        except (TypeError, ValueError):
+            values = ()
+        if len(values) != 3 or not all(math.isfinite(v) for v in values):
+            raise SceneError(f"{name}/cmd_vel", f"must be three finite numbers (vx, vy, omega), "
+                             f"got {show(list(twist) if hasattr(twist, '__len__') else twist)}",
+                             "send finite m/s and rad/s values")
+        st.held = (values[0], values[1], values[2])
+        st.raw = not clip
+
+    def place(self, name: str, pose: Command, t: float, people: np.ndarray,
+              radii: np.ndarray) -> None:
+        """Put robot ``name`` at ``pose`` (x, y, yaw) between steps, its commands reset to 0;
+        SceneError (field ``initialpose``) naming what it would overlap, the fleet unchanged."""
+        st = self.state(name)
+        x, y, yaw = (float(v) for v in pose)
+        if not all(math.isfinite(v) for v in (x, y, yaw)):
+            raise SceneError("initialpose", f"must be finite, got {show([x, y, yaw])}",
+                             "send a finite pose")
+        others = [(s.pose[0], s.pose[1], s.robot.radius, f"robot {s.robot.name}")
+                  for s in self.states.values() if s is not st]
+        problem = overlap(st.robot, (x, y), self.scene.geometry, people, radii, others,
+                          self._blocked, t)
+        if problem:
+            raise SceneError("initialpose", problem, "place the robot in free space, clear of "
+                             "people, walls and other robots")
+        st.pose, st.twist, st.command, st.held, st.raw = (x, y, yaw), (0.0,) * 3, (0.0,) * 3, \
+            (0.0,) * 3, False
+
+    # -- one step ----------------------------------------------------------------------------
+    def step(self, scheme: Scheme, t: float, q: np.ndarray, h: float, dB: np.ndarray | None,
+             drift: object, sigma: np.ndarray) -> StepResult:
+        """People and robots from t to t + h (module docstring); the people's StepResult."""
+        t1 = t + h
+        states = list(self.states.values())
+        for st in states:
+            st.stopped = False
+            wanted = st.held
+            if st.robot.name in self.controllers:
+                vx, vy, omega = self.controllers[st.robot.name](observe(st, t))
+                wanted = (float(vx), float(vy), float(omega))
+            if st.raw:
+                st.command = wanted
+            else:
+                st.command, changed = kinematics.clip(st.robot, wanted, st.command, h)
+                st.clipped += int(changed)
+        pred = scheme.predict(t, q, h, dB, drift, sigma)  # type: ignore[arg-type]
+        if self.scene.reaction.kind == "avoid" and len(q):
+            pred = pred + h * avoidance(self.scene.reaction, q, states)
+        pred = scheme.correct(t, q, h, dB, pred, sigma)
+        r1 = self.scene.radii(t1)
+        targets = [kinematics.arc(st.pose, st.command, h) for st in states]
+        moving = [st.robot.prescribed and st.command != (0.0, 0.0, 0.0) for st in states]
+        for k, st in enumerate(states):  # a prescribed target must be clear of walls, robots
+            if moving[k] and self._target_blocked(k, states, targets, t1):
+                self._stop(st, targets, k)
+                moving[k] = False
+        try:
+            proj = self._project(scheme, states, targets, t1, q, pred, r1)
+        except InfeasibleError:
+            if not any(moving):
+                raise
+            for k, st in enumerate(states):
+                if moving[k]:
+                    self._stop(st, targets, k)
+            proj = self._project(scheme, states, targets, t1, q, pred, r1)
+        scheme.warm = proj
+        n = len(q)
+        self._finish(states, targets, proj, q, r1, t1, h, n)
+        self.step_index += 1
+        return StepResult(proj.y[:n].copy(), pred, proj)
+
+    def _stop(self, st: RobotState, targets: list, k: int) -> None:
+        st.command = (0.0, 0.0, 0.0)
+        targets[k] = st.pose
+        st.blocked += 1
+        st.stopped = True
+
+    def _target_blocked(self, k: int, states: list[RobotState], targets: list,
+                        t1: float) -> bool:
+        st = states[k]
+        others = [(targets[j][0], targets[j][1], s.robot.radius, f"robot {s.robot.name}")
+                  for j, s in enumerate(states) if j != k and s.robot.prescribed]
+        empty = np.empty((0, 2))
+        return bool(overlap(st.robot, targets[k][:2], self.scene.geometry, empty, np.empty(0),
+                            others, self._blocked, t1))
+
+    def _project(self, scheme: Scheme, states: list[RobotState], targets: list, t1: float,
+                 q: np.ndarray, pred: np.ndarray, r1: np.ndarray) -> Projection:
+        free = [k for k, st in enumerate(states) if not st.robot.prescribed]
+        fixed = [k for k, st in enumerate(states) if st.robot.prescribed]
+        geom = self._with_disks(self.scene.geometry.at(t1), [targets[k][:2] for k in fixed],
+                                [states[k].robot.radius for k in fixed])
+        q_all = np.concatenate([q, np.array([states[k].pose[:2] for k in free]).reshape(-1, 2)])
+        p_all = np.concatenate([pred, np.array([targets[k][:2] for k in free]).reshape(-1, 2)])
+        r_all = np.concatenate([r1, [states[k].robot.radius for k in free]])
+        weights = [states[k].robot.weight for k in free]
+        warm = scheme.warm if scheme.warm is not None and len(scheme.warm.y) == len(q_all) \
+            else None
+        if all(w == 1.0 for w in weights):
+            return project(geom, t1, q_all, p_all, r_all, scheme.solver, warm=warm)
+        w_all = np.concatenate([np.ones(len(q)), weights])
+        return project_weighted(geom, t1, q_all, p_all, r_all, w_all, scheme.solver)
+
+    @staticmethod
+    def _with_disks(geom: Geometry, centres: list, radii: list) -> Geometry:
+        """The geometry (posed at the step's time) with the prescribed robots' disks added as
+        circle obstacles (item indices after the scene's own circles)."""
+        if not centres:
+            return geom
+        m = len(centres)
+        return replace(geom,
+                       circle_center=np.concatenate([geom.circle_center, np.array(centres)]),
+                       circle_radius=np.concatenate([geom.circle_radius, np.array(radii)]),
+                       circle_index=np.concatenate([geom.circle_index,
+                                                    np.full(m, -1, dtype=geom.circle_index.dtype)]),
+                       circle_motion=np.concatenate([geom.circle_motion,
+                                                     np.full(m, -1, dtype=np.intp)]))
+
+    def _finish(self, states: list[RobotState], targets: list, proj: Projection, q: np.ndarray,
+                r1: np.ndarray, t1: float, h: float, n: int) -> None:
+        """Robots' new poses, twists and contacts; the true gaps of everyone checked."""
+        free = [k for k, st in enumerate(states) if not st.robot.prescribed]
+        fixed = [k for k, st in enumerate(states) if st.robot.prescribed]
+        start = {k: states[k].pose for k in range(len(states))}
+        for slot, k in enumerate(free):
+            st = states[k]
+            x, y = (float(v) for v in proj.y[n + slot])
+            push = (x - targets[k][0], y - targets[k][1])
+            yaw1 = targets[k][2]
+            c, s = math.cos(yaw1), math.sin(yaw1)
+            st.twist = (st.command[0] + (c * push[0] + s * push[1]) / h,
+                        st.command[1] + (-s * push[0] + c * push[1]) / h, st.command[2])
+            st.pose = (float(x), float(y), yaw1)
+        for k in fixed:
+            states[k].pose = targets[k]
+            states[k].twist = states[k].command
+        rows = proj.rows
+        lam_p, lam_s = proj.lam_pair, proj.lam_single
+        n_circles = len(self.scene.geometry.circle_radius)
+        for k, st in enumerate(states):
+            if st.robot.prescribed:
+                item = n_circles + fixed.index(k)
+                pick = np.flatnonzero((rows.single_kind == CIRCLE) & (rows.single_item == item)
+                                      & (lam_s > 0))
+                ids = rows.single_a[pick]
+                imp = lam_s[pick, None] * rows.single_n[pick] / h
+            else:
+                me = n + free.index(k)
+                as_i = np.flatnonzero((rows.pair_i == me) & (rows.pair_j < n) & (lam_p > 0))
+                as_j = np.flatnonzero((rows.pair_j == me) & (rows.pair_i < n) & (lam_p > 0))
+                ids = np.concatenate([rows.pair_j[as_i], rows.pair_i[as_j]])
+                imp = np.concatenate([-lam_p[as_i, None] * rows.pair_e[as_i],
+                                      lam_p[as_j, None] * rows.pair_e[as_j]]) / h
+            order = np.argsort(ids, kind="stable")
+            st.contact_ids = ids[order].astype(np.int64)
+            st.contact_xy = proj.y[st.contact_ids].copy()
+            st.contact_impulse = imp[order].reshape(-1, 2)
+        self._check(states, start, proj.y[:n], r1, t1)
+
+    def _check(self, states: list[RobotState], start: dict, y: np.ndarray, r1: np.ndarray,
+               t1: float) -> None:
+        centres = np.array([st.pose[:2] for st in states]).reshape(-1, 2)
+        radii = np.array([st.robot.radius for st in states])
+        q_all = np.concatenate([y, centres])
+        r_all = np.concatenate([r1, radii])
+        g = gaps(self.scene.geometry, t1, q_all, r_all)
+        if g.min_gap < -TOLERANCE:
+            raise InfeasibleError(t1, [], f"a robot overlaps by {-g.min_gap:.3g} m")
+        before = np.array([start[k][:2] for k in range(len(states))]).reshape(-1, 2)
+        through, _ = crossings(self.scene.geometry, before, centres, radii)
+        if len(through):
+            raise InfeasibleError(t1, [], f"robot {states[int(through[0])].robot.name} went "
+                                  "through a wall during the step")
+
+    def after_step(self, t: float, people: np.ndarray, radii: np.ndarray) -> None:
+        """Scans due at this step (the step index counts steps taken; step 0 is the start)."""
+        for k, st in enumerate(self.states.values()):
+            spec = st.robot.scan
+            if spec is None or self.step_index % self.every[k]:
+                continue
+            others = [s for s in self.states.values() if s is not st]
+            disks = np.concatenate([people, np.array([s.pose[:2] for s in others]
+                                                     ).reshape(-1, 2)])
+            disk_r = np.concatenate([radii, [s.robot.radius for s in others]])
+            rng = (np.random.Generator(np.random.PCG64([self.seed, k, self.step_index]))
+                   if spec.noise_std > 0 else None)
+            st.scan = scan(spec, st.pose, t, self.step_index, self.scene.geometry, disks,
+                           disk_r, rng)
+
+    def scanned(self, name: str) -> bool:
+        """Robot ``name`` took a scan at the current step."""
+        st = self.state(name)
+        return st.scan is not None and st.scan.step == self.step_index
+
+
+def robot_fleet(scene: Scene, dt: float, seed: int, scheme: Scheme) -> Fleet | None:
+    """The fleet of a scene with robots (None without); the scheme must be predict-then-project
+    (projected_euler, bridge)."""
+    if not scene.robots:
+        return None
+    if type(scheme).step is not Scheme.step:
+        raise SceneError("scheme", f"{scheme.name} cannot step robots (it sub-steps)",
+                         "use projected_euler or bridge with robots")
+    return Fleet(scene, dt, seed)
