@@ -4,7 +4,7 @@
     python -m sweep_ros.client resume           # std_srvs/SetBool data: false
     python -m sweep_ros.client step [N]         # N single steps while paused (default 1)
     python -m sweep_ros.client reset
-    python -m sweep_ros.client cmd-vel VX VY    # uniform field, m/s
+    python -m sweep_ros.client cmd-vel VX VY    # the crowd's uniform field, m/s (crowd/cmd_vel)
     python -m sweep_ros.client goal X Y         # goal-directed field towards (X, Y), m
     python -m sweep_ros.client goal X Y --group NAME   # the same for the scene's group NAME only
     python -m sweep_ros.client status           # the node's latest diagnostics message
@@ -105,7 +105,7 @@ def build_parser() -> argparse.ArgumentParser:
     step = sub.add_parser("step", help="take N steps while paused")
     step.add_argument("n", nargs="?", type=_positive_int, default=1, metavar="N")
     sub.add_parser("reset", help="back to t = 0, the seed and the scene's drift")
-    vel = sub.add_parser("cmd-vel", help="uniform velocity field (m/s) on cmd_vel")
+    vel = sub.add_parser("cmd-vel", help="the crowd's uniform velocity field (m/s) on crowd/cmd_vel")
     vel.add_argument("vx", type=_finite("VX", "m/s"), metavar="VX")
     vel.add_argument("vy", type=_finite("VY", "m/s"), metavar="VY")
     goal = sub.add_parser("goal", help="goal-directed field towards (X, Y) on goal")
@@ -356,7 +356,7 @@ def run(args: argparse.Namespace, client: Client) -> int:
 
         twist = Twist()
         twist.linear.x, twist.linear.y = args.vx, args.vy
-        return _report(client, client.command(Twist, "cmd_vel", twist),
+        return _report(client, client.command(Twist, "crowd/cmd_vel", twist),
                        f"({args.vx:g}, {args.vy:g}) m/s")
     if cmd == "goal":
         from geometry_msgs.msg import PointStamped

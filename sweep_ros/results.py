@@ -1,6 +1,6 @@
 """Verdicts on commands: the node's acknowledgement of every command message it takes.
 
-Each message taken from a command subscription (``cmd_vel``, ``goal``, ``goal/<name>``,
+Each message taken from a command subscription (``crowd/cmd_vel``, ``goal``, ``goal/<name>``,
 ``velocity_field``) gets a verdict on the latched ``command_result`` topic (reliable,
 transient-local, depth :data:`DEPTH`; diagnostic_msgs/DiagnosticArray with one status), which
 is recorded like every published message:

@@ -55,7 +55,7 @@ class Probe:
         qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         self.diag: list[tuple[float, dict]] = []
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, qos)
-        self.cmd_vel = self.node.create_publisher(Twist, "/cmd_vel", qos)
+        self.cmd_vel = self.node.create_publisher(Twist, "/crowd/cmd_vel", qos)
 
     def _on_diag(self, msg: DiagnosticArray) -> None:
         self.diag.append((time.monotonic(),

@@ -106,7 +106,7 @@ def test_client_reports_refusals_and_the_step_a_command_applies_from(installed, 
         done = client("cmd-vel", "20", "0")
         assert done.returncode == 1, done
         assert done.stdout.strip() == (
-            "refused: /cmd_vel: speed 20 m/s exceeds max_speed 5 m/s (fix: send a slower "
+            "refused: /crowd/cmd_vel: speed 20 m/s exceeds max_speed 5 m/s (fix: send a slower "
             "field or raise the max_speed parameter)"), done
         done = client("goal", "14", "5", "--group", "left")
         assert done.returncode == 1, done
@@ -155,8 +155,8 @@ def test_verdicts_on_command_result_for_topic_publishers(installed, probe, tmp_p
             return find
         probe.cmd_vel.publish(Twist(linear=Vector3(x=9.0)))
         v = probe.spin_until(on(1), DISCOVERY_S, "the verdict on cmd_vel 1", node)
-        assert v["verdict"] == "refused" and v["topic"] == "/cmd_vel"
-        assert v["message"].startswith("/cmd_vel: speed 9 m/s exceeds max_speed 5 m/s"), v
+        assert v["verdict"] == "refused" and v["topic"] == "/crowd/cmd_vel"
+        assert v["message"].startswith("/crowd/cmd_vel: speed 9 m/s exceeds max_speed 5 m/s"), v
         assert v["command"] == f"{gid}:1" and v["node"] == "/sweep_node"
         probe.cmd_vel.publish(Twist(linear=Vector3(x=0.5)))
         v = probe.spin_until(on(2), DISCOVERY_S, "the verdict on cmd_vel 2", node)
@@ -185,7 +185,7 @@ def test_verdicts_on_command_result_for_topic_publishers(installed, probe, tmp_p
         probe.cmd_vel.publish(Twist(linear=Vector3(x=-0.5)))  # a whole command: replaces both
         second = probe.spin_until(on_goal(2, "superseded"), DISCOVERY_S, "goal 2 superseded",
                                   node)
-        assert second["message"].startswith("superseded by a newer command on /cmd_vel")
+        assert second["message"].startswith("superseded by a newer command on /crowd/cmd_vel")
         probe.spin_until(on(3, final=False), DISCOVERY_S, "cmd_vel 3 accepted", node)
         assert probe.call(SetBool, "/pause", SetBool.Request(data=False), node).success
         v = probe.spin_until(on(3), DISCOVERY_S, "cmd_vel 3 applied", node)
@@ -238,7 +238,7 @@ def test_second_node_of_the_same_name(installed, probe, tmp_path, capsys):  # no
             for d in probe.diagnostics), START_S, "the duplicate in diagnostics", first)
         client = sweep_client.Client("", 60.0)
         probe.spin_until(lambda: client.node.count_services("/pause") == 2
-                         and client.commanders("/cmd_vel", "/command_result") == 2,
+                         and client.commanders("/crowd/cmd_vel", "/command_result") == 2,
                          START_S, "both nodes seen by the client", third)
         args = sweep_client.build_parser().parse_args(["pause"])
         assert sweep_client.run(args, client) == 1
@@ -314,18 +314,18 @@ def test_client_names_a_subscriber_of_another_type():
     context = rclpy.Context()
     rclpy.init(context=context)
     other = Node("string_taker", context=context)
-    other.create_subscription(String, "/cmd_vel", lambda m: None, 10)
+    other.create_subscription(String, "/crowd/cmd_vel", lambda m: None, 10)
     rclpy.init()
     client = sweep_client.Client("", 1.0)
     try:
         end = time.monotonic() + DISCOVERY_S + 20.0
-        while (not client.node.get_subscriptions_info_by_topic("/cmd_vel")
+        while (not client.node.get_subscriptions_info_by_topic("/crowd/cmd_vel")
                and time.monotonic() < end):
             time.sleep(0.02)
         with pytest.raises(sweep_client.ClientError) as err:
-            client.command(Twist, "cmd_vel", Twist())
+            client.command(Twist, "crowd/cmd_vel", Twist())
         assert str(err.value).endswith(
-            "; /cmd_vel is subscribed to as std_msgs/msg/String (not geometry_msgs/msg/Twist) "
+            "; /crowd/cmd_vel is subscribed to as std_msgs/msg/String (not geometry_msgs/msg/Twist) "
             "by /string_taker"), err.value
     finally:
         client.node.destroy_node()

@@ -14,7 +14,7 @@ import sweep_core as sc
 from sweep_core.io import cdr
 from sweep_core.model import fields
 from sweep_core.model.scene import load_scene
-from sweep_ros import messages, msgdefs, params
+from sweep_ros import clouds, diagnostics, markers, messages, msgdefs, params
 from sweep_ros.messages import CommandError
 
 # ---------------------------------------------------------------------------------------------
@@ -86,7 +86,7 @@ def test_grid_bilinear_inside_and_clamped_outside():
     vx = np.array([[0.0, 1.0, 2.0], [1.0, 2.0, 3.0]])  # vx = x + 2 (y - 10)
     vy = -vx
     for dtype in ("<f4", "<f8"):
-        f = messages.grid_from_cloud(grid_cloud(x, y, vx, vy, dtype), max_speed=10.0)
+        f = clouds.grid_from_cloud(grid_cloud(x, y, vx, vy, dtype), max_speed=10.0)
         q = np.array([[0.5, 10.25], [1.5, 10.0], [5.0, 20.0], [-1.0, 0.0]])
         want_vx = np.array([1.0, 1.5, 3.0, 0.0])  # last two: nearest grid point
         np.testing.assert_allclose(f(0.0, q), np.c_[want_vx, -want_vx], atol=1e-6)
@@ -97,13 +97,13 @@ def test_grid_float32_rounding_accepted_and_axes_sorted():
     y = np.array([2.0, 1.0, 0.0])   # rows running down: sorted
     vx = np.tile(np.arange(40) * 0.01, (3, 1))
     vy = np.tile(np.array([[2.0], [1.0], [0.0]]), (1, 40)) * 0.1
-    f = messages.grid_from_cloud(grid_cloud(x, y, vx, vy), max_speed=10.0)
+    f = clouds.grid_from_cloud(grid_cloud(x, y, vx, vy), max_speed=10.0)
     np.testing.assert_allclose(f.y, [0.0, 1.0, 2.0])
     np.testing.assert_allclose(f(0.0, np.array([[3.3, 0.5]])), [[0.0, 0.05]], atol=1e-6)
 
 
 def test_single_node_grid_is_uniform():
-    f = messages.grid_from_cloud(grid_cloud([1.0], [2.0], [[0.3]], [[0.4]]), max_speed=1.0)
+    f = clouds.grid_from_cloud(grid_cloud([1.0], [2.0], [[0.3]], [[0.4]]), max_speed=1.0)
     np.testing.assert_allclose(f(0.0, np.array([[9.0, -9.0]])), [[0.3, 0.4]], atol=1e-7)
 
 
@@ -144,7 +144,7 @@ def test_grid_refused(case, match):
     if case == "empty":
         m.height = 0
     with pytest.raises(CommandError, match=match) as info:
-        messages.grid_from_cloud(m, max_speed=10.0)
+        clouds.grid_from_cloud(m, max_speed=10.0)
     assert info.value.topic == "velocity_field"
     msg = str(info.value)
     assert "(fix: " in msg and "np." not in msg and "array(" not in msg, msg
@@ -169,11 +169,11 @@ def test_big_endian_cloud_gives_the_little_endian_field(code):
     x, y = np.array([-1.0, 0.5, 2.0, 3.5]), np.array([10.0, 10.25, 10.5])
     vx = np.arange(12.0).reshape(3, 4) / 10
     vy = -vx[::-1]
-    little = messages.grid_from_cloud(grid_cloud(x, y, vx, vy, "<" + code), max_speed=10.0)
+    little = clouds.grid_from_cloud(grid_cloud(x, y, vx, vy, "<" + code), max_speed=10.0)
     cloud = grid_cloud(x, y, vx, vy, ">" + code)
     assert cloud.is_bigendian and bytes(cloud.data) != bytes(grid_cloud(x, y, vx, vy,
                                                                        "<" + code).data)
-    big = messages.grid_from_cloud(cloud, max_speed=10.0)
+    big = clouds.grid_from_cloud(cloud, max_speed=10.0)
     for name in ("x", "y", "vx", "vy"):
         np.testing.assert_array_equal(getattr(big, name), getattr(little, name))
     q = np.array([[0.0, 10.1], [3.0, 10.4], [9.0, 0.0]])
@@ -189,7 +189,7 @@ def test_cloud_flagged_in_the_wrong_byte_order_is_named(dtype, flag, words):
     """Data in one byte order flagged as the other used to be called 'an irregular grid'."""
     g = _grid_ok()
     with pytest.raises(CommandError) as info:
-        messages.grid_from_cloud(grid_cloud(**g, dtype=dtype, bigendian=flag), max_speed=10.0)
+        clouds.grid_from_cloud(grid_cloud(**g, dtype=dtype, bigendian=flag), max_speed=10.0)
     msg = str(info.value)
     assert words in msg, msg
     assert msg.endswith(f"(fix: set is_bigendian={'false' if flag else 'true'} to match the "
@@ -204,13 +204,13 @@ def test_cloud_flagged_in_the_wrong_byte_order_is_named(dtype, flag, words):
 @pytest.mark.parametrize("frame_id", ["map", "m", "odom_12", "a_longer_frame"])
 def test_agent_markers_bytes_match_rclpy(frame_id):
     rng = np.random.default_rng(1)
-    enc = messages.AgentMarkers(frame_id, height=1.7)
+    enc = markers.AgentMarkers(frame_id, height=1.7)
     assert enc._layout is not None  # the fast path is the one tested here
     for n in (0, 1, 2, 3, 8, 41):
         q, r = rng.uniform(-5, 5, (n, 2)), rng.uniform(0.1, 0.4, n)
         stamp = 12_345_678_901
         data = enc.encode(stamp, q, r)
-        want = MarkerArray(markers=[messages.agent_marker(frame_id, stamp, i, q[i, 0], q[i, 1],
+        want = MarkerArray(markers=[markers.agent_marker(frame_id, stamp, i, q[i, 0], q[i, 1],
                                                           r[i], 1.7) for i in range(n)])
         ref = serialize_message(want)
         assert len(data) == len(ref)
@@ -225,7 +225,7 @@ def test_agent_markers_bytes_match_rclpy(frame_id):
 
 
 def test_agent_markers_fallback_path():
-    enc = messages.AgentMarkers("map")
+    enc = markers.AgentMarkers("map")
     enc._layout = None
     q, r = np.array([[1.0, 2.0], [3.0, 4.0]]), np.array([0.2, 0.3])
     got = deserialize_message(enc.encode(5, q, r), MarkerArray)
@@ -238,25 +238,25 @@ def test_wall_markers_and_delete_all():
         "walls": [{"kind": "segment", "a": [0, 0], "b": [4, 0]},
                   {"kind": "halfplane", "normal": [0, 1], "offset": -1.0, "velocity": 0.5}],
         "obstacles": [{"kind": "circle", "center": [3, 3], "radius": 0.5}]})
-    arr = messages.wall_markers(scene.geometry, scene.positions, "map", 0, t=2.0, height=2.0)
+    arr = markers.wall_markers(scene.geometry, scene.positions, "map", 0, t=2.0, height=2.0)
     kinds = [(m.ns, m.id, m.type) for m in arr.markers]
     assert kinds == [("walls", 0, Marker.CUBE), ("walls", 1, Marker.CUBE),
                      ("obstacles", 0, Marker.CYLINDER)]
     seg, hp, circ = arr.markers
     assert (seg.pose.position.x, seg.pose.position.y, seg.scale.x) == (2.0, 0.0, 4.0)
     # half-plane y >= -1 + 0.5 t drawn just outside its boundary y = 0 at t = 2
-    assert hp.pose.position.y == pytest.approx(-messages.WALL_THICKNESS / 2)
+    assert hp.pose.position.y == pytest.approx(-markers.WALL_THICKNESS / 2)
     assert abs(hp.pose.orientation.z) < 1e-12 and hp.scale.x > 5
     assert circ.scale.x == 1.0 and circ.pose.position.x == 3.0
-    clear = messages.delete_all("map", 0)
+    clear = markers.delete_all("map", 0)
     assert [m.action for m in clear.markers] == [Marker.DELETEALL]
 
 
 def test_diagnostics_and_time():
-    arr = messages.diagnostics(1_500_000_000, "n", "room", "WARN", "slow",
+    arr = diagnostics.diagnostics(1_500_000_000, "n", "room", "WARN", "slow",
                                {"a": 1.23456789, "b": True, "c": 3})
     st = arr.status[0]
-    assert st.level == messages.LEVELS["WARN"] and st.message == "slow"
+    assert st.level == diagnostics.LEVELS["WARN"] and st.message == "slow"
     assert {kv.key: kv.value for kv in st.values} == {"a": "1.23457", "b": "true", "c": "3"}
     assert (arr.header.stamp.sec, arr.header.stamp.nanosec) == (1, 500_000_000)
     assert messages.stamp_ns_of(messages.time_msg(-1)) == -1
@@ -357,7 +357,7 @@ def test_definitions_decode_with_mcap_ros2_and_rosbags(msg_class):
     full = msgdefs.definition(msgtype)
     msg = msg_class()
     if msg_class is MarkerArray:
-        msg = MarkerArray(markers=[messages.agent_marker("map", 7, 3, 1.5, 2.5, 0.25, 1.0)])
+        msg = MarkerArray(markers=[markers.agent_marker("map", 7, 3, 1.5, 2.5, 0.25, 1.0)])
     data = bytes(serialize_message(msg))
     decoded = generate_dynamic(msgtype, full)[msgtype](data)
     store = get_typestore(Stores.EMPTY)

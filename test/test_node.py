@@ -185,7 +185,7 @@ class Probe:
         self.node.create_subscription(PointCloud2, "/agents", self.agents.append, qos)
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self.diagnostics.append,
                                       qos)
-        self.cmd_vel = self.node.create_publisher(Twist, "/cmd_vel", qos)
+        self.cmd_vel = self.node.create_publisher(Twist, "/crowd/cmd_vel", qos)
         self.goal = self.node.create_publisher(PointStamped, "/goal", qos)
         self.field = self.node.create_publisher(PointCloud2, "/velocity_field", qos)
 
@@ -400,7 +400,7 @@ def _check_recording(record: Path) -> None:
     info = scan_recording(record)
     assert not info.truncated and info.profile == "ros2"
     counts = {t: c.message_count for t, c in info.channels.items()}
-    assert counts["/cmd_vel"] == 1 and counts["/goal"] == 1 and counts["/velocity_field"] == 1
+    assert counts["/crowd/cmd_vel"] == 1 and counts["/goal"] == 1 and counts["/velocity_field"] == 1
     assert counts["/poses"] == counts["/agents"] == counts["/clock"] > 20
     assert counts["/walls"] >= 1 and counts["/markers"] >= 2 and counts["/diagnostics"] >= 1
     assert counts["/navigation_field"] == 2  # the goal's geodesic field, then none (grid)
@@ -409,7 +409,7 @@ def _check_recording(record: Path) -> None:
     assert run["seed"] == "7" and yaml.safe_load(run["scene"])["name"] == "test_open_20"
     assert yaml.safe_load(run["parameters"])["rate_hz"] == 50.0 and "versions" in run
     commands = [meta[k] for k in sorted(meta) if k.startswith("command_")]
-    assert [c["topic"] for c in commands] == ["/cmd_vel", "/goal", "/velocity_field"]
+    assert [c["topic"] for c in commands] == ["/crowd/cmd_vel", "/goal", "/velocity_field"]
     assert [yaml.safe_load(c["field"])["kind"] for c in commands] == ["uniform", "geodesic",
                                                                        "grid"]
     assert all(int(c["step"]) * DT == pytest.approx(float(c["t"])) for c in commands)
@@ -426,7 +426,7 @@ def _check_recording(record: Path) -> None:
             seen[channel.topic] = seen.get(channel.topic, 0) + 1
             assert message.log_time >= last_log.get(channel.topic, 0), channel.topic
             last_log[channel.topic] = message.log_time
-            if channel.topic == "/cmd_vel":
+            if channel.topic == "/crowd/cmd_vel":
                 assert msg.linear.x == 1.0
             if channel.topic == "/markers" and msg.markers[0].action == 0:
                 assert len(msg.markers) == 20 and msg.markers[0].type == 3
@@ -619,7 +619,7 @@ def test_command_burst_latest_wins_and_counted(installed, probe, tmp_path):
     assert code == 0, node.log
     counts, meta = _read_standard(record)
     commands = [meta[k] for k in sorted(meta) if k.startswith("command_")]
-    assert len(commands) == applied == counts["/cmd_vel"]
+    assert len(commands) == applied == counts["/crowd/cmd_vel"]
     assert yaml.safe_load(commands[-1]["field"])["velocity"] == pytest.approx(list(last))
     assert sum(int(c["superseded_before"]) for c in commands) <= superseded
     summary = meta["summary"]
@@ -707,7 +707,7 @@ def test_client_module_commands_a_running_node(installed, probe, tmp_path):
         assert done.stdout.splitlines() == [f"step {k + i}, t = {(k + i) * DT:g} s"
                                             for i in (1, 2, 3)]
         done = client("cmd-vel", "0.6", "-0.8")
-        assert done.returncode == 0 and "/cmd_vel" in done.stdout, done
+        assert done.returncode == 0 and "/crowd/cmd_vel" in done.stdout, done
         assert client("resume").returncode == 0
         t0 = stamp(probe.agents[-1])
         probe.spin_until(heading_is(probe, [0.6, -0.8], 1.0, t0), WAIT_S, "motion along cmd-vel",
@@ -924,7 +924,7 @@ def test_goal_builds_a_geodesic_field_round_the_wall(installed, probe, tmp_path)
     from sweep_core.cli import main as sweep_main
     from sweep_core.model.drift import field_from_spec
     from sweep_core.model.scene import Scene
-    from sweep_ros import messages
+    from sweep_ros.clouds import grid_from_cloud
 
     clouds = navigation_probe(probe)
     scene_path = tmp_path / "gap.yaml"
@@ -965,7 +965,7 @@ def test_goal_builds_a_geodesic_field_round_the_wall(installed, probe, tmp_path)
         np.testing.assert_allclose(cols["T"], field.travel_distance(nodes), rtol=1e-6,
                                    atol=1e-5)
         # the cloud reads back as a velocity_field grid: the drift at its nodes
-        grid = messages.grid_from_cloud(cloud, 10.0)
+        grid = grid_from_cloud(cloud, 10.0)
         np.testing.assert_allclose(grid(0.0, nodes), field(0.0, nodes), atol=1e-5)
         # round the wall: left of it, below the gap, the field heads up to the gap
         k = int(np.argmin(np.hypot(nodes[:, 0] - 4.5, nodes[:, 1] - 1.0)))

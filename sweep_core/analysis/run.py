@@ -28,7 +28,9 @@ NS = 1_000_000_000
 class Command:
     """A velocity-field command as the node records it (metadata ``command_NNNNNN``): the
     drift ``spec`` (``Field.to_spec()``) replaces the drift before step ``step`` -> step + 1
-    of segment ``segment`` (a segment is the run between two resets)."""
+    of segment ``segment`` (a segment is the run between two resets). ``topic`` says where it
+    came from (``/crowd/cmd_vel``, ``/goal``, ...; ``/cmd_vel`` in older recordings); replay
+    reads only ``spec``, so every name a node ever recorded replays alike."""
 
     index: int
     topic: str
