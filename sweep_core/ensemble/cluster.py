@@ -63,6 +63,13 @@ def sigint_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, old)
 
 
+def check_address(scheduler: str) -> None:
+    """Refuses a scheduler address that is not ``tcp://HOST:PORT`` (before anything starts)."""
+    if not _ADDRESS.match(scheduler):
+        raise SweepError(f"--scheduler: {scheduler!r} is not an address like "
+                         "tcp://HOST:8786 (fix: give the address `dask scheduler` prints)")
+
+
 @contextmanager
 def connect(client: Any = None, scheduler: str | None = None, workers: int | None = None,
             log: Callable[[str], None] | None = None) -> Iterator[Any]:
@@ -77,9 +84,7 @@ def connect(client: Any = None, scheduler: str | None = None, workers: int | Non
         raise SweepError("sweep ensemble needs Dask's distributed (fix: pip install "
                          "distributed pandas pyarrow)") from err
     if scheduler is not None:
-        if not _ADDRESS.match(scheduler):
-            raise SweepError(f"--scheduler: {scheduler!r} is not an address like "
-                             "tcp://HOST:8786 (fix: give the address `dask scheduler` prints)")
+        check_address(scheduler)
         try:
             remote = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as err:

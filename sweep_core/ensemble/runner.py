@@ -171,8 +171,12 @@ def _run(base: Scene, spec: dict, points: list, keys: list[str], out_dir: Path |
     try:
         if todo:
             # compiled here once (first run on this machine) into the cache the workers of a
-            # local cluster share, then loaded by every worker before its first run
-            kernels.warm_up(say)
+            # local cluster share, then loaded by every worker before its first run; a remote
+            # scheduler's workers compile or load their own
+            if scheduler is None:
+                kernels.warm_up(say)
+            else:
+                cluster.check_address(scheduler)
             with cluster.connect(client, scheduler, workers, say) as cl:
                 cl.run(kernels.warm_up)
                 _execute(cl, [(name, tasks[name]) for name in todo], rows, out_dir, progress)
