@@ -35,6 +35,8 @@ from sweep_core.analysis.crowd import Fundamental, FundamentalDiagram, Tracks
 from sweep_core.analysis.density import MAX_CELLS as MAX_CELLS  # re-exported for the CLI
 from sweep_core.analysis.density import Hist2D
 from sweep_core.analysis.frames import Frame, FrameReader, GapFinder, progress_bar
+from sweep_core.analysis.lines import line_crossings as line_crossings  # re-exported
+from sweep_core.analysis.lines import parse_line as parse_line  # re-exported for the CLI
 from sweep_core.analysis.roster import Roster, grow
 from sweep_core.analysis.run import NS, RunMeta, Schedule, load_run, scene_with_map
 from sweep_core.errors import RecordingError, SweepError
@@ -44,46 +46,6 @@ from sweep_core.model.geometry import Geometry, gaps
 CONTACT_TOL = 1e-6
 #: width of the speed histogram bins (m/s); speed quantiles are exact to half of it
 SPEED_BIN = 1e-3
-
-def parse_line(text: str) -> tuple[float, float, float, float]:
-    """``x0,y0,x1,y1`` -> 4 floats (a segment of non-zero length)."""
-    try:
-        vals = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        vals = ()
-    if len(vals) != 4 or not all(math.isfinite(v) for v in vals):
-        raise SweepError(f"--line: {text!r} is not x0,y0,x1,y1 (four numbers, m)")
-    if vals[0] == vals[2] and vals[1] == vals[3]:
-        raise SweepError(f"--line: {text!r} has zero length")
-    return vals  # type: ignore[return-value]
-
-
-def line_crossings(p0: np.ndarray, p1: np.ndarray, line: tuple[float, float, float, float]
-                   ) -> np.ndarray:
-    """Per agent: +1 if the move p0 -> p1 crosses the segment in the positive direction, -1 in
-    the negative one, 0 otherwise.
-
-    Positive is along the normal (y1 - y0, -(x1 - x0)), i.e. from left to right looking from
-    (x0, y0) to (x1, y1). A point on the line counts as on its positive side.
-    """
-    a = np.array(line[:2])
-    d = np.array(line[2:]) - a
-    nrm = np.array([d[1], -d[0]])
-    s0 = (p0 - a) @ nrm
-    s1 = (p1 - a) @ nrm
-    up = (s0 < 0) & (s1 >= 0)
-    down = (s0 >= 0) & (s1 < 0)
-    out = np.zeros(len(p0), dtype=np.int64)
-    moved = up | down
-    if moved.any():
-        frac = s0[moved] / (s0[moved] - s1[moved])
-        x = p0[moved] + frac[:, None] * (p1[moved] - p0[moved])
-        u = (x - a) @ d / (d @ d)
-        inside = (u >= 0) & (u <= 1)
-        idx = np.nonzero(moved)[0][inside]
-        out[idx] = np.where(up[idx], 1, -1)
-    return out
-
 
 @dataclass
 class Analysis:

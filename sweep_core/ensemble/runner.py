@@ -18,7 +18,7 @@ from typing import Any
 import pandas as pd
 
 from sweep_core import checks
-from sweep_core.analysis.metrics import parse_line
+from sweep_core.analysis.lines import parse_line
 from sweep_core.ensemble import cluster, grid, paired, store
 from sweep_core.ensemble.task import RECORD, Task, simulate
 from sweep_core.errors import SceneError
