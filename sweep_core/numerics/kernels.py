@@ -13,11 +13,9 @@ the face step, the bridge scheme), on a small bundled jam, and reports what it c
 from __future__ import annotations
 
 import sys
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from types import ModuleType
 
 import numpy as np
@@ -68,15 +66,18 @@ def compiled_count() -> int:
 
 
 def uncached() -> list[str]:
-    """The kernels (module.name) with no entry in numba's on-disk cache: all of them when that
-    cannot be told (the cache is then taken to be cold)."""
+    """The kernels (module.name) with no entry in numba's on-disk cache for this CPU and this
+    source: all of them when that cannot be told (the cache is then taken to be cold)."""
     out = []
     for d in dispatchers():
-        try:  # numba keeps the index file's path on the dispatcher's cache (not a public API)
-            index = Path(d._cache._cache_file._index_path)  # type: ignore[attr-defined]
-        except AttributeError:  # numba's cache layout changed
-            index = None
-        if index is None or not index.is_file():
+        try:  # numba's cache index (not a public API): entries keyed by (signature, the
+            # CPU's magic tuple: triple, name, features, ...); empty when the source changed
+            entries = d._cache._cache_file._load_index()  # type: ignore[attr-defined]
+            here = d.targetctx.codegen().magic_tuple()
+            ok = any(isinstance(k, tuple) and len(k) > 1 and k[1] == here for k in entries)
+        except Exception:  # numba's cache layout changed, or an unreadable index
+            ok = False
+        if not ok:
             out.append(f"{d.py_func.__module__}.{d.py_func.__name__}")
     return out
 
@@ -136,31 +137,19 @@ def warm_up(notify: Callable[[str], None] | None = None) -> WarmUp:
     """Compiles every kernel of the engine, or loads it from the cache.
 
     ``notify`` (e.g. ``print`` to stderr, a logger) hears :data:`COMPILING` at once when the
-    cache is cold, or after a second when loading is taking that long (a cache made on
-    another CPU), and then one line with the time; nothing when the cache was warm.
+    cache holds no entry for this CPU and source (first run on a machine, a cache made on
+    another CPU, a changed source), then one line with the time; nothing when the cache was
+    warm, however long loading takes.
     """
     start = time.perf_counter()
     before = compiled_count()
-    said = threading.Event()
-    timer = None
-    if notify is not None:
-        if not cached():
-            said.set()
-            notify(COMPILING)
-        else:
-            def late() -> None:
-                said.set()
-                notify(COMPILING)
-            timer = threading.Timer(1.0, late)
-            timer.daemon = True
-            timer.start()
-    try:
-        _exercise()
-    finally:
-        if timer is not None:
-            timer.cancel()
+    said = False
+    if notify is not None and not cached():
+        said = True
+        notify(COMPILING)
+    _exercise()
     done = WarmUp(time.perf_counter() - start, compiled_count() - before)
-    if notify is not None and (said.is_set() or done.compiled):
+    if notify is not None and (said or done.compiled):
         notify(f"kernels ready: {done.compiled} compiled in {done.seconds:.1f} s"
                if done.compiled else f"kernels loaded from the cache in {done.seconds:.1f} s")
     return done
