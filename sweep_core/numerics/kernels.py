@@ -73,7 +73,7 @@ def uncached() -> list[str]:
         try:  # numba's cache index (not a public API): entries keyed by (signature, the
             # CPU's magic tuple: triple, name, features, ...); empty when the source changed
             entries = d._cache._cache_file._load_index()  # type: ignore[attr-defined]
-            here = d.targetctx.codegen().magic_tuple()
+            here = d.targetctx.codegen().magic_tuple()  # type: ignore[attr-defined]
             ok = any(isinstance(k, tuple) and len(k) > 1 and k[1] == here for k in entries)
         except Exception:  # numba's cache layout changed, or an unreadable index
             ok = False
