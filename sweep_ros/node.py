@@ -6,7 +6,7 @@ A thin adapter: a timer steps the engine and publishes its state; commands are p
 validated by :mod:`sweep_ros.messages` and handed to the engine as fields; parameters are
 checked by :mod:`sweep_ros.params`; every published message and every command applied is
 recorded to MCAP by a background writer thread, so the timer never waits on the disk. The
-node's topics, services and parameters are described in the README (section "The ROS 2 node");
+node's topics, services and parameters are described in docs/node.md;
 :mod:`sweep_ros.main` is the executable.
 
 Threads: the ticks run on a thread of their own (:meth:`SweepNode._step_loop`, paced at
