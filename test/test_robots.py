@@ -331,3 +331,23 @@ def test_bundled_robot_scene_loads_and_steps():
     assert "robot" in sim.robots.controllers
     sim.step(3)
     assert sim.robots.state("robot").pose[0] > 1.0
+
+
+def test_a_disabled_robot_leaves_the_crowd_as_without_robots():
+    """enabled: false (what --vary robots.0.enabled=true,false pairs) is the scene without the
+    robot, bit for bit, on the same seed; enabled: true changes the crowd's path."""
+    agents = {"positions": [[4.0, 3.0], [5.0, 3.2]], "radius": 0.25}
+    base = {"agents": agents, "walls": BOX, "drift": {"kind": "goal", "goal": [1, 3],
+                                                      "speed": 1.0}, "noise": {"sigma": 0.3}}
+    robot = {"name": "bot", "radius": 0.3, "pose": [2.0, 3.0, 0.0], "goal": [9, 3],
+             "controller": "pursuit"}
+    runs = []
+    for scene in (base, {**base, "robots": [{**robot, "enabled": False}]},
+                  {**base, "robots": [{**robot, "enabled": "true"}]}):
+        sim = Simulator(Scene.from_dict(scene), dt=0.05, seed=3)
+        sim.step(40)
+        runs.append(sim.positions)
+    assert Simulator(Scene.from_dict({**base, "robots": [{**robot, "enabled": False}]}),
+                     dt=0.05).robots is None
+    assert np.array_equal(runs[0], runs[1])
+    assert not np.array_equal(runs[0], runs[2])
