@@ -351,3 +351,23 @@ def test_a_disabled_robot_leaves_the_crowd_as_without_robots():
                      dt=0.05).robots is None
     assert np.array_equal(runs[0], runs[1])
     assert not np.array_equal(runs[0], runs[2])
+
+
+def test_two_prescribed_robots_head_on_stop_without_overlap():
+    from sweep_core.io import robot_topics
+
+    robots = [{"name": "a", "radius": 0.3, "pose": [3.0, 3.0, 0.0]},
+              {"name": "b", "radius": 0.3, "pose": [5.0, 3.0, math.pi]}]
+    scene = Scene.from_dict({"agents": {"positions": [[8.0, 5.0]], "radius": 0.25},
+                             "walls": BOX, "robots": robots})
+    assert robot_topics.frames(scene, "b") == ("b/odom", "b/base_link")
+    sim = Simulator(scene, dt=0.05, seed=0)
+    for name in ("a", "b"):
+        sim.robots.command(name, (1.0, 0.0, 0.0))
+    closest = np.inf
+    for _ in range(40):
+        sim.step()
+        pa, pb = sim.robots.state("a").pose, sim.robots.state("b").pose
+        closest = min(closest, math.hypot(pa[0] - pb[0], pa[1] - pb[1]))
+    assert 0.6 - 1e-9 <= closest < 0.7
+    assert sim.robots.state("a").blocked > 0 and sim.robots.state("b").stopped
