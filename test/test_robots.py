@@ -371,3 +371,28 @@ def test_two_prescribed_robots_head_on_stop_without_overlap():
         closest = min(closest, math.hypot(pa[0] - pb[0], pa[1] - pb[1]))
     assert 0.6 - 1e-9 <= closest < 0.7
     assert sim.robots.state("a").blocked > 0 and sim.robots.state("b").stopped
+
+
+def test_a_blocked_robot_replays_bit_for_bit(tmp_path: Path):
+    """Pursuit without a scan drives the robot into a person it pins against the east wall
+    (no noise, all on one line, so the person cannot slide aside): its steps are refused
+    (blocked, recorded in /NAME/status) and the replay is identical."""
+    from sweep_core.analysis.replay import replay
+    from sweep_core.cli import main
+    from sweep_core.io.recording import read_recording
+
+    scene = tmp_path / "pin.yaml"
+    scene.write_text(
+        "agents: {positions: [[8.0, 3.0]], radius: 0.25}\n"
+        "walls:\n  - {kind: polyline, points: [[0, 0], [10, 0], [10, 6], [0, 6], [0, 0]]}\n"
+        "robots:\n  - {name: bot, radius: 0.3, pose: [6.0, 3, 0], goal: [9.5, 3],\n"
+        "     goal_radius: 0.1, controller: pursuit}\n")
+    out = tmp_path / "pin.mcap"
+    assert main(["run", str(scene), "--t-end", "6", "--dt", "0.05", "--out", str(out),
+                 "--quiet"]) == 0
+    from sweep_core.io import cdr
+
+    last = [cdr.decode_point_cloud2(m.data) for m in read_recording(out, ["/bot/status"])][-1]
+    assert last.fields["blocked"][0] > 0
+    res = replay(out)
+    assert res.identical and res.frames_compared == 121
