@@ -315,6 +315,84 @@ def test_recording_read_by_rosbags_and_replayed_bit_for_bit(tmp_path: Path):
     assert counts["/bot/odom"] == counts["/poses"] == counts["/tf"] == 21
     assert counts["/bot/cmd_vel"] == 41  # every step, for the replay
     assert counts["/bot/scan"] == 21 and counts["/tf_static"] == 1
+    assert counts["/bot/status"] == counts["/bot/contacts"] == 21
     assert odom.header.frame_id == "odom" and odom.pose.pose.position.x > 1.0
     res = replay(out)
     assert res.identical and res.frames_compared == 21
+
+
+def test_bundled_robot_scene_loads_and_steps():
+    from importlib import resources
+
+    path = Path(str(resources.files("sweep_core") / "scenes" / "robot_crowd.yaml"))
+    scene = Scene.from_yaml(path)
+    assert scene.n_agents == 100 and [r.name for r in scene.robots] == ["robot"]
+    sim = Simulator(scene, dt=0.05, seed=0)
+    assert "robot" in sim.robots.controllers
+    sim.step(3)
+    assert sim.robots.state("robot").pose[0] > 1.0
+
+
+def test_a_disabled_robot_leaves_the_crowd_as_without_robots():
+    """enabled: false (what --vary robots.0.enabled=true,false pairs) is the scene without the
+    robot, bit for bit, on the same seed; enabled: true changes the crowd's path."""
+    agents = {"positions": [[4.0, 3.0], [5.0, 3.2]], "radius": 0.25}
+    base = {"agents": agents, "walls": BOX, "drift": {"kind": "goal", "goal": [1, 3],
+                                                      "speed": 1.0}, "noise": {"sigma": 0.3}}
+    robot = {"name": "bot", "radius": 0.3, "pose": [2.0, 3.0, 0.0], "goal": [9, 3],
+             "controller": "pursuit"}
+    runs = []
+    for scene in (base, {**base, "robots": [{**robot, "enabled": False}]},
+                  {**base, "robots": [{**robot, "enabled": "true"}]}):
+        sim = Simulator(Scene.from_dict(scene), dt=0.05, seed=3)
+        sim.step(40)
+        runs.append(sim.positions)
+    assert Simulator(Scene.from_dict({**base, "robots": [{**robot, "enabled": False}]}),
+                     dt=0.05).robots is None
+    assert np.array_equal(runs[0], runs[1])
+    assert not np.array_equal(runs[0], runs[2])
+
+
+def test_two_prescribed_robots_head_on_stop_without_overlap():
+    from sweep_core.io import robot_topics
+
+    robots = [{"name": "a", "radius": 0.3, "pose": [3.0, 3.0, 0.0]},
+              {"name": "b", "radius": 0.3, "pose": [5.0, 3.0, math.pi]}]
+    scene = Scene.from_dict({"agents": {"positions": [[8.0, 5.0]], "radius": 0.25},
+                             "walls": BOX, "robots": robots})
+    assert robot_topics.frames(scene, "b") == ("b/odom", "b/base_link")
+    sim = Simulator(scene, dt=0.05, seed=0)
+    for name in ("a", "b"):
+        sim.robots.command(name, (1.0, 0.0, 0.0))
+    closest = np.inf
+    for _ in range(40):
+        sim.step()
+        pa, pb = sim.robots.state("a").pose, sim.robots.state("b").pose
+        closest = min(closest, math.hypot(pa[0] - pb[0], pa[1] - pb[1]))
+    assert 0.6 - 1e-9 <= closest < 0.7
+    assert sim.robots.state("a").blocked > 0 and sim.robots.state("b").stopped
+
+
+def test_a_blocked_robot_replays_bit_for_bit(tmp_path: Path):
+    """Pursuit without a scan drives the robot into a person it pins against the east wall
+    (no noise, all on one line, so the person cannot slide aside): its steps are refused
+    (blocked, recorded in /NAME/status) and the replay is identical."""
+    from sweep_core.analysis.replay import replay
+    from sweep_core.cli import main
+    from sweep_core.io.recording import read_recording
+
+    scene = tmp_path / "pin.yaml"
+    scene.write_text(
+        "agents: {positions: [[8.0, 3.0]], radius: 0.25}\n"
+        "walls:\n  - {kind: polyline, points: [[0, 0], [10, 0], [10, 6], [0, 6], [0, 0]]}\n"
+        "robots:\n  - {name: bot, radius: 0.3, pose: [6.0, 3, 0], goal: [9.5, 3],\n"
+        "     goal_radius: 0.1, controller: pursuit}\n")
+    out = tmp_path / "pin.mcap"
+    assert main(["run", str(scene), "--t-end", "6", "--dt", "0.05", "--out", str(out),
+                 "--quiet"]) == 0
+    from sweep_core.io import cdr
+
+    last = [cdr.decode_point_cloud2(m.data) for m in read_recording(out, ["/bot/status"])][-1]
+    assert last.fields["blocked"][0] > 0
+    res = replay(out)
+    assert res.identical and res.frames_compared == 121

@@ -254,6 +254,8 @@ class Simulator:
         self.scene = scene
         self.scheme.scene = live
         self.scheme.reset()
+        if self.robots is not None:  # the robots see the new walls too
+            self.robots.scene = scene
         r = live.radii(self.t)
         self._min_gap = gaps(scene.geometry, self.t, self._q, r).min_gap if len(r) else math.inf
 
