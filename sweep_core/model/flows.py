@@ -31,9 +31,9 @@ from sweep_core.model.regions import Region, region_from_spec
 
 #: time gap T (s) of the headway law when the scene gives none: calibrated against Weidmann's
 #: speed-density relation in a ring corridor (docs/flows.md, scripts/calibrate_headway.py)
-DEFAULT_TIME_GAP = 0.5
+DEFAULT_TIME_GAP = 0.35
 #: lateral margin w (m) of the headway law when the scene gives none (calibrated with T)
-DEFAULT_MARGIN = 0.0
+DEFAULT_MARGIN = 0.3
 #: most agents one source may emit
 MAX_SOURCE_COUNT = 100_000
 #: most legs of a journey
