@@ -219,3 +219,15 @@ def test_path_dt_is_refused_when_agents_enter_or_leave(recorded, capsys):
     assert main(["run", str(scene), "--t-end", "0.1", "--path-dt", "0.01",
                  "--out", str(recorded[0] / "p.mcap"), "--quiet"]) != 0
     assert "path_dt" in capsys.readouterr().err
+
+
+def test_run_size_counts_the_agents_sources_may_add(tmp_path, capsys):
+    scene = tmp_path / "big.yaml"
+    data = corridor({"sources": [{**SOURCE, "rate": 1000.0, "count": 100_000}]},
+                    positions=[[5.0, 2.0]])
+    scene.write_text(Scene.from_dict(data).to_yaml())
+    assert main(["run", str(scene), "--t-end", "100", "--dt", "0.01",
+                 "--out", str(tmp_path / "big.mcap"), "--quiet"]) != 0
+    err = capsys.readouterr().err
+    assert "--record-every" in err and "100001 agents" in err
+    assert not (tmp_path / "big.mcap").exists()

@@ -174,6 +174,11 @@ class Flows:
     def changes_population(self) -> bool:
         return bool(self.sinks or self.sources)
 
+    @property
+    def entering(self) -> int:
+        """Most agents the sources can add (the sum of their counts)."""
+        return sum(len(s.times) for s in self.sources)
+
 
 def _group(value: Any, field: str, names: tuple[str, ...]) -> int:
     if value is None:
