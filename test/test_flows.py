@@ -219,3 +219,53 @@ def test_path_dt_is_refused_when_agents_enter_or_leave(recorded, capsys):
     assert main(["run", str(scene), "--t-end", "0.1", "--path-dt", "0.01",
                  "--out", str(recorded[0] / "p.mcap"), "--quiet"]) != 0
     assert "path_dt" in capsys.readouterr().err
+
+
+def test_run_size_counts_the_agents_sources_may_add(tmp_path, capsys):
+    scene = tmp_path / "big.yaml"
+    data = corridor({"sources": [{**SOURCE, "rate": 1000.0, "count": 100_000}]},
+                    positions=[[5.0, 2.0]])
+    scene.write_text(Scene.from_dict(data).to_yaml())
+    assert main(["run", str(scene), "--t-end", "100", "--dt", "0.01",
+                 "--out", str(tmp_path / "big.mcap"), "--quiet"]) != 0
+    err = capsys.readouterr().err
+    assert "--record-every" in err and "100001 agents" in err
+    assert not (tmp_path / "big.mcap").exists()
+
+
+def test_entering_agents_follow_their_groups_journey():
+    data = corridor({"sources": [{**SOURCE, "count": 2, "group": "walkers"}],
+                     "journeys": [{"group": "walkers", "legs": [
+                         {"region": {"kind": "rectangle", "min": [4.0, 0.0], "max": [5.0, 1.0]}},
+                         {"goal": [8.0, 3.4]}]}]}, positions=[[5.0, 3.5]])
+    data["agents"]["groups"] = [{"name": "walkers", "agents": [0], "drift": {
+        "kind": "goal", "goal": [5.0, 3.5]}}]
+    sim = Simulator(Scene.from_dict(data), dt=0.05)
+    low = np.zeros(3, dtype=bool)
+    for _ in range(200):
+        sim.step()
+        ids = sim.ids
+        low[ids[sim.positions[:, 1] < 1.5]] = True
+    p = sim.flows
+    assert p.entered == 2 and p.group.tolist() == [0, 0, 0]
+    # the entering agents went down to the first leg's region, then on to the second goal
+    assert low[1:].all() and p.leg[1:].tolist() == [1, 1]
+    assert np.all(np.hypot(*(sim.positions[1:] - [8.0, 3.4]).T) < 1.0)
+
+
+def test_the_headway_law_slows_a_dense_ring_the_pure_model_does_not():
+    from sweep_core.model.ring import ring_corridor, tangential_speed
+
+    def speed(time_gap):
+        sim = Simulator(Scene.from_dict(ring_corridor(2.0, time_gap=time_gap)), dt=0.05)
+        sim.run(4.0)
+        v = []
+        for _ in range(20):
+            sim.step()
+            v.append(tangential_speed(sim.positions, sim.velocities).mean())
+        return float(np.mean(v))
+
+    pure, law = speed(None), speed(0.35)
+    # free speed 1.34 m/s: the pure model keeps it at 2 per m^2, the law roughly halves it
+    # (Weidmann: 0.61 m/s; docs/flows.md measures 0.60 at the defaults)
+    assert pure > 1.2 and law < 0.9

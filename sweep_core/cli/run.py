@@ -87,7 +87,8 @@ def _run(args: argparse.Namespace) -> int:
     scene.check_horizon(t_end)
     if args.path_dt:
         paths.substeps(dt, args.path_dt)  # refused before the recording is created
-    limits.check_run_size(scene.n_agents, dt, t_end, args.record_every,
+    most = scene.n_agents + (scene.flows.entering if scene.flows is not None else 0)
+    limits.check_run_size(most, dt, t_end, args.record_every,
                           path_dt=args.path_dt or None, frame_id=args.frame_id, force=args.force)
     inputs = scene_files(args.scene, scene)
     out = check_output(args.out, inputs)

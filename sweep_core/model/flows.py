@@ -31,9 +31,9 @@ from sweep_core.model.regions import Region, region_from_spec
 
 #: time gap T (s) of the headway law when the scene gives none: calibrated against Weidmann's
 #: speed-density relation in a ring corridor (docs/flows.md, scripts/calibrate_headway.py)
-DEFAULT_TIME_GAP = 0.5
+DEFAULT_TIME_GAP = 0.35
 #: lateral margin w (m) of the headway law when the scene gives none (calibrated with T)
-DEFAULT_MARGIN = 0.0
+DEFAULT_MARGIN = 0.3
 #: most agents one source may emit
 MAX_SOURCE_COUNT = 100_000
 #: most legs of a journey
@@ -173,6 +173,11 @@ class Flows:
     @property
     def changes_population(self) -> bool:
         return bool(self.sinks or self.sources)
+
+    @property
+    def entering(self) -> int:
+        """Most agents the sources can add (the sum of their counts)."""
+        return sum(len(s.times) for s in self.sources)
 
 
 def _group(value: Any, field: str, names: tuple[str, ...]) -> int:
