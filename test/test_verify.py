@@ -125,3 +125,13 @@ def test_dask_gives_the_in_process_values():
         there = verify(tests, [0, 1], True, None, client=client, say=lambda _text: None)
     assert here[0][1].values == there[0][1].values
     assert here[0][1].status == there[0][1].status == "PASS"
+
+
+def test_a_bad_replaced_scene_is_refused_in_one_line(tmp_path, capsys):
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    (folder / "rimea01_corridor.yaml").write_text("agents: {positions: [[0, 1]], radius: -1}\n")
+    assert main(["verify", "--quick", "--tests", "rimea1", "--scenes", str(folder),
+                 "--no-report"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) >= 1 and "agents.radius" in err[-1] and err[-1].startswith("sweep: error")

@@ -13,6 +13,7 @@ from typing import Any
 
 from sweep_core.errors import SweepError
 from sweep_core.io.outputs import write_text
+from sweep_core.model.scene import Scene
 from sweep_core.verify.base import Case, Test, Trace, Verdict, simulate
 
 
@@ -60,6 +61,11 @@ def verify(tests: Sequence[Test], seeds: Sequence[int], quick: bool, out: Path |
         raise SweepError(f"--scenes: {folder!r} is not a folder (fix: give a folder of scene "
                          "YAML files named as the bundled ones, e.g. rimea06_corner.yaml)")
     tasks = [(case, seed) for t in tests for case in t.cases(quick) for seed in seeds]
+    if folder is not None:  # a replaced scene is checked here, its error said in one line
+        for name in sorted({case.scene for case, _ in tasks if case.inline is None}):
+            path = Path(folder) / f"{name}.yaml"
+            if path.is_file():
+                Scene.from_yaml(path)
     traces = run_traces(tasks, folder, client, progress)
     by_test: dict[str, dict[str, list[Trace]]] = {}
     k = 0
