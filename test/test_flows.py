@@ -142,9 +142,13 @@ def test_headway_speed_is_the_free_distance_over_the_time_gap():
     s = 1.0 - np.sqrt(0.4 ** 2 - 0.1 ** 2)  # travel along x before touching agent 1
     assert out[0, 1] == 0.0 and np.isclose(out[0, 0], s / 0.5, rtol=1e-12)
     assert np.array_equal(out[1:], u[1:])  # standing and free agents unchanged
-    # a person beside the path (offset beyond r_i + r_j) does not slow
-    assert np.array_equal(headway(np.array([[0.0, 0.0], [1.0, 0.41]]), r[:2], u[[0, 1]], 0.5),
-                          u[[0, 1]])
+    # a person beside the path (offset beyond r_i + r_j) does not slow, unless within the
+    # lateral margin w: then s is the distance along the path, a = 1 m
+    beside = np.array([[0.0, 0.0], [1.0, 0.41]])
+    assert np.array_equal(headway(beside, r[:2], u[[0, 1]], 0.5), u[[0, 1]])
+    slowed = headway(beside, r[:2], u[[0, 1]], 1.0, margin=0.1)
+    assert np.isclose(slowed[0, 0], 1.0, rtol=1e-12) and slowed[0, 1] == 0.0
+    assert np.array_equal(headway(beside, r[:2], u[[0, 1]], 1.0, margin=0.005), u[[0, 1]])
 
 
 def test_journeys_follow_their_legs_in_order():

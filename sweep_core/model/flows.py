@@ -11,7 +11,7 @@ user's page; the run-time state (who is present, who left) is
       sources:  [{region, rate | times, start, count, radius, group, speeds, delays}, ...]
       journeys: [{group, legs: [{goal: [x, y]} | {region: {...}}, ...], arrive_radius,
                   cell, wall_buffer}, ...]
-      headway:  {time_gap: T}               s
+      headway:  {time_gap: T, margin: w}    s, m
 
 Regions: :mod:`sweep_core.model.regions`. Values drawn from a distribution are drawn per run
 from the run's seed (:func:`draw`), never stored in the spec.
@@ -31,7 +31,9 @@ from sweep_core.model.regions import Region, region_from_spec
 
 #: time gap T (s) of the headway law when the scene gives none: calibrated against Weidmann's
 #: speed-density relation in a ring corridor (docs/flows.md, scripts/calibrate_headway.py)
-DEFAULT_TIME_GAP = 0.5
+DEFAULT_TIME_GAP = 0.35
+#: lateral margin w (m) of the headway law when the scene gives none (calibrated with T)
+DEFAULT_MARGIN = 0.3
 #: most agents one source may emit
 MAX_SOURCE_COUNT = 100_000
 #: most legs of a journey
@@ -164,6 +166,7 @@ class Flows:
     sources: tuple[Source, ...]
     journeys: tuple[Journey, ...]
     time_gap: float | None
+    margin: float
     group_speed: np.ndarray
     spec: dict
 
@@ -327,14 +330,16 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
         journeys.append(_journey(j, f"flows.journeys[{k}]", names, float(gspeed[g]), geometry,
                                  grid))
     spec["journeys"] = [j.spec for j in journeys]
-    time_gap = None
+    time_gap, margin = None, 0.0
     if raw.get("headway") is not None:
-        hw = checks.mapping(raw["headway"], "flows.headway", allowed={"time_gap"})
+        hw = checks.mapping(raw["headway"], "flows.headway", allowed={"time_gap", "margin"})
         time_gap = checks.number(hw.get("time_gap", DEFAULT_TIME_GAP), "flows.headway.time_gap",
                                  positive=True)
-        spec["headway"] = {"time_gap": time_gap}
+        margin = checks.length(hw.get("margin", DEFAULT_MARGIN), "flows.headway.margin",
+                               nonnegative=True)
+        spec["headway"] = {"time_gap": time_gap, "margin": margin}
     out = Flows(speeds, delays, tuple(sinks), tuple(sources), tuple(journeys), time_gap,
-                gspeed, spec)
+                margin, gspeed, spec)
     if out.changes_population:
         _check_changing(out, drift, sigma)
     return out

@@ -17,10 +17,12 @@ import numpy as np
 
 def ring_corridor(density: float, inner: float = 3.0, outer: float = 5.0,
                   radius: float = 0.2, speed: float = 1.34, seed: int = 0,
-                  time_gap: float | None = None, sides: int = 96, cell: float = 0.1) -> dict:
+                  time_gap: float | None = None, margin: float | None = None,
+                  sides: int = 96, cell: float = 0.1) -> dict:
     """A scene dict: round(density x area) agents of ``radius`` (m) spawned at random (seed)
     in the annulus inner < |q| < outer (m), walking at ``speed`` (m/s) round it, with the
-    headway law of time gap ``time_gap`` (s; None: the pure model). density in agents/m^2."""
+    headway law of time gap ``time_gap`` (s; None: the pure model) and lateral ``margin`` (m;
+    None: the default). density in agents/m^2."""
     area = math.pi * (outer * outer - inner * inner)
     n = int(round(density * area))
     ang = 2.0 * math.pi * np.arange(sides) / sides
@@ -42,7 +44,8 @@ def ring_corridor(density: float, inner: float = 3.0, outer: float = 5.0,
                   "vx": (-speed * Y / norm).tolist(), "vy": (speed * X / norm).tolist()},
     }
     if time_gap is not None:
-        scene["flows"] = {"headway": {"time_gap": time_gap}}
+        scene["flows"] = {"headway": {"time_gap": time_gap,
+                                      **({} if margin is None else {"margin": margin})}}
     return scene
 
 

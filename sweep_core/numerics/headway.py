@@ -7,9 +7,12 @@ T the time gap (s) and s_i the free distance (m): how far agent i can move along
 direction e_i = U_i / |U_i| before its disk touches another agent's. For an agent j with
 d = q_j - q_i, a = <d, e_i> > 0 (ahead) and lateral offset b = |d - a e_i| < l = r_i + r_j (in
 i's path), that distance is a - sqrt(l^2 - b^2): for a person straight ahead (b = 0) it is the
-model's s - l, centre distance minus the sum of the radii. s_i is the minimum over such j
-(infinite if none). Walls do not enter s_i; the projection keeps every contact exact as
-always, so the law only lowers the prediction's speed. Agents with U_i = 0 are left alone.
+model's s - l, centre distance minus the sum of the radii. A person beside the path, within a
+lateral margin w (l <= b < l + w), counts with s = a (continuous at b = l): people keep a
+lateral distance, and without it agents in lanes would not feel the crowd beside them.
+s_i is the minimum over such j (infinite if none). Walls do not enter s_i; the projection
+keeps every contact exact as always, so the law only lowers the prediction's speed. Agents
+with U_i = 0 are left alone.
 """
 from __future__ import annotations
 
@@ -23,9 +26,9 @@ from sweep_core.model.neighbours import pairs_within
 
 @numba.njit(cache=True, nogil=True)
 def free_distances(q: np.ndarray, r: np.ndarray, u: np.ndarray, pi: np.ndarray,
-                   pj: np.ndarray) -> np.ndarray:
-    """Free distance s_i (N,) m ahead of each agent along u_i (N, 2) (module docstring),
-    over the candidate pairs (pi, pj); inf where no candidate is in the way."""
+                   pj: np.ndarray, margin: float) -> np.ndarray:
+    """Free distance s_i (N,) m ahead of each agent along u_i (N, 2) with lateral margin w
+    (m) (module docstring), over the candidate pairs (pi, pj); inf where nobody is ahead."""
     n = q.shape[0]
     out = np.full(n, np.inf)
     for k in range(pi.shape[0]):
@@ -42,9 +45,9 @@ def free_distances(q: np.ndarray, r: np.ndarray, u: np.ndarray, pi: np.ndarray,
                 continue
             ll = r[i] + r[j]
             b2 = max(dx * dx + dy * dy - a * a, 0.0)
-            if b2 >= ll * ll:
+            if b2 >= (ll + margin) * (ll + margin):
                 continue
-            s = max(a - math.sqrt(ll * ll - b2), 0.0)
+            s = max(a - math.sqrt(ll * ll - b2), 0.0) if b2 < ll * ll else a
             if s < out[i]:
                 out[i] = s
     return out
@@ -66,18 +69,20 @@ def slow_down(u: np.ndarray, s: np.ndarray, time_gap: float) -> np.ndarray:
     return out
 
 
-def headway(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float) -> np.ndarray:
-    """The wished velocities u (N, 2) m/s under the headway law with time gap T (s), for
-    centres q (N, 2) m and radii r (N,) m. Only agents closer than max|u| T + 2 max r can slow
-    one another, so the pairs are searched within that reach (compiled cell lists)."""
+def headway(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float,
+            margin: float = 0.0) -> np.ndarray:
+    """The wished velocities u (N, 2) m/s under the headway law with time gap T (s) and
+    lateral margin w (m), for centres q (N, 2) m and radii r (N,) m. Only agents closer than
+    max|u| T + 2 max r + w can slow one another, so the pairs are searched within that reach
+    (compiled cell lists)."""
     n = len(q)
     if n < 2:
         return u.copy()
     top = float(np.sqrt(np.max(np.einsum("ij,ij->i", u, u))))
     if top == 0.0:
         return u.copy()
-    reach = top * time_gap + 2.0 * float(r.max())
+    reach = top * time_gap + 2.0 * float(r.max()) + margin
     pi, pj = pairs_within(q, reach)
     s = free_distances(np.ascontiguousarray(q), np.ascontiguousarray(r, dtype=np.float64),
-                       np.ascontiguousarray(u), pi, pj)
+                       np.ascontiguousarray(u), pi, pj, float(margin))
     return slow_down(np.ascontiguousarray(u), s, float(time_gap))

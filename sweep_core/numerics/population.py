@@ -11,9 +11,10 @@ then each entering agent's position, radius, speed and delay, at its entry. So a
 the run, and the Brownian increments are drawn as without flows.
 
 Entry: a source's agent is due at its time; at the end of each step the due agents of each
-source (in order) are placed at uniform random points of its region where the disk is clear of
-every wall, obstacle and present agent (:data:`TRIES` candidates per agent and step); an agent
-that finds no room waits for the next step (``waiting``). Departure: an agent whose centre is
+source (in order) are placed at uniform random points of its region where the disk (its radius
+at that time) is clear of every wall, obstacle, blocked map cell and present agent
+(:data:`TRIES` candidates per agent and step, vectorised); an agent that finds no room waits,
+with the ones behind it, for the next step (``waiting``). Departure: an agent whose centre is
 inside a sink at the end of a step leaves (``left_at[id]`` = that time). Conservation:
 N0 + entered = present + left.
 """
@@ -26,6 +27,7 @@ import numpy as np
 from sweep_core.model.fields import Field, Groups
 from sweep_core.model.flows import Flows, Source, draw
 from sweep_core.model.geometry import single_rows
+from sweep_core.model.maps import OccupancyMap, map_from_spec
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.headway import headway
 
@@ -84,6 +86,7 @@ class Population:
         #: agents due at a source by the last step that found no room yet
         self.waiting = 0
         self._view: Scene | None = None
+        self._grid: OccupancyMap | None = None  # the scene's map, read when a source needs it
         self._base: Scene | None = None
         self._journey = {j.group: j for j in flows.journeys}
 
@@ -147,7 +150,7 @@ class Population:
         if self.waits:
             u[t < self.start[ids]] = 0.0
         if self.flows.time_gap is not None:
-            u = headway(q, self.radius[ids], u, self.flows.time_gap)
+            u = headway(q, self.radius[ids], u, self.flows.time_gap, self.flows.margin)
         return u
 
     # -- after a step ---------------------------------------------------------------------------
@@ -191,7 +194,11 @@ class Population:
         """Place the agents due by t1 (s); returns their centres (M, 2) and appends their
         per-id values."""
         placed: list[np.ndarray] = []
-        r_present = self.radius[self.ids]
+        law = scene.radius_law
+        grow = 0.0 if law.is_constant else float(law.offset(t1))  # r_i(t1) = base + grow
+        r_present = self.radius[self.ids] + grow
+        if self._grid is None and scene.spec.get("map") is not None:
+            self._grid = map_from_spec(scene.spec["map"], "map", None)
         for s_index, src in enumerate(self.flows.sources):
             due = int(np.searchsorted(src.times, t1 + 1e-9, side="right"))
             while self.next[s_index] < due:
@@ -199,17 +206,19 @@ class Population:
                      else src.r_low + self.rng.random() * (src.r_high - src.r_low))
                 cand = src.region.lo + self.rng.random((TRIES, 2)) * (src.region.hi - src.region.lo)
                 ok = src.region.contains(cand)
-                rr = np.full(TRIES, r)
+                if self._grid is not None:
+                    ok &= ~self._grid.is_blocked(cand)
+                rr = np.full(TRIES, r + grow)
                 if not scene.geometry.is_empty:
                     for a, _, _, _, _ in single_rows(scene.geometry, t1, cand, rr, 0.0):
                         ok[a] = False
                 allq = np.concatenate([q] + placed) if placed else q
-                allr = np.concatenate([r_present, self.radius[len(self.radius) - len(placed):]]) \
-                    if placed else r_present
+                allr = (np.concatenate([r_present, self.radius[len(self.radius) - len(placed):]
+                                        + grow]) if placed else r_present)
                 if len(allq):
                     d = cand[:, None, :] - allq[None]
                     dist2 = np.einsum("mnc,mnc->mn", d, d)
-                    ok &= np.all(dist2 >= (r + allr[None]) ** 2, axis=1)
+                    ok &= np.all(dist2 >= (r + grow + allr[None]) ** 2, axis=1)
                 hit = np.flatnonzero(ok)
                 if len(hit) == 0:
                     break  # no room now: this source's due agents wait for the next step
