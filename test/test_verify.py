@@ -109,3 +109,29 @@ def test_pedpy_measurements_on_exact_trajectories():
     dens = classic_density(traj, [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
     inside = [int(np.sum(np.abs(q[:, 0]) <= 1.0)) for _, _, q in frames]
     np.testing.assert_allclose(dens, np.asarray(inside) / 4.0)
+
+
+def test_dask_gives_the_in_process_values():
+    """The same seeds on a Dask client (in-process transport) and here: the same verdicts."""
+    distributed = pytest.importorskip("distributed")
+    from sweep_core.verify import TESTS
+    from sweep_core.verify.runner import verify
+
+    tests = [TESTS["rimea1"]]
+    here = verify(tests, [0, 1], True, None, say=lambda _text: None)
+    with distributed.LocalCluster(processes=False, n_workers=1, threads_per_worker=1,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        there = verify(tests, [0, 1], True, None, client=client, say=lambda _text: None)
+    assert here[0][1].values == there[0][1].values
+    assert here[0][1].status == there[0][1].status == "PASS"
+
+
+def test_a_bad_replaced_scene_is_refused_in_one_line(tmp_path, capsys):
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    (folder / "rimea01_corridor.yaml").write_text("agents: {positions: [[0, 1]], radius: -1}\n")
+    assert main(["verify", "--quick", "--tests", "rimea1", "--scenes", str(folder),
+                 "--no-report"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) >= 1 and "agents.radius" in err[-1] and err[-1].startswith("sweep: error")

@@ -36,14 +36,19 @@ def _verify(args: argparse.Namespace) -> int:
     tests = [TESTS[k] for k in names]
     kernels.warm_up(lambda text: print(f"sweep: {text}", file=sys.stderr))
     out = None if args.no_report else Path(args.out)
+
+    def progress(text: str) -> None:
+        print(f"sweep: {text}", file=sys.stderr, flush=True)
+
     if args.in_process or (args.quick and args.workers is None and args.scheduler is None):
-        results = verify(tests, seeds, args.quick, out, args.scenes)
+        results = verify(tests, seeds, args.quick, out, args.scenes, progress=progress)
     else:
         from sweep_core.ensemble.cluster import connect
 
         with connect(scheduler=args.scheduler, workers=args.workers,
                      log=lambda text: print(f"sweep: {text}", file=sys.stderr)) as client:
-            results = verify(tests, seeds, args.quick, out, args.scenes, client)
+            results = verify(tests, seeds, args.quick, out, args.scenes, client,
+                             progress=progress)
     if out is not None:
         print(f"report: {out / 'report.md'}")
     return 1 if any(v.status == "FAIL" for _, v in results) else 0

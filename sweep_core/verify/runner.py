@@ -13,6 +13,7 @@ from typing import Any
 
 from sweep_core.errors import SweepError
 from sweep_core.io.outputs import write_text
+from sweep_core.model.scene import Scene
 from sweep_core.verify.base import Case, Test, Trace, Verdict, simulate
 
 
@@ -23,24 +24,49 @@ def line(test: Test, verdict: Verdict) -> str:
     return text + (f" | {verdict.notes}" if verdict.notes else "")
 
 
-def run_traces(tasks: Sequence[tuple[Case, int]], folder: str | None, client: Any) -> list[Trace]:
-    """The traces of (case, seed) tasks: on the Dask ``client`` when given, else here."""
+def run_traces(tasks: Sequence[tuple[Case, int]], folder: str | None, client: Any,
+               progress: Callable[[str], None] | None = None) -> list[Trace]:
+    """The traces of (case, seed) tasks: on the Dask ``client`` when given, else here;
+    ``progress`` is told "k of n runs done" as runs finish (at most about 20 times)."""
+    tell = progress or (lambda _text: None)
+    n = len(tasks)
+    step = max(1, n // 20)
     if client is None:
-        return [simulate(case, seed, folder) for case, seed in tasks]
+        out = []
+        for k, (case, seed) in enumerate(tasks, 1):
+            out.append(simulate(case, seed, folder))
+            if k % step == 0 or k == n:
+                tell(f"{k} of {n} runs done")
+        return out
+    from distributed import as_completed
+
     futures = [client.submit(simulate, case, seed, folder, pure=False) for case, seed in tasks]
-    return list(client.gather(futures))
+    index = {f.key: k for k, f in enumerate(futures)}
+    results: list[Trace | None] = [None] * n
+    for k, fut in enumerate(as_completed(futures), 1):
+        results[index[fut.key]] = fut.result()
+        if k % step == 0 or k == n:
+            tell(f"{k} of {n} runs done")
+    return [r for r in results if r is not None]
 
 
 def verify(tests: Sequence[Test], seeds: Sequence[int], quick: bool, out: Path | None,
            folder: str | None = None, client: Any = None,
-           say: Callable[[str], None] = print) -> list[tuple[Test, Verdict]]:
+           say: Callable[[str], None] = print,
+           progress: Callable[[str], None] | None = None) -> list[tuple[Test, Verdict]]:
     """Runs every case of every test with every seed, judges, prints a line per test and (when
-    ``out`` is given) writes the report folder. Returns (test, verdict) pairs."""
+    ``out`` is given) writes the report folder; ``progress`` hears how many runs are done.
+    Returns (test, verdict) pairs."""
     if folder is not None and not Path(folder).is_dir():
         raise SweepError(f"--scenes: {folder!r} is not a folder (fix: give a folder of scene "
                          "YAML files named as the bundled ones, e.g. rimea06_corner.yaml)")
     tasks = [(case, seed) for t in tests for case in t.cases(quick) for seed in seeds]
-    traces = run_traces(tasks, folder, client)
+    if folder is not None:  # a replaced scene is checked here, its error said in one line
+        for name in sorted({case.scene for case, _ in tasks if case.inline is None}):
+            path = Path(folder) / f"{name}.yaml"
+            if path.is_file():
+                Scene.from_yaml(path)
+    traces = run_traces(tasks, folder, client, progress)
     by_test: dict[str, dict[str, list[Trace]]] = {}
     k = 0
     for t in tests:
