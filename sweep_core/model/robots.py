@@ -62,7 +62,13 @@ class ScanSpec:
 
     @property
     def beams(self) -> int:
-        return int(math.floor((self.angle_max - self.angle_min) / self.increment + 1e-9)) + 1
+        """Beams from angle_min to angle_max inclusive, except that a full turn does not repeat
+        its first beam at its end."""
+        count = int(math.floor((self.angle_max - self.angle_min) / self.increment + 1e-9)) + 1
+        if count > 1 and self.angle_min + (count - 1) * self.increment >= \
+                self.angle_min + 2 * math.pi - 1e-9:
+            count -= 1
+        return count
 
     def angles(self) -> np.ndarray:
         """(beams,) beam angles in the robot frame (rad)."""
