@@ -102,3 +102,10 @@ def test_a_scene_without_a_robot_goal_or_scan_is_refused():
         CrowdNavEnv(scene)
     with pytest.raises(SceneError, match="'nobody' is not a robot"):
         CrowdNavEnv(small_scene(), robot="nobody")
+
+
+def test_the_bundled_scene_makes_the_default_environment():
+    env = gymnasium.make("sweep/CrowdNav-v0")
+    obs, _ = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    assert obs["goal"] == pytest.approx([10.0, 0.0])  # from (1, 3) facing east to (11, 3)

@@ -243,3 +243,23 @@ def test_a_recorded_run_is_read_as_the_engine_stepped_it(tmp_path):
     m = an.summary["robots"]["bot"]
     assert m["collided"] and m["contact"]["frames"] == int(np.count_nonzero(want[:, 4]))
     assert m["clearance"]["min_m"] == pytest.approx(want[:, 3].min(), abs=1e-12)
+
+
+def test_cli_prints_the_robots_and_writes_their_frames(tmp_path, capsys):
+    import json
+
+    from sweep_core.cli import main
+
+    path = tmp_path / "pass.mcap"
+    write_recording(path, push=False)
+    assert main(["analyze", str(path), "--json", "--quiet", "--no-plots"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["robots"]["r1"]["success"] is True
+    frames = np.genfromtxt(summary["outputs"]["robots_csv"], delimiter=",", names=True)
+    assert len(frames) == 101 and frames.dtype.names[:3] == ("robot", "t_s", "x_m")
+    assert main(["analyze", str(path), "--quiet", "--no-plots"]) == 0
+    text = capsys.readouterr().out
+    assert "robots.r1.spl" in text and "robots.r1.contact.frames" in text
+    assert main(["analyze", str(path), "--quiet", "--no-plots", "--time-limit", "-1"]) == 2
+    err = capsys.readouterr().err
+    assert "--time-limit" in err and "Traceback" not in err
