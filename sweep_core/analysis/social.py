@@ -174,10 +174,11 @@ def episode_metrics(spec: RobotSpec, s: Series, geodesic: float | None) -> dict[
     cl = s.clearance[e]
     people = np.isfinite(cl)
     touched = s.touched[e] if s.touched else []
-    ids = np.concatenate(touched) if touched else np.zeros(0)
+    ids = (np.concatenate(touched) if touched else np.zeros(0)).astype(np.int64)
     # a contact event: a person in contact at a frame who was not at the previous one
-    events = sum(int(np.setdiff1d(now, before).size)
-                 for before, now in zip([np.zeros(0)] + touched[:-1], touched))
+    at = np.repeat(np.arange(len(touched)), [len(k) for k in touched])
+    key = ids * (len(touched) + 1) + at
+    events = int(np.count_nonzero(~np.isin(key - 1, key)))
     collided = bool(np.any(s.contacts[e] > 0) or np.any(cl <= CONTACT_TOL))
     frames = len(cl)
     zones = {name: float(np.count_nonzero((cl >= lo) & (cl < hi))) / frames
