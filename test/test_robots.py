@@ -315,6 +315,19 @@ def test_recording_read_by_rosbags_and_replayed_bit_for_bit(tmp_path: Path):
     assert counts["/bot/odom"] == counts["/poses"] == counts["/tf"] == 21
     assert counts["/bot/cmd_vel"] == 41  # every step, for the replay
     assert counts["/bot/scan"] == 21 and counts["/tf_static"] == 1
+    assert counts["/bot/status"] == counts["/bot/contacts"] == 21
     assert odom.header.frame_id == "odom" and odom.pose.pose.position.x > 1.0
     res = replay(out)
     assert res.identical and res.frames_compared == 21
+
+
+def test_bundled_robot_scene_loads_and_steps():
+    from importlib import resources
+
+    path = Path(str(resources.files("sweep_core") / "scenes" / "robot_crowd.yaml"))
+    scene = Scene.from_yaml(path)
+    assert scene.n_agents == 100 and [r.name for r in scene.robots] == ["robot"]
+    sim = Simulator(scene, dt=0.05, seed=0)
+    assert "robot" in sim.robots.controllers
+    sim.step(3)
+    assert sim.robots.state("robot").pose[0] > 1.0
