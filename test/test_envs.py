@@ -6,30 +6,11 @@ import gymnasium
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from robot_scenes import small_scene
 
 import sweep_core.envs  # noqa: F401  (registers sweep/CrowdNav-v0)
 from sweep_core.envs import CrowdNavEnv
 from sweep_core.errors import SceneError
-
-
-def small_scene(sigma: float = 0.1, holonomic: bool = False) -> dict:
-    """A 6 m x 3 m corridor, two people walking west, a robot heading east (few scan beams)."""
-    return {
-        "name": "small_crowdnav",
-        "agents": {"positions": [[3.5, 1.0], [4.5, 2.0]], "radius": 0.25},
-        "drift": {"kind": "goal", "goal": [-1.0, 1.5], "speed": 0.8},
-        "noise": {"sigma": sigma},
-        "walls": [{"kind": "segment", "a": [-2.0, 0.0], "b": [8.0, 0.0]},
-                  {"kind": "segment", "a": [-2.0, 3.0], "b": [8.0, 3.0]}],
-        "robots": [{
-            "name": "bot", "radius": 0.3, "pose": [0.5, 1.5, 0.0],
-            "kinematics": {"type": "holonomic" if holonomic else "diff_drive",
-                           "max_speed": 1.0, "max_angular_speed": 1.5,
-                           "max_acceleration": 10.0, "max_angular_acceleration": 10.0},
-            "goal": [5.0, 1.5], "goal_radius": 0.3,
-            "scan": {"range_min": 0.05, "range_max": 5.0, "angle_min": -1.0, "angle_max": 1.0,
-                     "increment": 0.25, "rate": 10.0, "noise_std": 0.01}}],
-    }
 
 
 def test_the_environment_passes_gymnasiums_checker():
@@ -121,3 +102,10 @@ def test_a_scene_without_a_robot_goal_or_scan_is_refused():
         CrowdNavEnv(scene)
     with pytest.raises(SceneError, match="'nobody' is not a robot"):
         CrowdNavEnv(small_scene(), robot="nobody")
+
+
+def test_the_bundled_scene_makes_the_default_environment():
+    env = gymnasium.make("sweep/CrowdNav-v0")
+    obs, _ = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    assert obs["goal"] == pytest.approx([10.0, 0.0])  # from (1, 3) facing east to (11, 3)

@@ -202,3 +202,64 @@ def test_geodesic_distance_goes_round_a_wall():
     d, why = geodesic_distance(scene, np.array([0.0, 0.0]), np.array([4.0, 0.0]), 0.25)
     exact = 2 * math.hypot(2.0, 1.25)
     assert why is None and exact - 1e-9 <= d <= exact * 1.0275 + 0.2
+
+
+def test_a_recorded_run_is_read_as_the_engine_stepped_it(tmp_path):
+    """sweep run's recording of a pursuing robot meeting people: analyze's per-frame robot
+    table equals the engine's states (pose exactly, clearance computed here independently,
+    contacts and impulses to float32)."""
+    from robot_scenes import small_scene
+
+    from sweep_core.analysis import metrics
+    from sweep_core.io.metadata import run_metadata
+    from sweep_core.io.recording import runs
+    from sweep_core.model.scene import Scene
+    from sweep_core.numerics.simulator import Simulator
+
+    spec = small_scene(sigma=0.05)
+    spec["robots"][0]["controller"] = "pursuit"
+    spec["robots"][0]["goal"] = [6.5, 1.5]
+    scene = Scene.from_dict(spec)
+    sim = Simulator(scene, dt=0.05, seed=2)
+    seen = []
+
+    def collect(s) -> None:
+        st = s.robots.state("bot")
+        d = np.hypot(*(s.positions - np.asarray(st.pose[:2])).T) - 0.3 - s.radii
+        seen.append((*st.pose, d.min(), len(st.contact_ids),
+                     np.hypot(*np.asarray(st.contact_impulse).reshape(-1, 2).T).sum()))
+
+    out = tmp_path / "run.mcap"
+    done = runs.record_run(sim, 4.0, out, run_metadata(scene, sim, 4.0, 1), on_state=collect)
+    assert done.status == "completed"
+    an = metrics.analyze(out, goal_radius=0.01)  # the goal is not reached: every frame counts
+    want = np.array(seen)
+    got = an.robots
+    assert got.shape[0] == len(want) == 81
+    assert np.array_equal(got[:, 2:5], want[:, 0:3])  # x, y, yaw: float64, as stepped
+    assert got[:, 7] == pytest.approx(want[:, 3], abs=1e-12)
+    assert np.array_equal(got[:, 9], want[:, 4]) and want[:, 4].sum() > 0  # they met
+    assert got[:, 10] == pytest.approx(want[:, 5], rel=1e-6)
+    m = an.summary["robots"]["bot"]
+    assert m["collided"] and m["contact"]["frames"] == int(np.count_nonzero(want[:, 4]))
+    assert m["clearance"]["min_m"] == pytest.approx(want[:, 3].min(), abs=1e-12)
+
+
+def test_cli_prints_the_robots_and_writes_their_frames(tmp_path, capsys):
+    import json
+
+    from sweep_core.cli import main
+
+    path = tmp_path / "pass.mcap"
+    write_recording(path, push=False)
+    assert main(["analyze", str(path), "--json", "--quiet", "--no-plots"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["robots"]["r1"]["success"] is True
+    frames = np.genfromtxt(summary["outputs"]["robots_csv"], delimiter=",", names=True)
+    assert len(frames) == 101 and frames.dtype.names[:3] == ("robot", "t_s", "x_m")
+    assert main(["analyze", str(path), "--quiet", "--no-plots"]) == 0
+    text = capsys.readouterr().out
+    assert "robots.r1.spl" in text and "robots.r1.contact.frames" in text
+    assert main(["analyze", str(path), "--quiet", "--no-plots", "--time-limit", "-1"]) == 2
+    err = capsys.readouterr().err
+    assert "--time-limit" in err and "Traceback" not in err

@@ -29,7 +29,6 @@ from typing import Any
 
 import numpy as np
 
-from sweep_core.analysis import social
 from sweep_core.analysis.arrivals import ArrivalTracker, start_exits, stats, time_for
 from sweep_core.analysis.crowd import Fundamental, FundamentalDiagram, Tracks
 from sweep_core.analysis.density import MAX_CELLS as MAX_CELLS  # re-exported for the CLI
@@ -37,6 +36,7 @@ from sweep_core.analysis.density import Hist2D
 from sweep_core.analysis.frames import Frame, FrameReader, GapFinder, progress_bar
 from sweep_core.analysis.lines import line_crossings as line_crossings  # re-exported
 from sweep_core.analysis.lines import parse_line as parse_line  # re-exported for the CLI
+from sweep_core.analysis.robots import for_run as robot_metrics
 from sweep_core.analysis.roster import Roster, grow
 from sweep_core.analysis.run import NS, RunMeta, Schedule, load_run, scene_with_map
 from sweep_core.errors import RecordingError, SweepError
@@ -377,7 +377,7 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
         progress: a progress bar on stderr (shown on a terminal only).
         goal_radius, time_limit: a robot has reached its goal within this distance (m; default
             the scene's), within this time (s from the first frame; default the scene's, else
-            the whole recording): :mod:`sweep_core.analysis.social`.
+            the whole recording): docs/social_metrics.md.
     """
     if isinstance(cell, bool) or not isinstance(cell, (int, float)) or not (
             cell > 0 and math.isfinite(cell)):
@@ -387,7 +387,7 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
                          f"got {arrive_radius!r}")
     meta = load_run(path)
     metrics = _Metrics(meta, line, arrive_radius, float(cell))
-    robots = social.for_run(meta, goal_radius, time_limit)
+    robots = robot_metrics(meta, goal_radius, time_limit)
     reader, finder = FrameReader(meta), GapFinder(meta.record_every)
     with progress_bar(meta.frames or None, "frame", progress) as bar:
         for fr in reader:

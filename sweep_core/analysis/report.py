@@ -12,7 +12,7 @@ import numpy as np
 
 from sweep_core.analysis.metrics import Analysis
 from sweep_core.analysis.plots import plot_analysis
-from sweep_core.analysis.social import SocialMetrics
+from sweep_core.analysis.robots import SocialMetrics
 from sweep_core.io.outputs import check_output, replacing
 
 

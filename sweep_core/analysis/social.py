@@ -1,12 +1,9 @@
-"""Social-navigation metrics of each robot of a recording (``sweep analyze``), from the recording
-alone: the robot's ``/NAME/odom`` and ``/NAME/contacts``, the people's ``/poses`` and
-``/agents`` and the scene in the metadata (each robot's radius and goal). Definitions, units and
-sources: docs/social_metrics.md.
-
-:class:`SocialMetrics` collects, frame by frame, per robot: its pose and velocity, the clearance
-to the nearest person (surface to surface), the smallest time to collision and its contacts;
-:func:`episode_metrics` turns those series into the metrics (vectorised over the frames; each
-frame is vectorised over robots and people).
+"""Social-navigation metrics of a robot's episode (definitions, units and sources:
+docs/social_metrics.md): the clearance to people (surface to surface), the time to collision
+of disks at constant velocity, jerk, and :func:`episode_metrics`, which turns a robot's
+per-frame :class:`Series` into the metrics (vectorised over the frames; each frame is
+vectorised over the people). ``sweep analyze`` builds the series from a recording
+(:mod:`sweep_core.analysis.robots`), the Gymnasium environment from the engine's states.
 """
 from __future__ import annotations
 
@@ -16,16 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from sweep_core.analysis.encounters import clearance as clearance  # re-exported
-from sweep_core.analysis.encounters import jerk as jerk
-from sweep_core.analysis.encounters import nearest as nearest
-from sweep_core.analysis.encounters import time_to_collision as time_to_collision
-from sweep_core.analysis.encounters import wrap as wrap
-from sweep_core.analysis.frames import Frame
-from sweep_core.analysis.run import RunMeta
 from sweep_core.errors import SweepError
-from sweep_core.io import cdr
-from sweep_core.io.recording import read_recording, scan_recording
 from sweep_core.model.geodesic import CELL, NEIGHBOURS, buffer_cells, navigation_from_spec
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.scene import Scene
@@ -39,6 +27,69 @@ DISCOMFORT = 0.2
 DEFAULT_GOAL_RADIUS = 0.5
 #: a clearance at most this (m) is a contact (the analysis' tolerance on true constraints)
 CONTACT_TOL = 1e-6
+
+
+def clearance(robot: np.ndarray, robot_radius: np.ndarray, people: np.ndarray,
+              radii: np.ndarray) -> np.ndarray:
+    """(R, N) m: surface-to-surface distance between R robots (positions (R, 2), radii (R,))
+    and N people (positions (N, 2), radii (N,))."""
+    d = robot[:, None, :] - people[None, :, :]
+    return np.hypot(d[..., 0], d[..., 1]) - robot_radius[:, None] - radii[None, :]
+
+
+def time_to_collision(rel_pos: np.ndarray, rel_vel: np.ndarray, reach: np.ndarray
+                      ) -> np.ndarray:
+    """Time (s) until two disks moving at constant velocity first touch, elementwise.
+
+    Args:
+        rel_pos: (..., 2) m, one centre minus the other.
+        rel_vel: (..., 2) m/s, the first's velocity minus the other's.
+        reach: (...) m, the sum of the radii.
+
+    Returns:
+        (...) s: 0 where they already touch or overlap, inf where they never touch (moving
+        apart, parallel, or passing clear), else the smallest tau > 0 with
+        |rel_pos + tau rel_vel| = reach.
+    """
+    pw = np.einsum("...c,...c->...", rel_pos, rel_vel)
+    ww = np.einsum("...c,...c->...", rel_vel, rel_vel)
+    c = np.einsum("...c,...c->...", rel_pos, rel_pos) - reach * reach
+    disc = pw * pw - ww * c
+    approaching = (pw < 0) & (disc >= 0) & (ww > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # the smaller root in the form that does not cancel: c / (-pw + sqrt(disc))
+        tau = np.where(approaching, c / (-pw + np.sqrt(np.where(approaching, disc, 0.0))),
+                       np.inf)
+    return np.where(c <= 0, 0.0, tau)
+
+
+def nearest(position: np.ndarray, velocity: np.ndarray, radius: float, people: np.ndarray,
+            radii: np.ndarray, velocities: np.ndarray) -> tuple[float, float]:
+    """One robot at one instant: the clearance (m) to the nearest of the people and the
+    smallest time to collision (s) with any of them (:func:`time_to_collision`); inf, inf
+    without people. ``position`` (2,) m, ``velocity`` (2,) m/s, ``people`` (N, 2) m,
+    ``radii`` (N,) m, ``velocities`` (N, 2) m/s (NaN: unknown, no time to collision)."""
+    if len(people) == 0:
+        return math.inf, math.inf
+    cl = clearance(position[None, :], np.array([radius]), people, radii)[0]
+    ttc = time_to_collision(people - position, velocities - velocity, radius + radii)
+    return float(cl.min()), float(np.nanmin(ttc)) if np.isfinite(velocities).all() else math.nan
+
+
+def wrap(angle: np.ndarray) -> np.ndarray:
+    """Angles (rad) wrapped to [-pi, pi)."""
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def jerk(t: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """(M - 3, 2) m/s^3: the third derivative of positions p (M, 2) at times t (M,) s by
+    divided differences (exact for cubic motion, any spacing); empty below 4 samples."""
+    if len(t) < 4:
+        return np.zeros((0, 2))
+    d1 = np.diff(p, axis=0) / np.diff(t)[:, None]
+    d2 = np.diff(d1, axis=0) / (t[2:] - t[:-2])[:, None]
+    d3 = np.diff(d2, axis=0) / (t[3:] - t[:-3])[:, None]
+    return 6.0 * d3  # divided differences carry 1/k!
 
 
 @dataclass
@@ -123,10 +174,11 @@ def episode_metrics(spec: RobotSpec, s: Series, geodesic: float | None) -> dict[
     cl = s.clearance[e]
     people = np.isfinite(cl)
     touched = s.touched[e] if s.touched else []
-    ids = np.concatenate(touched) if touched else np.zeros(0)
+    ids = (np.concatenate(touched) if touched else np.zeros(0)).astype(np.int64)
     # a contact event: a person in contact at a frame who was not at the previous one
-    events = sum(int(np.setdiff1d(now, before).size)
-                 for before, now in zip([np.zeros(0)] + touched[:-1], touched))
+    at = np.repeat(np.arange(len(touched)), [len(k) for k in touched])
+    key = ids * (len(touched) + 1) + at
+    events = int(np.count_nonzero(~np.isin(key - 1, key)))
     collided = bool(np.any(s.contacts[e] > 0) or np.any(cl <= CONTACT_TOL))
     frames = len(cl)
     zones = {name: float(np.count_nonzero((cl >= lo) & (cl < hi))) / frames
@@ -220,155 +272,3 @@ def robot_specs(scene: Scene | None, goal_radius: float | None = None,
                                else r.get("goal_radius", DEFAULT_GOAL_RADIUS)),
             time_limit=None if time_limit is None else float(time_limit)))
     return out
-
-
-class SocialMetrics:
-    """Collects each robot's series frame by frame (:meth:`add`, called by ``analyze`` for
-    every frame of the recording) and gives the metrics (:meth:`summary`) and the per-frame
-    table (:meth:`table`). The robots' odometry and contacts are read from the recording once,
-    when this is built (a few numbers per robot and step)."""
-
-    COLUMNS = ("robot", "t_s", "x_m", "y_m", "yaw_rad", "vx_m_per_s", "vy_m_per_s",
-               "clearance_m", "ttc_s", "contacts", "impulse")
-
-    def __init__(self, meta: RunMeta, specs: list[RobotSpec]) -> None:
-        self.meta, self.specs = meta, specs
-        self.problems: list[str] = []
-        self.odom, self.touch = read_robot_topics(meta, [s.name for s in specs], self.problems)
-        self.rows: list[list[tuple]] = [[] for _ in specs]
-        self.touched: list[list[np.ndarray]] = [[] for _ in specs]
-        self.t0: int | None = None
-
-    def add(self, fr: Frame, segment: int, step: int) -> None:
-        """One frame (of step ``step``): people at ``fr.positions`` with the scene's radii at
-        that step (the float32 ``/agents`` radii without a scene), their velocities from
-        ``fr.agents``; frames after the first reset (``segment`` > 0) are not part of the
-        episode."""
-        if segment > 0:
-            return
-        scene, dt = self.meta.scene, self.meta.dt
-        if scene is not None and scene.n_agents == len(fr.positions):
-            radii = scene.radii(step * dt if dt is not None and step >= 0 else fr.stamp_ns / 1e9)
-        elif fr.agents is not None:
-            radii = fr.agents["radius"].astype(np.float64)
-        else:
-            return
-        if self.t0 is None:
-            self.t0 = fr.log_ns
-        t = (fr.log_ns - self.t0) / 1e9
-        q = fr.positions
-        v = (np.column_stack([fr.agents["vx"], fr.agents["vy"]]).astype(np.float64)
-             if fr.agents is not None else np.full(q.shape, np.nan))
-        for k, spec in enumerate(self.specs):
-            state = self.odom[k].get(fr.log_ns)
-            if state is None:
-                continue
-            x, y, yaw, vx, vy = state
-            near, ttc = nearest(np.array([x, y]), np.array([vx, vy]), spec.radius, q, radii, v)
-            ids, imp = self.touch[k].get(fr.log_ns, (np.zeros(0), np.zeros(0)))
-            self.rows[k].append((k, t, x, y, yaw, vx, vy, near, ttc, len(ids),
-                                 float(imp.sum()), float(imp.max()) if len(imp) else 0.0))
-            self.touched[k].append(ids)
-
-    def series(self, k: int) -> Series:
-        """Robot k's series so far."""
-        a = np.array(self.rows[k], dtype=np.float64).reshape(-1, len(self.COLUMNS) + 1)
-        return Series(t=a[:, 1], pose=a[:, 2:5], vel=a[:, 5:7], clearance=a[:, 7],
-                      ttc=a[:, 8], contacts=a[:, 9], impulse=a[:, 10], impulse_max=a[:, 11],
-                      touched=self.touched[k])
-
-    def summary(self) -> dict[str, Any]:
-        """Per robot name: :func:`episode_metrics` (None for a robot with no odometry)."""
-        out: dict[str, Any] = {}
-        scene = self.meta.scene
-        for k, spec in enumerate(self.specs):
-            s = self.series(k)
-            if len(s.t) == 0:
-                self.problems.append(f"{self.meta.path}: robot {spec.name}: no odometry "
-                                     "recorded with the frames; no metrics")
-                out[spec.name] = None
-                continue
-            geo = None
-            if spec.goal is not None and scene is not None:
-                geo, why = geodesic_distance(scene, s.pose[0, :2], spec.goal, spec.radius)
-                if why:
-                    self.problems.append(f"{self.meta.path}: robot {spec.name}: no geodesic "
-                                         f"distance to its goal ({why})")
-            out[spec.name] = episode_metrics(spec, s, geo)
-        return out
-
-    def table(self) -> np.ndarray:
-        """(rows, len(COLUMNS)): every robot's frames of its episode, robot by robot."""
-        parts = []
-        for k, spec in enumerate(self.specs):
-            s = self.series(k)
-            n = episode_end(spec, s)[0] + 1 if len(s.t) else 0
-            parts.append(np.array(self.rows[k], dtype=np.float64
-                                  ).reshape(-1, len(self.COLUMNS) + 1)[:n, :-1])
-        return (np.concatenate(parts) if parts
-                else np.zeros((0, len(self.COLUMNS))))
-
-
-def _topic(channels: dict[str, Any], name: str, leaf: str, msgtype: str) -> str | None:
-    """``/NAME/LEAF``, or the shortest recorded topic ending so (a namespaced node)."""
-    want = f"/{name}/{leaf}"
-    cands = [t for t, c in channels.items() if t.endswith(want) and c.msgtype == msgtype]
-    return min(cands, key=len) if cands else None
-
-
-def odom_state(data: bytes) -> tuple[float, float, float, float, float]:
-    """A CDR ``nav_msgs/msg/Odometry`` as (x, y, yaw, vx, vy): position (m) and yaw (rad) in
-    its frame (odom, which the robot's map -> odom keeps equal to map), the linear velocity
-    turned from the robot's frame (its twist's frame, REP 105) into that frame (m/s)."""
-    od = cdr.decode_odometry(data)
-    yaw = cdr.quaternion_yaw(od.orientation)
-    c, s = math.cos(yaw), math.sin(yaw)
-    u, w = float(od.linear[0]), float(od.linear[1])
-    return (float(od.position[0]), float(od.position[1]), yaw, c * u - s * w, s * u + c * w)
-
-
-def read_robot_topics(meta: RunMeta, names: list[str], problems: list[str]
-                      ) -> tuple[list[dict[int, tuple]], list[dict[int, tuple]]]:
-    """Per robot: its odometry by log time (ns) as (x, y, yaw, vx, vy) (m, rad, m/s in the map
-    frame) and its contacts by log time as (ids (K,), |impulse| (K,)). A message that cannot be
-    decoded is skipped and counted in ``problems``."""
-    channels = scan_recording(meta.path).channels
-    odom_topics = {_topic(channels, n, "odom", cdr.ODOMETRY): k for k, n in enumerate(names)}
-    touch_topics = {_topic(channels, n, "contacts", cdr.POINT_CLOUD2): k
-                    for k, n in enumerate(names)}
-    odom_topics.pop(None, None)
-    touch_topics.pop(None, None)
-    odom: list[dict[int, tuple]] = [{} for _ in names]
-    touch: list[dict[int, tuple]] = [{} for _ in names]
-    bad = 0
-    reader = read_recording(meta.path, [t for t in (*odom_topics, *touch_topics) if t])
-    try:
-        for msg in reader:
-            try:
-                if msg.topic in odom_topics:
-                    odom[odom_topics[msg.topic]][msg.log_time_ns] = odom_state(msg.data)
-                else:
-                    f = cdr.decode_point_cloud2(msg.data).fields
-                    imp = np.hypot(f["impulse_x"].astype(np.float64),
-                                   f["impulse_y"].astype(np.float64))
-                    touch[touch_topics[msg.topic]][msg.log_time_ns] = (
-                        f["id"].astype(np.int64), imp)
-            except (ValueError, KeyError):
-                bad += 1
-    finally:
-        reader.close()
-    if bad:
-        problems.append(f"{meta.path}: {bad} robot odometry or contact messages skipped: "
-                        "they cannot be decoded")
-    return odom, touch
-
-
-def for_run(meta: RunMeta, goal_radius: float | None = None,
-            time_limit: float | None = None) -> SocialMetrics | None:
-    """The collector of a recording's robots, None when its scene has none."""
-    for name, v in (("--goal-radius", goal_radius), ("--time-limit", time_limit)):
-        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
-                              or not (v > 0 and math.isfinite(v))):
-            raise SweepError(f"{name}: must be a positive number, got {v!r}")
-    specs = robot_specs(meta.scene, goal_radius, time_limit)
-    return SocialMetrics(meta, specs) if specs else None

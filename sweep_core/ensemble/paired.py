@@ -26,6 +26,8 @@ KEY, WITH, WITHOUT = "robots", "with", "without"
 METRICS = {
     "evacuation_s": ("flow.t_all_s", "arrivals.t_all_s"),
     "evacuation_90_s": ("flow.t_90_s", "arrivals.t_90_s"),
+    "evacuation_50_s": ("flow.t_50_s", "arrivals.t_50_s"),
+    "evacuated": ("flow.evacuated", "arrivals.arrived"),
     "flow_per_s": ("flow.per_s",),
     "pressure_mean_m_per_s": ("reaction.pressure_mean_m_per_s",),
     "min_gap_m": ("min_gap.min_m",),
