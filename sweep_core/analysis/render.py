@@ -93,18 +93,6 @@ class RenderOptions:
                              "(fix: give --colour group)")
 
 
-def parse_size(text: str) -> tuple[int, int | None]:
-    """``WIDTHxHEIGHT`` or ``WIDTH`` (pixels) as (width, height or None)."""
-    parts = text.lower().split("x")
-    try:
-        if len(parts) in (1, 2) and all(p.strip().isdigit() for p in parts):
-            return int(parts[0]), (int(parts[1]) if len(parts) == 2 else None)
-    except ValueError:
-        pass
-    raise SweepError(f"--size {text!r} is not WIDTHxHEIGHT or WIDTH in pixels (fix: give e.g. "
-                     "--size 960x540)")
-
-
 def frame_times(start: float, end: float, fps: float, speed: float) -> np.ndarray:
     """The recording times (s) shown by the video frames: start + k speed / fps, k = 0 .. n - 1,
     n = floor((end - start) fps / speed) + 1."""
@@ -272,8 +260,13 @@ class Painter:
             a.remove()
         q = fr.positions
         n = len(q)
-        r = (fr.agents["radius"].astype(float) if fr.agents is not None
-             else np.full(n, 0.25))
+        scene = self.meta.scene
+        if fr.agents is not None:
+            r = fr.agents["radius"].astype(float)
+        elif scene is not None and scene.n_agents == n:  # no /agents: the scene's radius law
+            r = scene.radii(fr.stamp_ns / 1e9)
+        else:  # no radius known: small dots, 1 % of the view's width
+            r = np.full(n, 0.01 * (self.view[1] - self.view[0]))
         if self.opts.colour == "speed" and fr.agents is not None:
             from matplotlib import colormaps
             speed = np.hypot(fr.agents["vx"], fr.agents["vy"]).astype(float)
