@@ -108,3 +108,15 @@ def test_bad_options_and_the_recording_as_output_are_refused(recording, capsys):
     assert "--fps 0 is not a positive number" in err[1] and "--size 'big'" in err[2]
     assert "--from 99 s is after the recording's last state at 1.5 s" in err[3]
     assert recording.read_bytes() == before
+
+
+def test_the_recorded_navigation_field_is_read_per_group(recording):
+    from sweep_core.analysis.run import load_run
+    meta = load_run(recording)
+    messages = render.navigation_messages(meta)
+    assert len(messages) == 1  # no update_every: the field is computed and recorded once
+    grids = render.field_grids(messages[0][1])
+    assert [g for g, *_ in grids] == [0, 1]  # east, west
+    for _, x, y, t in grids:
+        assert t.shape == (len(y), len(x)) and np.all(np.diff(x) > 0) and np.all(np.diff(y) > 0)
+        assert np.nanmax(t) > 9.0  # from one end of the 20 m corridor to the other goal

@@ -159,7 +159,7 @@ def navigation_messages(meta: RunMeta) -> list[tuple[int, dict[str, np.ndarray]]
     return out
 
 
-def _field_grids(fields: dict[str, np.ndarray]) -> list[tuple[int, np.ndarray, np.ndarray,
+def field_grids(fields: dict[str, np.ndarray]) -> list[tuple[int, np.ndarray, np.ndarray,
                                                              np.ndarray]]:
     """(group, x (W,), y (H,), T (H, W)) per navigation field of a ``navigation_field`` cloud."""
     out = []
@@ -244,7 +244,7 @@ class Painter:
             a.remove()
         self.nav = []
         self.nav_key = key
-        for g, x, y, t in _field_grids(fields or {}):
+        for g, x, y, t in field_grids(fields or {}):
             finite = t[np.isfinite(t)]
             if finite.size < 4 or float(finite.max()) <= 0:
                 continue
