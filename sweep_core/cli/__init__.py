@@ -1,5 +1,6 @@
-"""The ``sweep`` command: ``run`` a scene headless and record it, ``analyze``, ``replay`` and
-``compare`` recordings, ``recover`` one cut short, ``bench accuracy`` and ``bench speed``."""
+"""The ``sweep`` command: ``run`` a scene headless and record it, ``analyze``, ``replay``,
+``compare`` and ``render`` recordings, ``recover`` one cut short, ``bench accuracy`` and
+``bench speed``."""
 from __future__ import annotations
 
 import argparse
