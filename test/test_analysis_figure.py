@@ -150,3 +150,23 @@ def test_a_goal_command_in_a_scene_without_navigation_gets_its_contours(analysis
         assert plots.commanded_navigation(plain) is None
     finally:
         plt.close(fig)
+
+
+def test_every_exit_has_its_arrivals_curve_even_unreached(tmp_path):
+    (tmp_path / "exits.yaml").write_text("""
+agents: {positions: [[2, 2], [2.6, 2], [2, 3]], radius: 0.2}
+walls:
+  - {kind: polyline, points: [[0, 0], [6, 0], [6, 2.5]]}
+  - {kind: polyline, points: [[6, 3.5], [6, 6], [0, 6], [0, 0]]}
+drift: {kind: exits, speed: 1.2, exits: [{goal: [7, 3]},
+        {region: {kind: rectangle, min: [2, 6.5], max: [3, 7]}}]}
+""")
+    rec = tmp_path / "exits.mcap"
+    assert main(["run", str(tmp_path / "exits.yaml"), "--t-end", "0.5", "--dt", "0.05",
+                 "--out", str(rec), "--quiet"]) == 0
+    fig = plots.analysis_figure(metrics.analyze(rec))
+    try:
+        texts = legend_texts(panel(fig, "arrivals"))
+        assert "arrived at exits[0]" in texts and "arrived at exits[1]" in texts
+    finally:
+        plt.close(fig)

@@ -226,7 +226,8 @@ def _arrivals(ax: Any, an: Analysis, marks: list) -> None:
         for k, name in enumerate(names):
             ax.plot(*_cumulative(an.arrival[groups == k], t_end), color=group_colour(k),
                     lw=1.2, label=f"arrived, {name}")
-        labels = sorted({e for e in an.arrival_exit if e is not None})
+        # every exit, those nobody reached too (a flat line at 0)
+        labels = list(s["per_exit"] or {}) or sorted({e for e in an.arrival_exit if e})
         exits = np.array([e if e is not None else "" for e in an.arrival_exit])
         for j, label in enumerate(labels):
             ax.plot(*_cumulative(an.arrival[exits == label], t_end), color="0.35",
