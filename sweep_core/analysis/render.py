@@ -56,6 +56,8 @@ DPI = 100
 LEFT, RIGHT, TOP, BOTTOM, BAR = 56, 12, 30, 78, 72
 #: the smallest width and height (px)
 MIN_SIZE = 160
+#: the most memory (bytes) the frames of a GIF may take while it is assembled
+GIF_BYTES = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -331,6 +333,11 @@ def render(recording: str, out: str | None = None, opts: RenderOptions | None = 
                          f"{float(clock[-1]):g} s (fix: give --from at most that)")
     times = frame_times(opts.start, end, opts.fps, opts.speed)
     size = _size(opts, sv.view)
+    need = len(times) * size[0] * size[1]  # a GIF is assembled in memory, a byte per pixel
+    if fmt == "gif" and need > GIF_BYTES:
+        raise SweepError(f"{path}: {len(times)} GIF frames of {size[0]} x {size[1]} px need "
+                         f"{need / 1e9:.1f} GB of memory (fix: write an MP4, or fewer frames "
+                         "with --fps, --from/--to, or a smaller --size)")
     painter = Painter(meta, sv, opts, size)
     try:
         with open_writer(path, fmt, size, opts.fps, [meta.path]) as writer:
