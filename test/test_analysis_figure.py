@@ -125,3 +125,48 @@ def test_minimum_gap_is_a_distribution_with_touching_frames_apart(figure, analys
     gaps = np.array([5e-15, -4e-15, 0.0, 2e-9, -3e-9, 0.01])
     t, o, p = crowd.gap_distribution(gaps)
     assert (t, o, p.tolist()) == (3, 1, [2e-9, 0.01])
+
+
+def test_a_goal_command_in_a_scene_without_navigation_gets_its_contours(analysis):
+    """A node recording whose scene drifts uniformly and whose goal command built a geodesic
+    field round the walls: the density panel draws that field's travel time."""
+    from sweep_core.model.scene import Scene
+    scene = Scene.from_dict({**analysis.meta.scene.spec, "agents": {
+        "positions": analysis.meta.scene.spec["agents"]["positions"], "radius": 0.25},
+        "drift": {"kind": "uniform", "velocity": [0.2, 0.0]}})
+    goal = {"kind": "geodesic", "goal": [9.5, 1.5], "speed": 1.0}
+    meta = dataclasses.replace(analysis.meta, scene=scene, commands=[
+        Command(3, "goal", 25, analysis.t0_ns + 500_000_000, goal, 0)])
+    an = dataclasses.replace(analysis, meta=meta)
+    assert plots.commanded_navigation(an)[0] == 3
+    fig = plots.analysis_figure(an)
+    try:
+        ax = panel(fig, "density")
+        assert ax.get_title().startswith("density and travel time")
+        assert ax.get_legend().get_title().get_text() == (
+            "travel time to the goal (the field of command 3)")
+        # without the command, no contours
+        plain = dataclasses.replace(an, meta=dataclasses.replace(meta, commands=[]))
+        assert plots.commanded_navigation(plain) is None
+    finally:
+        plt.close(fig)
+
+
+def test_every_exit_has_its_arrivals_curve_even_unreached(tmp_path):
+    (tmp_path / "exits.yaml").write_text("""
+agents: {positions: [[2, 2], [2.6, 2], [2, 3]], radius: 0.2}
+walls:
+  - {kind: polyline, points: [[0, 0], [6, 0], [6, 2.5]]}
+  - {kind: polyline, points: [[6, 3.5], [6, 6], [0, 6], [0, 0]]}
+drift: {kind: exits, speed: 1.2, exits: [{goal: [7, 3]},
+        {region: {kind: rectangle, min: [2, 6.5], max: [3, 7]}}]}
+""")
+    rec = tmp_path / "exits.mcap"
+    assert main(["run", str(tmp_path / "exits.yaml"), "--t-end", "0.5", "--dt", "0.05",
+                 "--out", str(rec), "--quiet"]) == 0
+    fig = plots.analysis_figure(metrics.analyze(rec))
+    try:
+        texts = legend_texts(panel(fig, "arrivals"))
+        assert "arrived at exits[0]" in texts and "arrived at exits[1]" in texts
+    finally:
+        plt.close(fig)

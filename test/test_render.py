@@ -90,6 +90,10 @@ def test_without_an_encoder_the_default_output_is_a_gif(recording):
     assert path == os.path.splitext(str(recording))[0] + ".gif" and n == 3
     with Image.open(path) as im:
         assert im.n_frames == 3 and im.size == (160, 160)
+    with pytest.raises(SweepError, match=r"3001 GIF frames of 960 x 540 px need 1.6 GB"):
+        render.render(str(recording), str(recording.with_name("long.gif")),
+                      render.RenderOptions(fps=2000, width=960, height=540), progress=False)
+    assert not recording.with_name("long.gif").exists()
     with pytest.raises(SweepError, match=r"no MP4 encoder .* name the output NAME.gif"):
         render.render(str(recording), str(recording.with_name("x.mp4")), progress=False,
                       encoder=False)
@@ -108,3 +112,15 @@ def test_bad_options_and_the_recording_as_output_are_refused(recording, capsys):
     assert "--fps 0 is not a positive number" in err[1] and "--size 'big'" in err[2]
     assert "--from 99 s is after the recording's last state at 1.5 s" in err[3]
     assert recording.read_bytes() == before
+
+
+def test_the_recorded_navigation_field_is_read_per_group(recording):
+    from sweep_core.analysis.run import load_run
+    meta = load_run(recording)
+    messages = render.navigation_messages(meta)
+    assert len(messages) == 1  # no update_every: the field is computed and recorded once
+    grids = render.field_grids(messages[0][1])
+    assert [g for g, *_ in grids] == [0, 1]  # east, west
+    for _, x, y, t in grids:
+        assert t.shape == (len(y), len(x)) and np.all(np.diff(x) > 0) and np.all(np.diff(y) > 0)
+        assert np.nanmax(t) > 9.0  # from one end of the 20 m corridor to the other goal

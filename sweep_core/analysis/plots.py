@@ -24,7 +24,8 @@ from sweep_core.analysis.drawing import (
 )
 from sweep_core.analysis.metrics import Analysis
 from sweep_core.analysis.run import NS
-from sweep_core.model.fields import Field, Groups
+from sweep_core.errors import SweepError
+from sweep_core.model.fields import NAVIGATION_KINDS, Field, Groups
 from sweep_core.model.geodesic import Geodesic, navigation_fields
 from sweep_core.model.scene import Scene
 
@@ -63,11 +64,45 @@ def _navigation(drift: Field) -> list[tuple[str, str, Geodesic]]:
     return [(drift.names[k] if k >= 0 else "others", group_colour(k), f) for k, f in found]
 
 
-def draw_travel_time(ax: Any, scene: Scene | None, legend_below: bool = False) -> str:
-    """Contours of the travel time T / speed (s) at t = 0 of the scene's navigation fields
-    (one colour each, a group's own) on a matplotlib axis, with their legend (below the axes
-    with ``legend_below``); the title suffix saying so ("" if none)."""
-    fields = _navigation(scene.drift) if scene is not None else []
+def commanded_navigation(an: Analysis) -> tuple[int, Field] | None:
+    """For a scene without a navigation field: the last command (its index and drift, built as
+    the node built it) that gave one (a goal command round the walls), or None."""
+    scene = an.meta.scene
+    if scene is None or navigation_fields(scene.drift):
+        return None
+    for c in sorted(an.meta.commands, key=lambda c: (c.segment, c.step, c.index), reverse=True):
+        if not _navigates(c.spec):
+            continue
+        try:
+            drift = scene.drift_from_spec(c.spec, f"command {c.index}")
+        except SweepError:
+            continue  # a command the recording's scene cannot rebuild: no contours from it
+        if navigation_fields(drift):
+            return c.index, drift
+    return None
+
+
+def _navigates(spec: Any) -> bool:
+    """A drift spec has a navigation kind (itself, a group's drift or a groups drift's rest)."""
+    if not isinstance(spec, dict):
+        return False
+    if spec.get("kind") in NAVIGATION_KINDS:
+        return True
+    groups = spec.get("groups") if spec.get("kind") == "groups" else None
+    return isinstance(groups, list) and (
+        any(isinstance(g, dict) and _navigates(g.get("drift")) for g in groups)
+        or _navigates(spec.get("rest")))
+
+
+def draw_travel_time(ax: Any, scene: Scene | None, legend_below: bool = False,
+                     drift: Field | None = None, source: str = "") -> str:
+    """Contours of the travel time T / speed (s) at t = 0 of the navigation fields of
+    ``drift`` (default: the scene's), one colour each (a group's own), on a matplotlib axis,
+    with their legend (below the axes with ``legend_below``; ``source`` names where the drift
+    comes from); the title suffix saying so ("" if none)."""
+    if drift is None and scene is not None:
+        drift = scene.drift
+    fields = _navigation(drift) if drift is not None else []
     from matplotlib.lines import Line2D
     handles = []
     for name, colour, f in fields:
@@ -85,7 +120,8 @@ def draw_travel_time(ax: Any, scene: Scene | None, legend_below: bool = False) -
     if legend_below:
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0),
                   borderaxespad=4.0, fontsize=8, ncol=min(3, len(handles)), frameon=False,
-                  title="travel time to the goal", title_fontsize=8)
+                  title="travel time to the goal" + (f" ({source})" if source else ""),
+                  title_fontsize=8)
     else:
         ax.legend(handles=handles, loc="upper right", fontsize=7, framealpha=0.7)
     return " and travel time"
@@ -156,7 +192,12 @@ def _density(fig: Any, ax: Any, an: Analysis) -> None:
                    interpolation="nearest",
                    extent=(x0, x0 + d.shape[1] * an.cell, y0, y0 + d.shape[0] * an.cell))
     draw_scene(ax, an.meta.scene)
-    travel = draw_travel_time(ax, an.meta.scene, legend_below=True)
+    commanded = commanded_navigation(an)
+    if commanded is None:
+        travel = draw_travel_time(ax, an.meta.scene, legend_below=True)
+    else:
+        travel = draw_travel_time(ax, an.meta.scene, True, commanded[1],
+                                  f"the field of command {commanded[0]}")
     flow = an.summary["flow"]
     if flow is not None:
         x_0, y_0, x_1, y_1 = flow["line"]
@@ -185,7 +226,8 @@ def _arrivals(ax: Any, an: Analysis, marks: list) -> None:
         for k, name in enumerate(names):
             ax.plot(*_cumulative(an.arrival[groups == k], t_end), color=group_colour(k),
                     lw=1.2, label=f"arrived, {name}")
-        labels = sorted({e for e in an.arrival_exit if e is not None})
+        # every exit, those nobody reached too (a flat line at 0)
+        labels = list(s["per_exit"] or {}) or sorted({e for e in an.arrival_exit if e})
         exits = np.array([e if e is not None else "" for e in an.arrival_exit])
         for j, label in enumerate(labels):
             ax.plot(*_cumulative(an.arrival[exits == label], t_end), color="0.35",

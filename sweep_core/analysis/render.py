@@ -56,6 +56,8 @@ DPI = 100
 LEFT, RIGHT, TOP, BOTTOM, BAR = 56, 12, 30, 78, 72
 #: the smallest width and height (px)
 MIN_SIZE = 160
+#: the most memory (bytes) the frames of a GIF may take while it is assembled
+GIF_BYTES = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -91,18 +93,6 @@ class RenderOptions:
         if self.colour not in COLOURINGS:
             raise SweepError(f"--colour {self.colour!r} is not one of {', '.join(COLOURINGS)} "
                              "(fix: give --colour group)")
-
-
-def parse_size(text: str) -> tuple[int, int | None]:
-    """``WIDTHxHEIGHT`` or ``WIDTH`` (pixels) as (width, height or None)."""
-    parts = text.lower().split("x")
-    try:
-        if len(parts) in (1, 2) and all(p.strip().isdigit() for p in parts):
-            return int(parts[0]), (int(parts[1]) if len(parts) == 2 else None)
-    except ValueError:
-        pass
-    raise SweepError(f"--size {text!r} is not WIDTHxHEIGHT or WIDTH in pixels (fix: give e.g. "
-                     "--size 960x540)")
 
 
 def frame_times(start: float, end: float, fps: float, speed: float) -> np.ndarray:
@@ -171,7 +161,7 @@ def navigation_messages(meta: RunMeta) -> list[tuple[int, dict[str, np.ndarray]]
     return out
 
 
-def _field_grids(fields: dict[str, np.ndarray]) -> list[tuple[int, np.ndarray, np.ndarray,
+def field_grids(fields: dict[str, np.ndarray]) -> list[tuple[int, np.ndarray, np.ndarray,
                                                              np.ndarray]]:
     """(group, x (W,), y (H,), T (H, W)) per navigation field of a ``navigation_field`` cloud."""
     out = []
@@ -256,7 +246,7 @@ class Painter:
             a.remove()
         self.nav = []
         self.nav_key = key
-        for g, x, y, t in _field_grids(fields or {}):
+        for g, x, y, t in field_grids(fields or {}):
             finite = t[np.isfinite(t)]
             if finite.size < 4 or float(finite.max()) <= 0:
                 continue
@@ -272,8 +262,13 @@ class Painter:
             a.remove()
         q = fr.positions
         n = len(q)
-        r = (fr.agents["radius"].astype(float) if fr.agents is not None
-             else np.full(n, 0.25))
+        scene = self.meta.scene
+        if fr.agents is not None:
+            r = fr.agents["radius"].astype(float)
+        elif scene is not None and scene.n_agents == n:  # no /agents: the scene's radius law
+            r = scene.radii(fr.stamp_ns / 1e9)
+        else:  # no radius known: small dots, 1 % of the view's width
+            r = np.full(n, 0.01 * (self.view[1] - self.view[0]))
         if self.opts.colour == "speed" and fr.agents is not None:
             from matplotlib import colormaps
             speed = np.hypot(fr.agents["vx"], fr.agents["vy"]).astype(float)
@@ -338,6 +333,11 @@ def render(recording: str, out: str | None = None, opts: RenderOptions | None = 
                          f"{float(clock[-1]):g} s (fix: give --from at most that)")
     times = frame_times(opts.start, end, opts.fps, opts.speed)
     size = _size(opts, sv.view)
+    need = len(times) * size[0] * size[1]  # a GIF is assembled in memory, a byte per pixel
+    if fmt == "gif" and need > GIF_BYTES:
+        raise SweepError(f"{path}: {len(times)} GIF frames of {size[0]} x {size[1]} px need "
+                         f"{need / 1e9:.1f} GB of memory (fix: write an MP4, or fewer frames "
+                         "with --fps, --from/--to, or a smaller --size)")
     painter = Painter(meta, sv, opts, size)
     try:
         with open_writer(path, fmt, size, opts.fps, [meta.path]) as writer:

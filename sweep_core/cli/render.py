@@ -7,12 +7,25 @@ from __future__ import annotations
 import argparse
 
 from sweep_core.analysis import render
+from sweep_core.errors import SweepError
 
 __all__ = ["register"]
 
 
+def parse_size(text: str) -> tuple[int, int | None]:
+    """``WIDTHxHEIGHT`` or ``WIDTH`` (pixels) as (width, height or None)."""
+    parts = text.lower().split("x")
+    try:
+        if len(parts) in (1, 2) and all(p.strip().isdigit() for p in parts):
+            return int(parts[0]), (int(parts[1]) if len(parts) == 2 else None)
+    except ValueError:
+        pass
+    raise SweepError(f"--size {text!r} is not WIDTHxHEIGHT or WIDTH in pixels (fix: give e.g. "
+                     "--size 960x540)")
+
+
 def _render(args: argparse.Namespace) -> int:
-    width, height = render.parse_size(args.size)
+    width, height = parse_size(args.size)
     opts = render.RenderOptions(fps=args.fps, start=args.start, end=args.end, speed=args.speed,
                                 width=width, height=height, colour=args.colour)
     path, frames = render.render(args.recording, args.out, opts, progress=not args.quiet)

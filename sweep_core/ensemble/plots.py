@@ -3,9 +3,10 @@ grid point, and those metrics (mean and 95 % interval) against each varied key.
 
 Every grid point appears in every figure: drawn, or named in a note under the axes that says
 why it has no value (no run reached the fraction of agents the time is for, every run failed,
-more points than the figure draws). A minimum gap within :data:`ROUNDING_M` of zero is the
-rounding of touching disks, not a distance: such values are drawn at 0 m and counted in a note,
-and a point whose every value is at that level is stated "at rounding level", not plotted."""
+more points than the figure draws). A minimum gap within 1e-9 m of zero
+(:data:`~sweep_core.analysis.crowd.ROUNDING_M`) is the rounding of touching disks, not a
+distance: such values are drawn at 0 m and counted in a note, and a point whose every value is
+at that level is stated "at rounding level", not plotted."""
 from __future__ import annotations
 
 import math
@@ -16,6 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sweep_core.analysis.crowd import ROUNDING_M
 from sweep_core.analysis.drawing import pyplot
 from sweep_core.ensemble.store import Z95
 from sweep_core.io.outputs import replacing
@@ -31,9 +33,6 @@ REACHED = {"flow.t_all_s": "every agent crossing the line",
            "arrivals.t_all_s": "every agent arriving", "arrivals.t_90_s": "90 % of the agents arriving",
            "arrivals.t_50_s": "50 % of the agents arriving"}
 MIN_GAP = "min_gap.min_m"
-#: |minimum gap| at or below this (m) is rounding: the simulator accepts no state that breaks a
-#: constraint by more than 1e-9 m, so touching disks show gaps of either sign at this level
-ROUNDING_M = 1e-9
 #: at most this many grid points drawn in one histogram
 MAX_SERIES = 8
 
