@@ -258,3 +258,32 @@ def check_recording(record: Path) -> None:
     from sweep_core.analysis import replay
     res = replay.replay(record)
     assert res.identical, replay.format_replay(res)
+
+
+def test_the_bundled_controller_drives_the_robot_to_its_goal(installed, probe, tmp_path):
+    """sweep_robot_controller (a second process) drives the robot over its topics to the
+    scene's goal for it (short of the people: it slows for the scan's nearest return), at
+    the node's own pace."""
+    goal = [5.5, 4.5]
+    scene = dict(SCENE, robots=[dict(SCENE["robots"][0], goal=goal, goal_radius=0.3)])
+    scene_path = tmp_path / "goal.yaml"
+    scene_path.write_text(yaml.safe_dump(scene))
+    node = Running(installed, tmp_path, {
+        "scene": str(scene_path), "dt": DT, "rate_hz": 50.0, "steps_per_tick": 2,
+        "publish_markers": False})
+    exe, env = installed
+    controller = Running((exe.with_name("sweep_robot_controller"), env), tmp_path,
+                         {"scene": str(scene_path), "robot": "bot"}, name="controller")
+    try:
+        probe.connect(node)
+
+        def arrived():
+            p = probe.odom[-1].pose.pose.position if probe.odom else None
+            return p is not None and math.hypot(p.x - goal[0], p.y - goal[1]) <= 0.3
+        probe.spin_until(arrived, WAIT_S, "the robot at its goal", controller)
+        assert node.alive()
+    finally:
+        controller.stop(signal.SIGINT)
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
+    assert "Traceback" not in node.log + controller.log, node.log + controller.log
