@@ -2,7 +2,9 @@
 ``/NAME/cmd_vel`` (geometry_msgs/TwistStamped, the command applied at that step after
 clipping), ``/NAME/scan`` (sensor_msgs/LaserScan, at the scan's rate), ``/NAME/contacts``
 (sensor_msgs/PointCloud2, float32 fields id, x, y, impulse_x, impulse_y: one point per person
-in contact, impulse in m/s as :mod:`sweep_core.numerics.robots.fleet` defines it), ``/tf``
+in contact, impulse in m/s as :mod:`sweep_core.numerics.robots.fleet` defines it),
+``/NAME/status`` (PointCloud2, one point: commands clipped and steps blocked so far, whether
+the last step was blocked, whether the goal is reached), ``/tf``
 (odom -> base_link of every robot) and ``/tf_static`` (map -> odom, identity: odometry is
 exact). Frames: ``odom`` / ``base_link`` with one robot, ``NAME/odom`` / ``NAME/base_link``
 with several. Shared by ``sweep run`` and the node."""
@@ -17,6 +19,10 @@ from sweep_core.numerics.robots.scan import Scan
 
 #: float32 fields of ``/NAME/contacts``, in order
 CONTACT_FIELDS = ("id", "x", "y", "impulse_x", "impulse_y")
+#: float32 fields of ``/NAME/status`` (one point per recorded step): commands clipped so far,
+#: steps blocked so far (a prescribed command refused, the robot stopped), whether the last
+#: step was blocked (1) or not (0), whether the robot is within its goal radius (1) or not
+STATUS_FIELDS = ("clipped", "blocked", "stopped", "goal_reached")
 TF, TF_STATIC = "/tf", "/tf_static"
 
 
@@ -41,6 +47,7 @@ def channels(scene: Scene) -> dict[str, str]:
         if r.scan is not None:
             out[topic(r.name, "scan")] = cdr.LASER_SCAN
         out[topic(r.name, "contacts")] = cdr.POINT_CLOUD2
+        out[topic(r.name, "status")] = cdr.POINT_CLOUD2
     if scene.robots:
         out[TF] = cdr.TF_MESSAGE
         out[TF_STATIC] = cdr.TF_MESSAGE
@@ -71,6 +78,13 @@ def encode_contacts(stamp_ns: int, frame_id: str, st: RobotState) -> bytes:
         "impulse_y": st.contact_impulse[:, 1]})
 
 
+def encode_status(stamp_ns: int, frame_id: str, st: RobotState) -> bytes:
+    """``/NAME/status``: one point of :data:`STATUS_FIELDS`."""
+    values = (st.clipped, st.blocked, int(st.stopped), int(st.goal_reached))
+    return cdr.encode_point_cloud2(stamp_ns, frame_id, {
+        name: np.array([v], dtype=np.float32) for name, v in zip(STATUS_FIELDS, values)})
+
+
 def encode_commands(fleet: Fleet, stamp_ns: int) -> list[tuple[str, bytes]]:
     """``/NAME/cmd_vel`` of every robot: the commands applied in the step ending now (written
     every step, recorded or not, so a replay has them all)."""
@@ -91,6 +105,7 @@ def encode_step(fleet: Fleet, stamp_ns: int, map_frame: str = "map") -> list[tup
                     cdr.encode_odometry(stamp_ns, odom, base, st.pose, st.twist)))
         out.append((topic(name, "cmd_vel"), cdr.encode_twist_stamped(stamp_ns, base, st.command)))
         out.append((topic(name, "contacts"), encode_contacts(stamp_ns, map_frame, st)))
+        out.append((topic(name, "status"), encode_status(stamp_ns, base, st)))
         if st.scan is not None and fleet.scanned(name):
             out.append((topic(name, "scan"), encode_scan(stamp_ns, base, st.scan)))
         transforms.append(cdr.Transform.planar(stamp_ns, odom, base, *st.pose))

@@ -39,7 +39,7 @@ MAX_ROBOTS = 16
 #: most beams of one scan
 MAX_BEAMS = 20_000
 _KEYS = {"name", "radius", "pose", "kinematics", "weight", "goal", "goal_radius", "controller",
-         "scan"}
+         "scan", "enabled"}
 _KIN_KEYS = {"type", "max_speed", "max_angular_speed", "max_acceleration",
              "max_angular_acceleration"}
 _SCAN_KEYS = {"range_min", "range_max", "angle_min", "angle_max", "increment", "rate",
@@ -62,7 +62,13 @@ class ScanSpec:
 
     @property
     def beams(self) -> int:
-        return int(math.floor((self.angle_max - self.angle_min) / self.increment + 1e-9)) + 1
+        """Beams from angle_min to angle_max inclusive, except that a full turn does not repeat
+        its first beam at its end."""
+        count = int(math.floor((self.angle_max - self.angle_min) / self.increment + 1e-9)) + 1
+        if count > 1 and self.angle_min + (count - 1) * self.increment >= \
+                self.angle_min + 2 * math.pi - 1e-9:
+            count -= 1
+        return count
 
     def angles(self) -> np.ndarray:
         """(beams,) beam angles in the robot frame (rad)."""
@@ -185,6 +191,13 @@ def _robot(value: Any, field: str) -> tuple[Robot, dict]:
         spec["scan"] = {k: getattr(scan, k) for k in ("range_min", "range_max", "angle_min",
                                                       "angle_max", "increment", "rate",
                                                       "noise_std")}
+    enabled = d.get("enabled", True)
+    if isinstance(enabled, str) and enabled.lower() in ("true", "false"):  # --vary gives text
+        enabled = enabled.lower() == "true"
+    if not isinstance(enabled, bool):
+        raise SceneError(f"{field}.enabled", f"must be true or false, got {show(enabled)}",
+                         f"set {field}.enabled to true or false")
+    spec["enabled"] = enabled
     return robot, spec
 
 
@@ -205,16 +218,18 @@ def robots_from_spec(value: Any, geometry: Geometry, positions: np.ndarray,
     specs: list[dict] = []
     for k, item in enumerate(value):
         robot, spec = _robot(item, f"robots[{k}]")
-        if any(r.name == robot.name for r in robots):
+        if any(s["name"] == robot.name for s in specs):
             raise SceneError(f"robots[{k}].name", f"{show(robot.name)} is used twice",
                              "give every robot its own name")
-        robots.append(robot)
         specs.append(spec)
+        if spec["enabled"]:  # enabled: false keeps it in the spec only (paired ensembles)
+            robots.append(robot)
     for k, robot in enumerate(robots):
         others = [(r.pose[0], r.pose[1], r.radius, f"robot {r.name}") for r in robots[:k]]
         problem = overlap(robot, robot.pose[:2], geometry, positions, radii, others, blocked)
         if problem:
-            raise SceneError(f"robots[{k}].pose", problem,
+            index = next(i for i, s in enumerate(specs) if s["name"] == robot.name)
+            raise SceneError(f"robots[{index}].pose", problem,
                              f"move robot {robot.name} to free space, at least its radius "
                              f"{robot.radius:g} m from walls and clear of people")
     return tuple(robots), specs

@@ -232,6 +232,8 @@ class Simulator:
         self.scene = scene
         self.scheme.scene = scene
         self.scheme.reset()
+        if self.robots is not None:  # the robots see the new walls too
+            self.robots.scene = scene
         r = scene.radii(self.t)
         self._min_gap = gaps(scene.geometry, self.t, self._q, r).min_gap if len(r) else math.inf
 

@@ -75,16 +75,15 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
         def record(s: Simulator) -> None:
             nonlocal steps
             state = s.state
+            if s.robots is not None:  # their messages; the applied commands every step
+                ns = topics.stamp_ns(state.t)
+                messages = (robot_topics.encode_step(s.robots, ns, frame_id)
+                            if state.step % record_every == 0
+                            else robot_topics.encode_commands(s.robots, ns))
+                for name, data in messages:
+                    rec.write(name, ns, data)
             if state.step % record_every == 0:
                 topics.record_state(rec.write, state, frame_id)
-                if s.robots is not None:
-                    ns = topics.stamp_ns(state.t)
-                    for name, data in robot_topics.encode_step(s.robots, ns, frame_id):
-                        rec.write(name, ns, data)
-            elif s.robots is not None:  # the applied commands every step, for the replay
-                ns = topics.stamp_ns(state.t)
-                for name, data in robot_topics.encode_commands(s.robots, ns):
-                    rec.write(name, ns, data)
                 if navigation and topics.navigation_key(s.drift, state.t) != navigation[0]:
                     navigation[0] = topics.navigation_key(s.drift, state.t)
                     ns = topics.stamp_ns(state.t)

@@ -6,8 +6,8 @@ frame, m/s and rad/s; the fleet clips it to the limits), and the bundled :class:
 map cells, keeping ``wall_buffer`` = the robot's radius + 0.1 m from them): it turns towards the
 field's direction at ``turn_gain`` times the heading error (rad/s per rad), drives at the
 field's speed (the robot's max_speed, slowing within 0.5 m of the goal) times cos(error) (not
-backwards), and slows for the scan's nearest return within 90 degrees of its direction of
-travel: speed factor min(1, max(0, (range - radius - stop_margin) / slow_distance)). It stops
+backwards), and slows for the scan's nearest return within ``cone`` (45 degrees) of its
+direction of travel: speed factor min(1, max(0, (range - radius - stop_margin) / slow_distance)). It stops
 inside the goal radius.
 """
 from __future__ import annotations
@@ -55,7 +55,8 @@ class Pursuit:
     """The bundled controller (module docstring) of ``robot`` in ``scene``."""
 
     def __init__(self, scene: Scene, robot: Robot, *, turn_gain: float = 2.0,
-                 slow_distance: float = 1.0, stop_margin: float = 0.1) -> None:
+                 slow_distance: float = 0.6, stop_margin: float = 0.05,
+                 cone: float = math.pi / 4) -> None:
         if robot.goal is None:
             raise ValueError(f"robot {robot.name} has no goal to pursue")
         grid = map_from_spec(scene.spec["map"], "map", None) if scene.spec.get("map") else None
@@ -68,6 +69,7 @@ class Pursuit:
         self.turn_gain = turn_gain
         self.slow_distance = slow_distance
         self.stop_margin = stop_margin
+        self.cone = cone
 
     def __call__(self, obs: Observation) -> tuple[float, float, float]:
         x, y, yaw = obs.pose
@@ -84,7 +86,7 @@ class Pursuit:
         slow = 1.0
         if obs.scan is not None:
             rel = wrap_all(obs.scan.spec.angles() + obs.scan.pose[2] - heading)
-            ahead = obs.scan.ranges[np.abs(rel) < 0.5 * math.pi]
+            ahead = obs.scan.ranges[np.abs(rel) < self.cone]
             if len(ahead):
                 nearest = float(ahead.min())
                 slow = min(1.0, max(0.0, (nearest - obs.radius - self.stop_margin)

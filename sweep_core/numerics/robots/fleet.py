@@ -16,8 +16,9 @@ of the scheme's own step):
    (:mod:`.weighted` solves a scene with a weight other than 1 and inf);
 4. a prescribed target that overlaps a wall, an obstacle, a map cell or another prescribed
    robot, or that makes the projection infeasible (a person pinned between it and a wall),
-   is refused: that robot stops for the step (its applied command becomes (0, 0, 0), its pose
-   does not change), ``blocked`` counts the step and ``stopped`` says so;
+   is refused (for an infeasible projection: every prescribed robot moving in the step, since
+   the solver does not say which one caused it): that robot stops for the step (its applied
+   command becomes (0, 0, 0), its pose does not change), ``blocked`` counts the step and ``stopped`` says so;
 5. the true gaps of people and robots together are checked (no overlap beyond 1e-9 m) and
    no robot's centre path crosses a wall segment.
 
