@@ -233,7 +233,7 @@ class RobotsMixin:
                     topics.stamp_ns(scan.t), robot.frames.base, scan), log_ns)
 
     def _publish_robots(self, log_ns: int) -> None:
-        """With the state: each robot's odometry and contacts, and the odom -> base
+        """With the state: each robot's odometry, contacts and status, and the odom -> base
         transforms on /tf (recorded always, published when tf2_msgs is importable)."""
         if not self.robots:
             return
@@ -247,6 +247,8 @@ class RobotsMixin:
                                                               state.twist), log_ns)
             self._record(robot_topics.topic(robot.name, "contacts"), log_ns,
                          robot_topics.encode_contacts(ns, self.frame_id, state))
+            self._record(robot_topics.topic(robot.name, "status"), log_ns,
+                         robot_topics.encode_status(ns, f.base, state))
             transforms.append(cdr.Transform.planar(ns, f.odom, f.base, *state.pose))
         self._publish_tf(self.pub_tf, TF_TOPIC, cdr.encode_tf_message(transforms), log_ns)
 
@@ -283,6 +285,7 @@ class RobotsMixin:
             out[robot.pub_odom.topic_name] = cdr.ODOMETRY
             out[robot_topics.topic(robot.name, "cmd_vel")] = cdr.TWIST_STAMPED
             out[robot_topics.topic(robot.name, "contacts")] = cdr.POINT_CLOUD2
+            out[robot_topics.topic(robot.name, "status")] = cdr.POINT_CLOUD2
             out[robot.sub_initialpose.topic_name] = cdr.POSE_WITH_COVARIANCE_STAMPED
             if robot.spec.scan is not None:
                 out[robot.pub_scan.topic_name] = cdr.LASER_SCAN

@@ -190,7 +190,7 @@ def check_recording(record: Path) -> None:
     assert counts["/bot/odom"] == counts["/poses"] > 100
     assert counts["/bot/cmd_vel"] > counts["/bot/odom"]  # after every step, odom at ticks
     assert counts["/bot/scan"] >= 1 and counts["/tf"] == counts["/bot/odom"]
-    assert counts["/tf_static"] == 1
+    assert counts["/tf_static"] == 1 and counts["/bot/status"] == counts["/bot/odom"]
 
     odom = {m.log_time_ns: cdr.decode_odometry(m.data)
             for m in read_recording(record, ["/bot/odom"])}
