@@ -95,6 +95,7 @@ class DiagnosticsMixin:
             "compile_s": self.warm_up.seconds,
             "kernels_compiled_late": kernels.compiled_count() - self._compiled_at_start,
             **counters,
+            **self._robot_diagnostics(),
             "command_results": self._results.published,
             "resets": self._resets,
             "maps_applied": self._maps_applied,

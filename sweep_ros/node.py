@@ -89,6 +89,7 @@ from sweep_ros.inbox import CommandInbox
 from sweep_ros.maps import MapsMixin
 from sweep_ros.publishing import PublishingMixin
 from sweep_ros.recording import RecordingMixin
+from sweep_ros.robots import RESERVED_NAMES, RobotsMixin, robot_names
 from sweep_ros.services import ServicesMixin
 from sweep_ros.stepping import SteppingMixin
 from sweep_ros.timing import Window
@@ -110,7 +111,7 @@ _RCLPY_PARAMS = ("use_sim_time", "start_type_description_service", "qos_override
 
 
 class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin,
-                CommandsMixin, MapsMixin, ServicesMixin, Node):
+                CommandsMixin, MapsMixin, ServicesMixin, RobotsMixin, Node):
     """Runs a sweep_core Simulator on a timer; see the module docstring."""
 
     def __init__(self, **kwargs: Any) -> None:
@@ -212,6 +213,13 @@ class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin
             except InvalidTopicNameException as err:
                 raise StartError([f"parameter map_topic: {self._p['map_topic']!r} is not a "
                                   f"valid topic name ({err}) (fix: e.g. 'map')"]) from err
+        names = robot_names(self.scene)
+        clash = [n for n in names if n in RESERVED_NAMES]
+        if clash:
+            raise StartError([f"scene {self._p['scene']}: robot name {clash[0]!r} is reserved "
+                              f"for the crowd's commands (crowd/cmd_vel) (fix: rename the "
+                              "robot)"])
+        self._create_robot_topics(names, inbound, reliable)
         self.srv_reset = self.create_service(Trigger, "reset", self._on_reset)
         self.srv_pause = self.create_service(SetBool, "pause", self._on_pause)
         self.srv_step = self.create_service(Trigger, "step", self._on_step)
@@ -230,6 +238,8 @@ class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin
                                               clock=steady)
 
         self._publish_walls()
+        if self.robots:
+            self._publish_tf_static()
         self._publish_state(force_markers=True)
         self.get_logger().info(
             f"scene {self.scene.name!r} ({self.scene.n_agents} agents), dt {self.sim.dt:g} s, "

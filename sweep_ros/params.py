@@ -80,6 +80,15 @@ SPECS: tuple[ParamSpec, ...] = (
               1, 10000),
     ParamSpec("frame_id", "map", "frame_id of every published header.", False,
               constraints="non-empty, no spaces, no leading '/'"),
+    ParamSpec("odom_frame_id", "odom", "A robot's odometry frame (REP 105); NAME/odom_frame_id "
+              "when the scene has several robots.", False, constraints="a frame id"),
+    ParamSpec("base_frame_id", "base_link", "A robot's body frame (REP 105); "
+              "NAME/base_frame_id when the scene has several robots.", False,
+              constraints="a frame id"),
+    ParamSpec("enable_stamped_cmd_vel", True, "A robot's NAME/cmd_vel is "
+              "geometry_msgs/TwistStamped (true, as Nav2 sends it) or Twist (false).", False),
+    ParamSpec("cmd_vel_timeout", 1.0, "A robot stops when its newest NAME/cmd_vel is older "
+              "than this, s of simulated time.", True, 1e-6, 1e6),
     ParamSpec("record", "", "MCAP file to record every published and received message to; "
               "empty = no recording. Relative paths are relative to the working directory.",
               False, constraints="its folder must exist"),
@@ -186,7 +195,7 @@ def check_value(name: str, value: Any) -> str | None:
     if name == "noise_sigma" and value != -1.0 and value < 0:
         return (f"{name}: must be -1 (the scene's sigma) or >= 0, got {show(value)} "
                 f"(fix: set {name} to -1 or to a sigma >= 0, m/sqrt(s))")
-    if name == "frame_id":
+    if name in ("frame_id", "odom_frame_id", "base_frame_id"):
         if not value or value.startswith("/") or any(c.isspace() for c in value):
             return (f"{name}: {value!r} is not a valid frame id "
                     "(fix: non-empty, no spaces, no leading '/', e.g. 'map')")

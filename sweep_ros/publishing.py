@@ -35,6 +35,7 @@ class PublishingMixin:
                           self._agent_markers.encode(ns, state.positions, state.radii), log_ns)
             if self._moving_walls:
                 self._publish_walls()
+        self._publish_robots(log_ns)
         self._publish_navigation()
 
     def _publish_navigation(self) -> None:

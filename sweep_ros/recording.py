@@ -19,6 +19,7 @@ from sweep_core.io.metadata import run_metadata
 from sweep_core.io.recording import BackgroundRecorder, qos_profiles
 from sweep_ros import msgdefs, results
 from sweep_ros.errors import StartError
+from sweep_ros.robots import TF_STATIC_TOPIC
 
 
 class RecordingMixin:
@@ -49,10 +50,13 @@ class RecordingMixin:
             names[self.pub_clock.topic_name] = cdr.CLOCK
         if self.sub_map is not None:
             names[self.sub_map.topic_name] = msgdefs.msgtype_of(OccupancyGrid)
+        names.update(self._robot_channels())
         latched = {self.pub_walls.topic_name: 1, self.pub_navigation.topic_name: 1,
                    self.pub_diag.topic_name: 1, self.pub_results.topic_name: results.DEPTH}
         if self.sub_map is not None:
             latched[self.sub_map.topic_name] = 1
+        if self.robots:
+            latched[TF_STATIC_TOPIC] = 1
         meta.update({
             "node": self.get_fully_qualified_name(),
             "parameters": json.dumps(self._p, sort_keys=True),

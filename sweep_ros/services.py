@@ -29,6 +29,7 @@ class ServicesMixin:
                 self._verdict("superseded", old.topic, old.ident,
                               "superseded by a reset before a step used it")
             self.sim.reset()
+            self._forget_robot_commands()
             self._apply_sigma()
             self.failure = None
             self._rt_anchor = None

@@ -44,6 +44,7 @@ class SteppingMixin:
             self._apply_command(applied)
         start = time.perf_counter()
         try:
+            self._command_robots()
             self.sim.step(1)
             self.failure = None
         except (InfeasibleError, SceneError) as err:
@@ -54,6 +55,7 @@ class SteppingMixin:
                                     f"{err}")
             self._publish_diagnostics()
             return False
+        self._record_robot_step()
         self._window.steps += 1
         self._window.step_s += time.perf_counter() - start
         return True

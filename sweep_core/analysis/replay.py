@@ -32,6 +32,7 @@ from sweep_core.analysis.report import jsonable
 from sweep_core.analysis.robot_replay import (
     apply_commands,
     drive_by_recording,
+    place_recorded,
     recorded_commands,
 )
 from sweep_core.analysis.run import MapChange, RunMeta, load_run, require_replayable, scene_with_map
@@ -192,6 +193,8 @@ class _Replayer:
         ev += [(m.step, m.index, "map", m) for m in self.meta.maps if m.segment == segment]
         ev += [(c.step, c.index, "parameter", c) for c in self.meta.parameter_changes
                if c.segment == segment and c.name == "noise_sigma"]
+        ev += [(p.step, p.index, "robot_pose", p.spec) for p in self.meta.robot_poses
+               if p.segment == segment]
         self.events = sorted(ev, key=lambda e: (e[0], e[2], e[1]))
 
     def advance_to(self, segment: int, step: int) -> None:
@@ -209,6 +212,8 @@ class _Replayer:
                     self.applied += 1
                 elif kind == "map":
                     self._map(what)
+                elif kind == "robot_pose":
+                    place_recorded(self.sim, what)
                 else:
                     self._sigma(what.value)
             apply_commands(self.sim, self.robot_commands, self.segment, k + 1)

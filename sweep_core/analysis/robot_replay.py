@@ -1,6 +1,8 @@
 """The robots' applied commands of a recording, for :mod:`sweep_core.analysis.replay`: every
 ``/NAME/cmd_vel`` message (the command applied during the step that ends at its stamp) by
-segment and step, re-applied as recorded (no clipping: they were clipped when applied)."""
+segment and step, re-applied as recorded (no clipping: they were clipped when applied); and
+the node's placements of a robot (initialpose, metadata ``robot_pose_NNNNNN``: ``placement``
+{robot, pose}), made again before the step they were made before."""
 from __future__ import annotations
 
 from sweep_core.analysis.run import RunMeta
@@ -46,3 +48,17 @@ def apply_commands(sim: object, commands: Commands, segment: int, step: int) -> 
         return
     for name, twist in commands.get((segment, step), {}).items():
         robots.command(name, twist, clip=False)
+
+
+def place_recorded(sim: object, placement: dict) -> None:
+    """Puts a robot where the node placed it (``placement``: {"robot": name, "pose": [x, y,
+    yaw]}), between two steps as the node did; RecordingError if the record is malformed."""
+    robots = getattr(sim, "robots", None)
+    try:
+        name, pose = str(placement["robot"]), [float(v) for v in placement["pose"]]
+    except (KeyError, TypeError, ValueError):
+        raise RecordingError(f"robot_pose record {placement!r} has no robot and pose [x, y, "
+                             "yaw]") from None
+    if robots is None:
+        raise RecordingError(f"robot_pose record for {name!r} in a run without robots")
+    robots.place(name, pose, sim.t, sim.positions, sim.radii)  # type: ignore

@@ -102,6 +102,8 @@ class RunMeta:
     status: str = ""
     #: maps received by the node, in the order it accepted them
     maps: list[MapChange] = field(default_factory=list)
+    #: robots placed by the node (initialpose; ``robot_pose_NNNNNN``): spec {robot, pose}
+    robot_poses: list[MapChange] = field(default_factory=list)
 
     @property
     def dt_ns(self) -> int | None:
@@ -260,6 +262,9 @@ def load_run(path: str | Path) -> RunMeta:
             meta.segment_of(change.log_time_ns)))
     meta.maps = [MapChange(k, topic, step, log_ns, spec, meta.segment_of(log_ns))
                  for k, topic, step, log_ns, spec in _stepped(info.metadata, "map", "map", problems)]
+    meta.robot_poses = [MapChange(k, topic, step, log_ns, spec, meta.segment_of(log_ns))
+                        for k, topic, step, log_ns, spec
+                        in _stepped(info.metadata, "robot_pose", "placement", problems)]
     return meta
 
 

@@ -1,0 +1,289 @@
+"""A robot in sweep_node over DDS: a test controller drives it with TwistStamped through a crowd
+(odometry follows the commanded kinematics exactly in free space, never an overlap between the
+robot and people or walls in the recording, TF readable by rosbags, the recording replays bit
+for bit); initialpose refused with the reason, or applied.
+
+One node process per test, run from this checkout's own installation (``pip install -e``:
+its numba caches are warm, so no test waits for a build); every wait is on an event (a message,
+a verdict, a process exit) with a generous deadline, never on how fast the node steps.
+"""
+from __future__ import annotations
+
+import math
+import os
+import signal
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rclpy
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
+from nav_msgs.msg import Odometry
+from test_node import DISCOVERY_S, WAIT_S, Probe, Running, _read_standard, _ros_env
+
+from sweep_core.io import cdr
+from sweep_core.io.recording import read_recording
+from sweep_ros import results
+
+DT = 0.01
+RADIUS = 0.3
+#: a 14 x 6 m room; the robot starts in its west half facing east; ten people stand in a block
+#: across its way at x = 7..7.6 (no drift: they move only when the robot pushes through)
+PEOPLE = [[7.0 + 0.6 * (k % 2), 1.6 + 0.7 * (k // 2)] for k in range(10)]
+SPEED = 1.5
+SCENE = {
+    "name": "robot_through_a_crowd",
+    "agents": {"positions": PEOPLE, "radius": 0.25, "speed": 1.0},
+    "walls": [{"kind": "polyline", "points": [[0, 0], [14, 0], [14, 6], [0, 6], [0, 0]]}],
+    "noise": {"sigma": 0.0},
+    "robots": [{
+        "name": "bot", "radius": RADIUS, "pose": [2.0, 3.0, 0.0],
+        "kinematics": {"type": "diff_drive", "max_speed": SPEED, "max_angular_speed": 1.5,
+                       "max_acceleration": 2.0, "max_angular_acceleration": 4.0},
+        "weight": "inf",
+        "scan": {"range_min": 0.05, "range_max": 8.0, "angle_min": -1.5, "angle_max": 1.5,
+                 "increment": 0.05, "rate": 10.0, "noise_std": 0.0}}],
+}
+
+
+@pytest.fixture(scope="module")
+def installed():
+    """The sweep_node of this checkout's editable installation, and the DDS isolation."""
+    exe = Path(sys.executable).with_name("sweep_node")
+    assert exe.is_file(), f"{exe} missing (pip install -e .)"
+    return exe, dict(os.environ, **_ros_env())
+
+
+class RobotProbe(Probe):
+    """The test side: a controller of robot bot (TwistStamped on /bot/cmd_vel), its odometry,
+    initialpose and the verdicts."""
+
+    def __init__(self, context):
+        super().__init__(context)
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+        self.odom: list[Odometry] = []
+        self.node.create_subscription(Odometry, "/bot/odom", self.odom.append, qos)
+        self.robot_cmd = self.node.create_publisher(TwistStamped, "/bot/cmd_vel", qos)
+        self.initialpose = self.node.create_publisher(PoseWithCovarianceStamped,
+                                                      "/bot/initialpose", qos)
+        self.verdicts: list[dict[str, str]] = []
+
+        def keep(msg: DiagnosticArray) -> None:
+            parsed = results.parse(msg)
+            if parsed is not None:
+                self.verdicts.append(parsed)
+        self.node.create_subscription(DiagnosticArray, "/command_result", keep, results.QOS)
+
+    def drive(self, v: float, w: float) -> None:
+        msg = TwistStamped()
+        msg.header.frame_id = "base_link"
+        msg.twist.linear.x, msg.twist.angular.z = v, w
+        self.robot_cmd.publish(msg)
+
+    def drive_until(self, v: float, w: float, pred, what: str, node: Running) -> None:
+        """Sends (v, w) every 0.05 s, as a controller does (a command older than the node's
+        cmd_vel_timeout stops the robot), until pred() holds."""
+        import time
+        last = [-1.0]
+
+        def check():
+            if time.monotonic() - last[0] >= 0.05:
+                self.drive(v, w)
+                last[0] = time.monotonic()
+            return pred()
+        self.spin_until(check, WAIT_S, what, node)
+
+    def place(self, x: float, y: float, yaw: float) -> None:
+        msg = PoseWithCovarianceStamped()
+        msg.header.frame_id = "map"
+        msg.pose.pose.position.x, msg.pose.pose.position.y = x, y
+        msg.pose.pose.orientation.z = math.sin(yaw / 2)
+        msg.pose.pose.orientation.w = math.cos(yaw / 2)
+        self.initialpose.publish(msg)
+
+
+@pytest.fixture
+def probe():
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    p = RobotProbe(context)
+    yield p
+    p.close()
+    rclpy.shutdown(context=context)
+
+
+def start(installed, tmp_path: Path, probe: RobotProbe, record: Path) -> Running:
+    scene_path = tmp_path / "scene.yaml"
+    scene_path.write_text(yaml.safe_dump(SCENE))
+    node = Running(installed, tmp_path, {
+        "scene": str(scene_path), "dt": DT, "seed": 5, "rate_hz": 50.0, "steps_per_tick": 2,
+        "record": str(record), "record_flush_interval_s": 0.2, "publish_markers": False})
+    probe.connect(node)
+    for pub in (probe.robot_cmd, probe.initialpose):
+        probe.spin_until(lambda p=pub: p.get_subscription_count() > 0, DISCOVERY_S,
+                         f"sweep_node subscribing {pub.topic_name}", node)
+    probe.spin_until(lambda: probe.odom, DISCOVERY_S, "the first odometry", node)
+    return node
+
+
+def verdict_on(probe: RobotProbe, n: int, node: Running) -> dict[str, str]:
+    """The n-th final verdict (applied or refused) on /bot/initialpose."""
+    def got():
+        final = [v for v in probe.verdicts if v["topic"] == "/bot/initialpose"
+                 and v["verdict"] in ("applied", "refused")]
+        return final[n - 1] if len(final) >= n else None
+    return probe.spin_until(got, WAIT_S, f"verdict {n} on /bot/initialpose", node)
+
+
+def arc(pose: np.ndarray, v: float, w: float, h: float) -> np.ndarray:
+    """The exact unicycle motion over h s from pose (x, y, yaw) at (v, w)."""
+    x, y, th = pose
+    if w == 0.0:
+        return np.array([x + v * h * math.cos(th), y + v * h * math.sin(th), th])
+    return np.array([x + v / w * (math.sin(th + w * h) - math.sin(th)),
+                     y - v / w * (math.cos(th + w * h) - math.cos(th)), th + w * h])
+
+
+def wall_distance(p: np.ndarray) -> float:
+    return min(p[0], 14.0 - p[0], p[1], 6.0 - p[1])
+
+
+def test_a_controller_drives_the_robot_through_a_crowd(installed, probe, tmp_path):
+    record = tmp_path / "robot.mcap"
+    node = start(installed, tmp_path, probe, record)
+    try:
+        # initialpose: onto a person, into a wall: refused with the reason; the state stays
+        probe.place(7.0, 1.6, 0.0)
+        v = verdict_on(probe, 1, node)
+        assert v["verdict"] == "refused" and "overlap" in v["message"], v
+        assert "agent" in v["message"], v
+        probe.place(0.1, 3.0, 0.0)
+        v = verdict_on(probe, 2, node)
+        assert v["verdict"] == "refused" and "wall" in v["message"], v
+        # a free place: applied (and recorded, so that replay places it there too)
+        probe.place(1.5, 2.8, 0.1)
+        v = verdict_on(probe, 3, node)
+        assert v["verdict"] == "applied" and "placed at (1.5, 2.8)" in v["message"], v
+        probe.spin_until(lambda: probe.odom[-1].pose.pose.position.y == 2.8, WAIT_S,
+                         "the robot at its new place", node)
+        # drive east in a gentle arc, then straight on through the people
+        x = lambda: probe.odom[-1].pose.pose.position.x  # noqa: E731
+        yaw = lambda: 2 * math.atan2(probe.odom[-1].pose.pose.orientation.z,  # noqa: E731
+                                     probe.odom[-1].pose.pose.orientation.w)
+        probe.drive_until(SPEED, 0.5, lambda: yaw() > 0.3, "the robot turned left", node)
+        probe.drive_until(SPEED, -0.5, lambda: yaw() < 0.0, "the robot turned back", node)
+        probe.drive_until(SPEED, 0.0, lambda: x() > 9.0, "the robot through the crowd, past "
+                          "x = 9 m", node)
+    finally:
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
+    assert "Traceback" not in node.log, node.log
+    check_recording(record)
+
+
+def check_recording(record: Path) -> None:
+    counts, meta = _read_standard(record)  # mcap's reader and rosbags' read every message
+    assert counts["/bot/odom"] == counts["/poses"] > 100
+    assert counts["/bot/cmd_vel"] > counts["/bot/odom"]  # after every step, odom at ticks
+    assert counts["/bot/scan"] >= 1 and counts["/tf"] == counts["/bot/odom"]
+    assert counts["/tf_static"] == 1 and counts["/bot/status"] == counts["/bot/odom"]
+
+    odom = {m.log_time_ns: cdr.decode_odometry(m.data)
+            for m in read_recording(record, ["/bot/odom"])}
+    cmds = {m.log_time_ns: cdr.decode_twist_stamped(m.data)
+            for m in read_recording(record, ["/bot/cmd_vel"])}
+    people = {m.log_time_ns: cdr.decode_pose_array(m.data)[2]
+              for m in read_recording(record, ["/poses"])}
+    assert set(odom) == set(people)
+
+    # never an overlap: robot and people, robot and walls, at every recorded state
+    for ns, o in odom.items():
+        p = o.position[:2]
+        gaps = np.hypot(*(people[ns] - p).T) - (RADIUS + 0.25)
+        assert gaps.min() >= -1e-9, (ns, gaps.min())
+        assert wall_distance(p) - RADIUS >= -1e-9, (ns, p)
+
+    # odometry follows the applied commands exactly while the robot is far from everyone:
+    # from one recorded state to the next, the arcs of the commands applied at each step
+    times = sorted(odom)
+    step_ns = round(DT * 1e9)
+    placed = int(meta["robot_pose_000001"]["log_time_ns"])  # the robot was moved there
+    checked = 0
+    for a, b in zip(times, times[1:]):
+        oa, ob = odom[a], odom[b]
+        if a <= placed < b:
+            assert (ob.position[0], ob.position[1]) != (oa.position[0], oa.position[1])
+            continue
+        if np.hypot(*(people[a] - oa.position[:2]).T).min() < 3.0:
+            break  # near the people: the crowd yields, but the test of exactness stops here
+        pose = np.array([oa.position[0], oa.position[1], oa.yaw])
+        for t in range(a + step_ns, b + 1, step_ns):
+            c = cmds[t]
+            assert c.linear[1] == 0.0  # diff drive
+            pose = arc(pose, c.linear[0], c.angular[2], DT)
+        assert np.abs(pose[:2] - ob.position[:2]).max() < 1e-9, (b, pose, ob.position)
+        assert abs(math.remainder(pose[2] - ob.yaw, 2 * math.pi)) < 1e-9
+        checked += 1
+    assert checked > 20
+    # the commands reached the robot (accelerating, then cruising at full speed), and it
+    # pushed its way through: people touched it and moved out of its way
+    assert max(c.linear[0] for c in cmds.values()) == SPEED
+    touched = [cdr.decode_point_cloud2(m.data) for m in read_recording(record, ["/bot/contacts"])]
+    assert sum(len(c.fields["id"]) for c in touched) > 0
+    moved = np.hypot(*(people[times[-1]] - np.array(PEOPLE)).T)
+    assert moved.max() > 0.1 and (moved == 0.0).any()  # only the people in its way
+    assert "robot_pose_000002" not in meta
+
+    # TF in the recording: rosbags reads odom -> base_link, equal to the odometry
+    from rosbags.highlevel import AnyReader
+    with AnyReader([record]) as bag:
+        static = [c for c in bag.connections if c.topic == "/tf_static"]
+        (conn, _, raw), = list(bag.messages(connections=static))
+        tf = bag.deserialize(raw, conn.msgtype).transforms[0]
+        assert (tf.header.frame_id, tf.child_frame_id) == ("map", "odom")
+        assert tf.transform.rotation.w == 1.0 and tf.transform.translation.x == 0.0
+        dynamic = [c for c in bag.connections if c.topic == "/tf"]
+        for conn, log_ns, raw in bag.messages(connections=dynamic):
+            tf = bag.deserialize(raw, conn.msgtype).transforms[0]
+            assert (tf.header.frame_id, tf.child_frame_id) == ("odom", "base_link")
+            o = odom[log_ns]
+            assert (tf.transform.translation.x, tf.transform.translation.y) == \
+                (o.position[0], o.position[1])
+
+    # the recording replays bit for bit (the applied commands re-applied)
+    from sweep_core.analysis import replay
+    res = replay.replay(record)
+    assert res.identical, replay.format_replay(res)
+
+
+def test_the_bundled_controller_drives_the_robot_to_its_goal(installed, probe, tmp_path):
+    """sweep_robot_controller (a second process) drives the robot over its topics to the
+    scene's goal for it (short of the people: it slows for the scan's nearest return), at
+    the node's own pace."""
+    goal = [5.5, 4.5]
+    scene = dict(SCENE, robots=[dict(SCENE["robots"][0], goal=goal, goal_radius=0.3)])
+    scene_path = tmp_path / "goal.yaml"
+    scene_path.write_text(yaml.safe_dump(scene))
+    node = Running(installed, tmp_path, {
+        "scene": str(scene_path), "dt": DT, "rate_hz": 50.0, "steps_per_tick": 2,
+        "publish_markers": False})
+    exe, env = installed
+    controller = Running((exe.with_name("sweep_robot_controller"), env), tmp_path,
+                         {"scene": str(scene_path), "robot": "bot"}, name="controller")
+    try:
+        probe.connect(node)
+
+        def arrived():
+            p = probe.odom[-1].pose.pose.position if probe.odom else None
+            return p is not None and math.hypot(p.x - goal[0], p.y - goal[1]) <= 0.3
+        probe.spin_until(arrived, WAIT_S, "the robot at its goal", controller)
+        assert node.alive()
+    finally:
+        controller.stop(signal.SIGINT)
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
+    assert "Traceback" not in node.log + controller.log, node.log + controller.log
