@@ -33,6 +33,7 @@ from matplotlib.collections import LineCollection, PatchCollection  # noqa: E402
 from matplotlib.patches import Circle  # noqa: E402
 
 from sweep_core.analysis.frames import FrameReader  # noqa: E402
+from sweep_core.analysis.robots import read_robot_topics  # noqa: E402
 from sweep_core.analysis.run import load_run  # noqa: E402
 from sweep_core.model.gallery import INDEX, bundled_scenes, measured_on, scenes_dir  # noqa: E402
 from sweep_core.model.yaml_files import load_yaml  # noqa: E402
@@ -104,9 +105,10 @@ def draw(recording: Path, png: Path, snapshot: float, title: str) -> None:
     disks = [Circle(p, r) for p, r in zip(path[-1], radii)]
     ax.add_collection(PatchCollection(disks, facecolors=list(colour), edgecolors="black",
                                       linewidths=0.3, alpha=0.9))
+    _draw_robots(ax, meta, snapshot)
     for gname, c in groups:
         ax.plot([], [], "o", color=c, label=gname)
-    if groups:
+    if groups or scene.robots:
         ax.legend(loc="upper right", fontsize=8, framealpha=0.9)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
@@ -118,6 +120,27 @@ def draw(recording: Path, png: Path, snapshot: float, title: str) -> None:
     png.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(png)
     plt.close(fig)
+
+
+def _draw_robots(ax, meta, snapshot: float) -> None:
+    """Each robot of the scene: its path up to the snapshot and its disk then, with a heading
+    tick (from the recorded /NAME/odom)."""
+    robots = meta.scene.robots
+    if not robots:
+        return
+    odom, _ = read_robot_topics(meta, [r.name for r in robots], [])
+    for robot, track in zip(robots, odom):
+        if not track:
+            continue
+        keys = sorted(track)
+        t0 = keys[0]
+        poses = np.array([track[k][:3] for k in keys if (k - t0) * 1e-9 <= snapshot + 1e-9])
+        ax.plot(poses[:, 0], poses[:, 1], color="crimson", lw=1.2)
+        x, y, yaw = poses[-1]
+        ax.add_patch(Circle((x, y), robot.radius, facecolor="crimson", edgecolor="black",
+                            lw=0.8, zorder=5, label=robot.name))
+        ax.plot([x, x + robot.radius * np.cos(yaw)], [y, y + robot.radius * np.sin(yaw)],
+                color="white", lw=1.5, zorder=6)
 
 
 def _geometry_box(geo) -> tuple[np.ndarray, np.ndarray]:
