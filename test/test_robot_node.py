@@ -22,7 +22,15 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
 from nav_msgs.msg import Odometry
-from test_node import DISCOVERY_S, WAIT_S, Probe, Running, _read_standard, _ros_env
+from test_node import (
+    DISCOVERY_S,
+    WAIT_S,
+    Probe,
+    Running,
+    _read_standard,
+    _ros_env,
+    diag_value,
+)
 
 from sweep_core.io import cdr
 from sweep_core.io.recording import read_recording
@@ -178,6 +186,10 @@ def test_a_controller_drives_the_robot_through_a_crowd(installed, probe, tmp_pat
         probe.drive_until(SPEED, -0.5, lambda: yaw() < 0.0, "the robot turned back", node)
         probe.drive_until(SPEED, 0.0, lambda: x() > 9.0, "the robot through the crowd, past "
                           "x = 9 m", node)
+        # on to the east wall (and whoever is pushed against it): the robot stops, and says so
+        probe.drive_until(SPEED, 0.0, lambda: probe.diagnostics and "stopped instead of moving"
+                          in probe.diagnostics[-1].status[0].message, "a stop reported", node)
+        assert int(diag_value(probe, "robot_blocked_steps")) > 0
     finally:
         code = node.stop(signal.SIGINT)
     assert code == 0, node.log
