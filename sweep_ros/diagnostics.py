@@ -59,6 +59,7 @@ class DiagnosticsMixin:
         lost = counters["commands_lost"]
         new_lost = lost - self._lost_reported if isinstance(lost, int) else 0
         same_name = graph.same_name_count(self)
+        robot_stops = self._robot_stops(wall)
         if self.failure:
             level, message = "ERROR", f"infeasible, paused: {self.failure}"
         elif same_name > 1:
@@ -69,6 +70,8 @@ class DiagnosticsMixin:
             level, message = "WARN", f"recording stopped: {rec.error}"
         elif self._map_problem:
             level, message = "WARN", self._map_problem
+        elif robot_stops:
+            level, message = "WARN", robot_stops
         elif w.overruns:
             level, message = "WARN", f"{w.overruns} timer overruns in the last {wall:.1f} s"
         elif new_lost > 0:

@@ -84,6 +84,7 @@ class RobotsMixin:
         """Subscriptions and publishers of every robot (relative names: namespaces apply)."""
         self._robot_lock = threading.Lock()
         self._robot_commands: dict[str, RobotCommand] = {}
+        self._blocked_reported: dict[str, int] = {}  # blocked steps when diagnostics last spoke
         self.robot_counters = {"robot_commands_received": 0, "robot_commands_refused": 0,
                                "robot_poses_applied": 0, "robot_poses_refused": 0}
         stamped = bool(self._p["enable_stamped_cmd_vel"])
@@ -277,6 +278,25 @@ class RobotsMixin:
         out["robot_commands_clipped"] = sum(int(s.clipped) for s in states)
         out["robot_blocked_steps"] = sum(int(s.blocked) for s in states)
         return out
+
+    def _robot_stops(self, window_s: float) -> str | None:
+        """What diagnostics say when a robot stopped since they last spoke: its commanded
+        motion was refused (it would cut a wall, or push people who cannot give way) and it
+        stopped instead; None otherwise. The caller holds the gate."""
+        if not self.robots:
+            return None
+        stopped = []
+        for r in self.robots:
+            blocked = int(self.sim.robots.state(r.name).blocked)
+            new = blocked - self._blocked_reported.get(r.name, 0)
+            self._blocked_reported[r.name] = blocked  # a reset starts the count again
+            if new > 0:
+                stopped.append(f"{r.name} in {new} steps")
+        if not stopped:
+            return None
+        return (f"robot {', '.join(stopped)} of the last {window_s:.1f} s stopped instead of "
+                "moving as commanded: the motion would cut a wall or push people who cannot "
+                "give way")
 
     def _robot_channels(self) -> dict[str, str]:
         """The recorded robot topics and their types."""

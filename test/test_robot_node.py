@@ -22,7 +22,15 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
 from nav_msgs.msg import Odometry
-from test_node import DISCOVERY_S, WAIT_S, Probe, Running, _read_standard, _ros_env
+from test_node import (
+    DISCOVERY_S,
+    WAIT_S,
+    Probe,
+    Running,
+    _read_standard,
+    _ros_env,
+    diag_value,
+)
 
 from sweep_core.io import cdr
 from sweep_core.io.recording import read_recording
@@ -178,6 +186,10 @@ def test_a_controller_drives_the_robot_through_a_crowd(installed, probe, tmp_pat
         probe.drive_until(SPEED, -0.5, lambda: yaw() < 0.0, "the robot turned back", node)
         probe.drive_until(SPEED, 0.0, lambda: x() > 9.0, "the robot through the crowd, past "
                           "x = 9 m", node)
+        # on to the east wall (and whoever is pushed against it): the robot stops, and says so
+        probe.drive_until(SPEED, 0.0, lambda: probe.diagnostics and "stopped instead of moving"
+                          in probe.diagnostics[-1].status[0].message, "a stop reported", node)
+        assert int(diag_value(probe, "robot_blocked_steps")) > 0
     finally:
         code = node.stop(signal.SIGINT)
     assert code == 0, node.log
@@ -263,17 +275,19 @@ def check_recording(record: Path) -> None:
 def test_the_bundled_controller_drives_the_robot_to_its_goal(installed, probe, tmp_path):
     """sweep_robot_controller (a second process) drives the robot over its topics to the
     scene's goal for it (short of the people: it slows for the scan's nearest return), at
-    the node's own pace."""
+    the node's own pace; both on unstamped Twist (enable_stamped_cmd_vel: false), the other
+    test having driven the node with TwistStamped."""
     goal = [5.5, 4.5]
     scene = dict(SCENE, robots=[dict(SCENE["robots"][0], goal=goal, goal_radius=0.3)])
     scene_path = tmp_path / "goal.yaml"
     scene_path.write_text(yaml.safe_dump(scene))
     node = Running(installed, tmp_path, {
         "scene": str(scene_path), "dt": DT, "rate_hz": 50.0, "steps_per_tick": 2,
-        "publish_markers": False})
+        "publish_markers": False, "enable_stamped_cmd_vel": False})
     exe, env = installed
     controller = Running((exe.with_name("sweep_robot_controller"), env), tmp_path,
-                         {"scene": str(scene_path), "robot": "bot"}, name="controller")
+                         {"scene": str(scene_path), "robot": "bot",
+                          "enable_stamped_cmd_vel": False}, name="controller")
     try:
         probe.connect(node)
 
@@ -282,6 +296,9 @@ def test_the_bundled_controller_drives_the_robot_to_its_goal(installed, probe, t
             return p is not None and math.hypot(p.x - goal[0], p.y - goal[1]) <= 0.3
         probe.spin_until(arrived, WAIT_S, "the robot at its goal", controller)
         assert node.alive()
+        probe.spin_until(lambda: diag_value(probe, "robot_commands_received") not in
+                         (None, "0"), WAIT_S, "diagnostics counting the commands", node)
+        assert diag_value(probe, "robot_commands_refused") == "0"
     finally:
         controller.stop(signal.SIGINT)
         code = node.stop(signal.SIGINT)
