@@ -153,6 +153,10 @@ def test_weighted_projection_splits_the_push_by_weight():
     st = sim.robots.state("bot")
     assert st.pose[0] - 2.0 == pytest.approx(0.8 * v * h, abs=1e-12)
     assert sim.positions[0, 0] - 2.55 == pytest.approx(0.8 * v * h, abs=1e-12)
+    # the step's bound is a proved duality gap: finite, within tol, and it covers the error
+    bound = sim.last.projection.bound
+    err = max(abs(st.pose[0] - 2.0 - 0.8 * v * h), abs(sim.positions[0, 0] - 2.55 - 0.8 * v * h))
+    assert math.isfinite(bound) and err <= bound + 1e-15 and bound <= 1e-6
     # impulse: the multiplier lam = x_p (the person's reaction, weight 1) over h, along +x
     np.testing.assert_allclose(st.contact_impulse, [[0.8 * v, 0.0]], atol=1e-9)
 

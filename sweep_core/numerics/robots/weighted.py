@@ -8,10 +8,17 @@ the exact active set, the interior-point backend for large clusters) solve that,
 z / sqrt(w). The multipliers are those of the weighted problem: w_i (y_i - p_i) = sum_k lam_k
 a_ki, so a person's (w = 1) reaction is lam e as in the unweighted case. The cutoff of the rows
 is proven sufficient as in :func:`~sweep_core.numerics.projection.project` (the argument does
-not depend on the metric). ``Projection.bound`` is 0 when every cluster was solved exactly (to
-rounding), inf when the backend answered one (its rows hold, no certificate).
+not depend on the metric).
+
+``Projection.bound`` is proved as in the unweighted case, on the z problem: for any z with every
+row held (C z >= h) and any lam >= 0, 1/2 |z - z*|^2 <= f(z) - D(lam) = 1/2 |z - d - C^T lam|^2 +
+lam . (C z - h), the duality gap of the strongly convex objective (modulus 1); and
+|y - y*| <= max_i (1 / sqrt(w_i)) |z - z*|. It is inf when a row is broken, even by rounding
+(the answer then only holds the rows to the row tolerance, as checked).
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import scipy.sparse as sp
@@ -37,6 +44,7 @@ def project_weighted(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray,
         y = pred.copy()
         lam_p, lam_s = np.zeros(len(rp)), np.zeros(len(rs))
         qp_size = by_backend = 0
+        bound = 0.0  # no row broken by the prediction: y = pred is the projection
         if (len(rp) and rp.min() < 0) or (len(rs) and rs.min() < 0):
             agents = rows.agents()
             qp_size = len(agents)
@@ -47,8 +55,11 @@ def project_weighted(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray,
             h = b - c @ q_a
             scale = np.repeat(1.0 / np.sqrt(weights[agents]), 2)
             cs = sp.csc_matrix(c @ sp.diags(scale))
-            z, lam, ok, by_backend = solve_qp((pred[agents].ravel() - q_a) / scale, cs, h, opts)
+            dz = (pred[agents].ravel() - q_a) / scale
+            z, lam, ok, by_backend = solve_qp(dz, cs, h, opts)
             solves += 1
+            gap = _gap(cs, z, dz, h, lam)
+            bound = float(scale.max() * math.sqrt(2.0 * gap)) if math.isfinite(gap) else math.inf
             y[agents] = (q_a + z * scale).reshape(-1, 2)
             lam_p, lam_s = lam[: len(rp)], lam[len(rp):]
             rp, rs = rows.residuals(y)
@@ -61,5 +72,18 @@ def project_weighted(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray,
             break
         cut = 3.0 * moved
     active = int(np.count_nonzero(rp <= ROW_TOLERANCE) + np.count_nonzero(rs <= ROW_TOLERANCE))
-    return Projection(y, rows, lam_p, lam_s, active, qp_size, solves, by_backend // 2,
-                      0.0 if by_backend == 0 else np.inf)
+    return Projection(y, rows, lam_p, lam_s, active, qp_size, solves, by_backend // 2, bound)
+
+
+def _gap(c: sp.csc_matrix, z: np.ndarray, d: np.ndarray, h: np.ndarray, lam: np.ndarray
+         ) -> float:
+    """Duality gap (m^2) of z (2M,) and lam (K,) for min 1/2 |z - d|^2 s.t. c z >= h: inf when
+    a row is broken or lam is negative or not finite."""
+    slack = c @ z - h
+    if not (np.all(np.isfinite(lam)) and np.all(lam >= 0.0) and np.all(np.isfinite(slack))):
+        return math.inf
+    if len(slack) and float(slack.min()) < 0.0:
+        return math.inf
+    r = z - d - c.T @ lam
+    # exact sums of correctly rounded products: the same bits on every CPU
+    return 0.5 * math.fsum((r * r).tolist()) + math.fsum((lam * slack).tolist())
