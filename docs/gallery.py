@@ -52,7 +52,7 @@ COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:
 
 def run_scene(name: str, work: Path) -> tuple[Path, float]:
     """``sweep run NAME`` in work: the recording and the wall time of the whole command (s)."""
-    out = work / f"{name}.mcap"
+    out = work / f"{name.replace('/', '_')}.mcap"
     start = time.perf_counter()
     done = subprocess.run([sys.executable, "-m", "sweep_core.cli", "run", name, "--t-end",
                            str(T_END), "--out", str(out), "--quiet"], cwd=work,
@@ -71,17 +71,25 @@ def draw(recording: Path, png: Path, snapshot: float, title: str) -> None:
     meta = load_run(recording)
     scene = meta.scene
     assert scene is not None
-    times, frames = [], []
-    for fr in FrameReader(meta, agents=False):
+    times, frames, last = [], [], None
+    for fr in FrameReader(meta, agents=True):
         t = fr.stamp_ns * 1e-9
         if snapshot - TRAIL - 1e-9 <= t <= snapshot + 1e-9:
+            # agents by id (a scene with sinks or sources changes who is present)
+            ids = (fr.agents["id"].astype(np.int64) if fr.agents is not None
+                   else np.arange(len(fr.positions)))
             times.append(t)
-            frames.append(fr.positions)
-    if not frames:
+            frames.append((ids, fr.positions))
+            last = fr
+    if not frames or last is None:
         raise SystemExit(f"{recording}: no frame before t = {snapshot} s")
-    path = np.stack(frames)                      # (T, N, 2)
+    width = max(scene.n_agents, max(int(ids.max(initial=-1)) + 1 for ids, _ in frames))
+    path = np.full((len(frames), width, 2), np.nan)  # (T, ids, 2), NaN where absent
+    for k, (ids, q) in enumerate(frames):
+        path[k, ids] = q
     t_snap = times[-1]
-    colour = np.full(scene.n_agents, COLOURS[0], dtype=object)
+    present, _ = frames[-1]
+    colour = np.full(width, COLOURS[0], dtype=object)
     groups: list[tuple[str, str]] = []
     members = getattr(scene.drift, "members", None)
     if members is not None:
@@ -90,8 +98,8 @@ def draw(recording: Path, png: Path, snapshot: float, title: str) -> None:
             groups.append((gname, COLOURS[k % len(COLOURS)]))
 
     geo = scene.geometry.at(t_snap)
-    lo = np.minimum(path.reshape(-1, 2).min(0), _geometry_box(geo)[0]) - 0.5
-    hi = np.maximum(path.reshape(-1, 2).max(0), _geometry_box(geo)[1]) + 0.5
+    lo = np.minimum(np.nanmin(path.reshape(-1, 2), axis=0), _geometry_box(geo)[0]) - 0.5
+    hi = np.maximum(np.nanmax(path.reshape(-1, 2), axis=0), _geometry_box(geo)[1]) + 0.5
     height = float(np.clip(7.0 * (hi[1] - lo[1]) / (hi[0] - lo[0]) + 1.2, 2.8, 7.5))
     fig, ax = plt.subplots(figsize=(8, height), dpi=110)
     if len(geo.segment_a):
@@ -99,12 +107,13 @@ def draw(recording: Path, png: Path, snapshot: float, title: str) -> None:
                                          colors="black", linewidths=2))
     for c, r in zip(geo.circle_center, geo.circle_radius):
         ax.add_patch(Circle(c, r, color="0.45"))
-    for i in range(scene.n_agents):
+    for i in range(width):
         ax.plot(path[:, i, 0], path[:, i, 1], color=colour[i], lw=0.6, alpha=0.5)
-    radii = scene.radii(t_snap)
-    disks = [Circle(p, r) for p, r in zip(path[-1], radii)]
-    ax.add_collection(PatchCollection(disks, facecolors=list(colour), edgecolors="black",
-                                      linewidths=0.3, alpha=0.9))
+    radii = (last.agents["radius"].astype(np.float64) if last.agents is not None
+             else scene.radii(t_snap))
+    disks = [Circle(p, r) for p, r in zip(path[-1, present], radii)]
+    ax.add_collection(PatchCollection(disks, facecolors=list(colour[present]),
+                                      edgecolors="black", linewidths=0.3, alpha=0.9))
     _draw_robots(ax, meta, snapshot)
     for gname, c in groups:
         ax.plot([], [], "o", color=c, label=gname)

@@ -74,12 +74,15 @@ def resolve_scene_path(scene: str | Path) -> Path:
             the bundled names).
     """
     path = Path(scene)
-    if path.exists() or str(path.parent) != ".":
+    if path.exists():
         return path
-    name = path.name[:-5] if path.name.endswith(".yaml") else path.name
+    text = str(scene)
+    name = text[:-5] if text.endswith(".yaml") else text
     names = bundled_names()
-    if name in names:
+    if name in names:  # a bundled name, e.g. bottleneck or rimea/rimea06_corner
         return scenes_dir() / f"{name}.yaml"
+    if str(path.parent) != ".":
+        return path
     raise SceneError("scene", f"no file {str(scene)!r} here, and no bundled scene of that name",
                      f"give the path of a scene YAML file, or a bundled scene: "
                      f"{', '.join(names)} (sweep scenes describes them)")
