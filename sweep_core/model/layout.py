@@ -1,0 +1,154 @@
+"""The walls and obstacles of a scene: its ``walls`` and ``obstacles`` lists (and the boundary
+walls of its map's blocked cells) validated and built into a :class:`Geometry`, with their
+normalised specs. Units: metres, seconds (a moving obstacle's velocity in m/s)."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from sweep_core import checks
+from sweep_core.errors import SceneError, show
+from sweep_core.model.geometry import Geometry
+from sweep_core.model.maps import OccupancyMap
+from sweep_core.model.outlines import chain_points
+
+__all__ = ["geometry_from_spec"]
+
+
+def _list(value: Any, field: str) -> list:
+    if value is None:
+        return []
+    if not isinstance(value, list):
+        raise SceneError(field, f"must be a list, got {type(value).__name__} {show(value)}",
+                         f"write {field} as a list of mappings, one '- kind: ...' per item")
+    return value
+
+
+def geometry_from_spec(data: dict, grid: OccupancyMap | None = None
+                       ) -> tuple[Geometry, list, list]:
+    """The scene dict's ``walls`` and ``obstacles`` (and the boundary walls of ``grid``'s
+    blocked cells) validated and built: the :class:`Geometry`, and the normalised walls and
+    obstacles specs. Raises SceneError naming the field, the value and the fix."""
+    hp_n, hp_c, hp_v, hp_i, sa, sb, s_i, cc, cr, c_i = ([] for _ in range(10))
+    s_poly: list[int] = []
+    s_part: list[int] = []
+    s_kind: list[str] = []
+    s_m: list[int] = []
+    walls_spec, obstacles_spec = [], []
+
+    def add_chain(points: np.ndarray, closed: bool, index: int, kind: str, polygon: int) -> None:
+        ends = np.roll(points, -1, axis=0) if closed else points[1:]
+        for part, (a, b) in enumerate(zip(points[: len(ends)], ends)):
+            sa.append(a)
+            sb.append(b)
+            s_i.append(index)
+            s_poly.append(polygon)
+            s_part.append(part)
+            s_kind.append(kind)
+            s_m.append(-1)
+
+    for k, wall in enumerate(_list(data.get("walls"), "walls")):
+        field = f"walls[{k}]"
+        checks.mapping(wall, field)
+        kind = checks.kind(wall, field, ("halfplane", "segment", "polyline"))
+        if kind == "polyline":
+            checks.mapping(wall, field, allowed={"kind", "points", "closed"}, required={"points"})
+            closed = wall.get("closed", False)
+            if not isinstance(closed, bool):
+                raise SceneError(f"{field}.closed", f"must be true or false, got {closed!r}",
+                                 "write closed: true for a room outline, false for an open chain")
+            points = chain_points(wall["points"], f"{field}.points", closed,
+                                  3 if closed else 2)
+            add_chain(points, closed, k, "polyline", -1)
+            walls_spec.append({"kind": kind, "points": points.tolist(), "closed": closed})
+            continue
+        if kind == "halfplane":
+            checks.mapping(wall, field, allowed={"kind", "normal", "offset", "velocity"},
+                           required={"normal", "offset"})
+            normal = checks.vec2(wall["normal"], f"{field}.normal")
+            norm = float(np.hypot(*normal))
+            if norm < 1e-12:
+                raise SceneError(f"{field}.normal", f"is the zero vector {show(normal)}",
+                                 "give the direction pointing into the free side, e.g. [1, 0]")
+            offset = checks.length(wall["offset"], f"{field}.offset", what="offset")
+            velocity = checks.number(wall.get("velocity", 0.0), f"{field}.velocity")
+            hp_n.append(normal / norm)
+            hp_c.append(offset)
+            hp_v.append(velocity)
+            hp_i.append(k)
+            walls_spec.append({"kind": kind, "normal": (normal / norm).tolist(), "offset": offset,
+                               "velocity": velocity})
+        else:
+            checks.mapping(wall, field, allowed={"kind", "a", "b"}, required={"a", "b"})
+            a, b = checks.point(wall["a"], f"{field}.a"), checks.point(wall["b"], f"{field}.b")
+            if np.hypot(*(b - a)) < 1e-12:
+                raise SceneError(field, f"has a == b = {show(a)} (a segment of zero length)",
+                                 "for a round obstacle use obstacles: [{kind: circle, ...}]")
+            add_chain(np.array([a, b]), False, k, "segment", -1)
+            walls_spec.append({"kind": kind, "a": a.tolist(), "b": b.tolist()})
+    mv_v: list[np.ndarray] = []
+    mv_w: list[float] = []
+    mv_p: list[np.ndarray] = []
+    c_m: list[int] = []
+
+    def motion(obs: dict, field: str, centre: np.ndarray) -> tuple[int, dict]:
+        """The obstacle's rigid motion row (-1: static) and its normalised keys."""
+        if not any(key in obs for key in ("velocity", "angular_velocity", "pivot")):
+            return -1, {}
+        v = checks.vec2(obs.get("velocity", [0.0, 0.0]), f"{field}.velocity")
+        w = checks.number(obs.get("angular_velocity", 0.0), f"{field}.angular_velocity")
+        pivot = checks.point(obs["pivot"], f"{field}.pivot") if "pivot" in obs else centre
+        mv_v.append(v)
+        mv_w.append(w)
+        mv_p.append(pivot)
+        return len(mv_w) - 1, {"velocity": v.tolist(), "angular_velocity": w,
+                               "pivot": pivot.tolist()}
+
+    moving = {"velocity", "angular_velocity", "pivot"}
+    for k, obs in enumerate(_list(data.get("obstacles"), "obstacles")):
+        field = f"obstacles[{k}]"
+        checks.mapping(obs, field)
+        if checks.kind(obs, field, ("circle", "polygon")) == "polygon":
+            checks.mapping(obs, field, allowed={"kind", "points"} | moving, required={"points"})
+            points = chain_points(obs["points"], f"{field}.points", True, 3)
+            first = len(sa)
+            add_chain(points, True, k, "polygon", k)
+            row, keys = motion(obs, field, points.mean(axis=0))
+            s_m[first:] = [row] * (len(sa) - first)
+            obstacles_spec.append({"kind": "polygon", "points": points.tolist(), **keys})
+            continue
+        checks.mapping(obs, field, allowed={"kind", "center", "radius"} | moving,
+                       required={"center", "radius"})
+        center = checks.point(obs["center"], f"{field}.center")
+        radius = checks.length(obs["radius"], f"{field}.radius", nonnegative=True)
+        cc.append(center)
+        cr.append(radius)
+        c_i.append(k)
+        row, keys = motion(obs, field, center)
+        c_m.append(row)
+        obstacles_spec.append({"kind": "circle", "center": center.tolist(), "radius": radius,
+                               **keys})
+
+    if grid is not None:
+        for part, (a, b) in enumerate(zip(*grid.segments())):
+            sa.append(a)
+            sb.append(b)
+            s_i.append(-1)
+            s_poly.append(-1)
+            s_part.append(part)
+            s_kind.append("map")
+            s_m.append(-1)
+
+    def arr(x: list, shape: tuple) -> np.ndarray:
+        return np.array(x, dtype=np.float64).reshape(shape)
+
+    geom = Geometry(arr(hp_n, (-1, 2)), arr(hp_c, (-1,)), arr(hp_v, (-1,)), arr(sa, (-1, 2)),
+                    arr(sb, (-1, 2)), arr(cc, (-1, 2)), arr(cr, (-1,)),
+                    np.array(hp_i, dtype=np.intp), np.array(s_i, dtype=np.intp),
+                    np.array(c_i, dtype=np.intp), np.array(s_poly, dtype=np.intp),
+                    np.array(s_part, dtype=np.intp), tuple(s_kind),
+                    arr(mv_v, (-1, 2)), arr(mv_w, (-1,)), arr(mv_p, (-1, 2)),
+                    np.array(s_m, dtype=np.intp),
+                    np.array(c_m, dtype=np.intp))
+    return geom, walls_spec, obstacles_spec
