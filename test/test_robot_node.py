@@ -130,11 +130,15 @@ def start(installed, tmp_path: Path, probe: RobotProbe, record: Path) -> Running
     node = Running(installed, tmp_path, {
         "scene": str(scene_path), "dt": DT, "seed": 5, "rate_hz": 50.0, "steps_per_tick": 2,
         "record": str(record), "record_flush_interval_s": 0.2, "publish_markers": False})
-    probe.connect(node)
-    for pub in (probe.robot_cmd, probe.initialpose):
-        probe.spin_until(lambda p=pub: p.get_subscription_count() > 0, DISCOVERY_S,
-                         f"sweep_node subscribing {pub.topic_name}", node)
-    probe.spin_until(lambda: probe.odom, DISCOVERY_S, "the first odometry", node)
+    try:  # a node that never comes up is stopped, not left running
+        probe.connect(node)
+        for pub in (probe.robot_cmd, probe.initialpose):
+            probe.spin_until(lambda p=pub: p.get_subscription_count() > 0, DISCOVERY_S,
+                             f"sweep_node subscribing {pub.topic_name}", node)
+        probe.spin_until(lambda: probe.odom, DISCOVERY_S, "the first odometry", node)
+    except BaseException:
+        node.stop(signal.SIGINT)
+        raise
     return node
 
 
@@ -292,10 +296,11 @@ def test_the_bundled_controller_drives_the_robot_to_its_goal(installed, probe, t
         "scene": str(scene_path), "dt": DT, "rate_hz": 50.0, "steps_per_tick": 2,
         "publish_markers": False, "enable_stamped_cmd_vel": False})
     exe, env = installed
-    controller = Running((exe.with_name("sweep_robot_controller"), env), tmp_path,
-                         {"scene": str(scene_path), "robot": "bot",
-                          "enable_stamped_cmd_vel": False}, name="controller")
-    try:
+    controller = None
+    try:  # the node is stopped whatever happens from here, the controller's start included
+        controller = Running((exe.with_name("sweep_robot_controller"), env), tmp_path,
+                             {"scene": str(scene_path), "robot": "bot",
+                              "enable_stamped_cmd_vel": False}, name="controller")
         probe.connect(node)
 
         def arrived():
@@ -307,7 +312,9 @@ def test_the_bundled_controller_drives_the_robot_to_its_goal(installed, probe, t
                          (None, "0"), WAIT_S, "diagnostics counting the commands", node)
         assert diag_value(probe, "robot_commands_refused") == "0"
     finally:
-        controller.stop(signal.SIGINT)
+        if controller is not None:
+            controller.stop(signal.SIGINT)
         code = node.stop(signal.SIGINT)
+    assert controller is not None
     assert code == 0, node.log
     assert "Traceback" not in node.log + controller.log, node.log + controller.log
