@@ -153,6 +153,16 @@ def per_agent(value: Any, n: int, field: str, *, positive: bool = False,
     return arr
 
 
+def items(value: Any, field: str, fix: str) -> list:
+    """A scene's optional list: [] when absent (None), the list itself, else SceneError naming
+    the field, the value (with its type) and ``fix``."""
+    if value is None:
+        return []
+    if not isinstance(value, list):
+        raise SceneError(field, f"must be a list, got {type(value).__name__} {show(value)}", fix)
+    return value
+
+
 def mapping(value: Any, field: str, allowed: set[str] | None = None,
             required: set[str] | None = None) -> dict:
     """A dict whose keys are within ``allowed`` and include ``required``."""

@@ -316,15 +316,15 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
         delays = draw_from_spec(raw["delays"], "flows.delays", n_agents, positive=False)
         spec["delays"] = delays.to_spec()
     sinks = []
-    for k, s in enumerate(_items(raw.get("sinks"), "flows.sinks")):
+    for k, s in enumerate(_listed(raw, "sinks")):
         sinks.append(region_from_spec(s, f"flows.sinks[{k}]"))
     spec["sinks"] = [s.spec for s in sinks]
     sources = [_source(s, f"flows.sources[{k}]", names)
-               for k, s in enumerate(_items(raw.get("sources"), "flows.sources"))]
+               for k, s in enumerate(_listed(raw, "sources"))]
     spec["sources"] = [s.spec for s in sources]
     journeys: list[Journey] = []
     seen: dict[int, int] = {}
-    for k, j in enumerate(_items(raw.get("journeys"), "flows.journeys")):
+    for k, j in enumerate(_listed(raw, "journeys")):
         g = _group(j.get("group") if isinstance(j, dict) else None, f"flows.journeys[{k}].group",
                    names)
         if g in seen:
@@ -350,13 +350,10 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
     return out
 
 
-def _items(value: Any, field: str) -> list:
-    if value is None:
-        return []
-    if not isinstance(value, list):
-        raise SceneError(field, f"must be a list, got {show(value)}",
-                         f"write {field} as a list, one '- ...' per item")
-    return value
+def _listed(raw: dict, key: str) -> list:
+    """flows.KEY, a list (empty when absent)."""
+    return checks.items(raw.get(key), f"flows.{key}",
+                        f"write flows.{key} as a list, one '- ...' per item")
 
 
 def _check_changing(flows: Flows, drift: Field, sigma: np.ndarray) -> None:

@@ -3,8 +3,6 @@ walls of its map's blocked cells) validated and built into a :class:`Geometry`, 
 normalised specs. Units: metres, seconds (a moving obstacle's velocity in m/s)."""
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from sweep_core import checks
@@ -15,14 +13,7 @@ from sweep_core.model.outlines import chain_points
 
 __all__ = ["geometry_from_spec"]
 
-
-def _list(value: Any, field: str) -> list:
-    if value is None:
-        return []
-    if not isinstance(value, list):
-        raise SceneError(field, f"must be a list, got {type(value).__name__} {show(value)}",
-                         f"write {field} as a list of mappings, one '- kind: ...' per item")
-    return value
+_LIST_FIX = "write {} as a list of mappings, one '- kind: ...' per item"
 
 
 def geometry_from_spec(data: dict, grid: OccupancyMap | None = None
@@ -48,7 +39,8 @@ def geometry_from_spec(data: dict, grid: OccupancyMap | None = None
             s_kind.append(kind)
             s_m.append(-1)
 
-    for k, wall in enumerate(_list(data.get("walls"), "walls")):
+    walls = checks.items(data.get("walls"), "walls", _LIST_FIX.format("walls"))
+    for k, wall in enumerate(walls):
         field = f"walls[{k}]"
         checks.mapping(wall, field)
         kind = checks.kind(wall, field, ("halfplane", "segment", "polyline"))
@@ -106,7 +98,8 @@ def geometry_from_spec(data: dict, grid: OccupancyMap | None = None
                                "pivot": pivot.tolist()}
 
     moving = {"velocity", "angular_velocity", "pivot"}
-    for k, obs in enumerate(_list(data.get("obstacles"), "obstacles")):
+    obstacles = checks.items(data.get("obstacles"), "obstacles", _LIST_FIX.format("obstacles"))
+    for k, obs in enumerate(obstacles):
         field = f"obstacles[{k}]"
         checks.mapping(obs, field)
         if checks.kind(obs, field, ("circle", "polygon")) == "polygon":

@@ -206,11 +206,10 @@ def robots_from_spec(value: Any, geometry: Geometry, positions: np.ndarray,
     """The scene's ``robots`` list validated, and its normalised spec. Each robot must not
     overlap a person (``positions`` (N, 2), ``radii`` (N,) at t = 0), another robot, a wall or
     an obstacle, nor stand in a blocked map cell (``blocked(points) -> (n,) bool``)."""
-    if value is None:
-        return (), []
-    if not isinstance(value, list):
-        raise SceneError("robots", f"must be a list, got {type(value).__name__} {show(value)}",
+    value = checks.items(value, "robots",
                          "write robots as a list of mappings, one '- name: ...' per robot")
+    if not value:
+        return (), []
     if len(value) > MAX_ROBOTS:
         raise SceneError("robots", f"has {len(value)} robots, more than {MAX_ROBOTS}",
                          f"keep at most {MAX_ROBOTS} robots")
