@@ -174,7 +174,7 @@ def _external(worker: Worker, name: str, qps: list[dict], build: list[float], dt
 
 def measure(n: int, scene: str, steps: int, warmup: int, baseline: bool,
             worker: Worker | None = None, limit_s: float = 30.0,
-            cromosim: bool = False, tol: float | None = None, backend: str = "clarabel"
+            cromosim: bool = False, tol: float | None = None, backend: str = "piqp"
             ) -> dict:
     """One row of the table (see the module docstring and COLUMNS); tol: the projection's
     certified tolerance (m; None: the default)."""
@@ -368,9 +368,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="evacuation steps before measuring (default 400: 8 s, the jam formed)")
     p.add_argument("--evacuation-steps", type=int, default=100, metavar="STEPS",
                    help="measured evacuation steps (default 100)")
-    p.add_argument("--backend", default="clarabel", metavar="NAME",
+    p.add_argument("--backend", default=projection.SolverOptions.backend, metavar="NAME",
                    help="QP solver of the clusters the exact solver does not take, in the "
-                        "measured steps: any installed one (default clarabel)")
+                        "measured steps: any installed one (default piqp)")
     p.add_argument("--backend-qps", type=int, default=3, metavar="K",
                    help="QPs of each jam (its first K measured steps) every installed backend "
                         "solves for the backend table (default 3; 0: no table)")
