@@ -17,7 +17,7 @@ from test_projection import reference
 
 import sweep_core as sc
 from sweep_core.numerics.constraints import linearise
-from sweep_core.numerics.projection import backends, clusters, pivot
+from sweep_core.numerics.projection import backends, clusters, pivot, polish
 
 project_module = importlib.import_module("sweep_core.numerics.projection.project")
 
@@ -124,3 +124,46 @@ def test_the_default_backend_is_piqp_in_its_baseline_build(monkeypatch):
     want, _, found = clusters.solve_active(target, c.tocsr(), h)
     assert found
     assert np.max(np.abs(x - want)) <= backends.ACCURACY["piqp"]
+
+
+def test_the_polish_keeps_every_row_and_only_lowers_the_bound():
+    """A backend's answer on a hexagonal jam, polished: every row still holds by the rounding
+    floor, the point is still within its (smaller) bound of the exact projection."""
+    target, c, h = small_cluster()
+    x, lam, ok = backends.solve_backend(target, c, h, replace(sc.SolverOptions(), eps_abs=1e-12))
+    assert ok is True
+    floor = 1e-15
+    moved = polish.shrink(x, c, h, floor)
+    assert (c @ moved - h).min() >= floor
+    want, _, found = clusters.solve_active(target, c.tocsr(), h)
+    assert found
+
+    def bound(y: np.ndarray) -> float:
+        # the certificate's gap for the primal point y and the backend's multipliers
+        r = y - target - c.T @ lam
+        return float(np.sqrt(2.0 * (0.5 * r @ r + lam @ (c @ y - h))))
+
+    assert bound(moved) < bound(x)
+    assert np.linalg.norm(moved - want) <= bound(moved)
+
+
+def test_a_jam_left_to_the_backend_is_polished_within_its_bound():
+    """Every cluster to the backend (no exact path, no rounds): the polished answers are the
+    exact projection within their bound, and the bound is below what the backend's own
+    answer proves (sqrt(2 x skin x sum of multipliers))."""
+    opts = sc.SolverOptions(exact_vars=0, method="clusters")
+    scene = sc.Scene.from_dict(hex_jam(8, 8))
+    sim = sc.Simulator(scene, dt=0.01, seed=3, solver=opts)
+    sim.step(3)
+    lowered = 0
+    for _ in range(4):
+        q, t1 = sim.positions, sim.t + sim.dt
+        sim.step()
+        proj = sim.last.projection
+        want = reference(scene, t1, q, sim.last.prediction)
+        dist = float(np.sqrt(((proj.y - want) ** 2).sum()))
+        assert proj.backend_agents > 0
+        assert dist <= proj.bound
+        total = float(proj.lam_pair.sum() + proj.lam_single.sum())
+        lowered += proj.bound < np.sqrt(2.0 * 1e-12 * total)
+    assert lowered, "the polish never proved a smaller bound than the skin's"

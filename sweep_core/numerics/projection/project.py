@@ -26,7 +26,7 @@ import numpy as np
 from sweep_core.errors import InfeasibleError
 from sweep_core.model.geometry import Geometry
 from sweep_core.numerics.constraints import Rows, linearise
-from sweep_core.numerics.projection import certified, dual
+from sweep_core.numerics.projection import certified, dual, polish
 from sweep_core.numerics.projection.clusters import row_matrix, solve_qp
 from sweep_core.numerics.projection.options import ROW_TOLERANCE, SolverOptions
 from sweep_core.numerics.projection.warm import carry_multipliers
@@ -183,23 +183,42 @@ def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
         xs, lam_sub, ok, by_backend = solve_qp(d[agents].ravel(), c, h[picked] + res.skin,
                                                opts)
         lam[picked] = lam_sub
-        x = dual.apply_multipliers(d, ri, rj, re, lam)
-        # the cluster solvers' own x, where it differs from d + A^T lam by more than rounding
-        # (an interior point's multipliers do not reproduce its x exactly), is kept with the
-        # residual term 1/2 |r|^2 of the certificate
-        r = np.zeros_like(d)
-        r[agents] = xs.reshape(-1, 2) - x[agents]
-        x[agents] += r[agents]
-        gap, _, _, _ = certified.certify(x, ri, rj, re, h, lam, label, clusters, opts.tol,
-                                         certified.rounding_floor(d, h))
-        # add 1/2 |r|^2 per cluster (x no longer equals d + A^T lam there)
-        gap = gap + 0.5 * np.bincount(label[agents], weights=(r[agents] ** 2).sum(axis=1),
-                                      minlength=clusters)
+        floor = certified.rounding_floor(d, h)
+        x, gap = _certified_point(d, ri, rj, re, h, lam, label, clusters, agents, xs, opts.tol,
+                                  floor)
+        if by_backend and float(np.sqrt(2.0 * gap.sum())) > opts.tol:
+            # an interior point's answer: moved towards the projection, kept per cluster
+            # where the certificate proves it closer
+            moved = polish.shrink(xs, c, h[picked], floor)
+            x2, gap2 = _certified_point(d, ri, rj, re, h, lam, label, clusters, agents, moved,
+                                        opts.tol, floor)
+            better = gap2 < gap
+            take = better[label] & (label >= 0)
+            x[take] = x2[take]
+            gap = np.where(better, gap2, gap)
     bound = float(np.sqrt(2.0 * gap.sum()))
     # y = p + A^T lam (+ r): agents in no row, or with no multiplier, keep their prediction
     # bit for bit
     y = pred + (x - d)
     return y, lam, bound, by_backend // 2, res.sweeps, agent_todo, ok
+
+
+def _certified_point(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray,
+                     h: np.ndarray, lam: np.ndarray, label: np.ndarray, clusters: int,
+                     agents: np.ndarray, xs: np.ndarray, tol: float, floor: float
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """x (N, 2): d + A^T lam, with the cluster solvers' own answer xs (2 per agent of
+    ``agents``) there, and the gap (m^2) of each cluster for x and lam."""
+    x = dual.apply_multipliers(d, ri, rj, re, lam)
+    # the cluster solvers' own x, where it differs from d + A^T lam by more than rounding (an
+    # interior point's multipliers do not reproduce its x exactly), is kept with the residual
+    # term 1/2 |r|^2 of the certificate
+    r = xs.reshape(-1, 2) - x[agents]
+    x[agents] += r
+    gap, _, _, _ = certified.certify(x, ri, rj, re, h, lam, label, clusters, tol, floor)
+    gap = gap + 0.5 * np.bincount(label[agents], weights=(r ** 2).sum(axis=1),
+                                  minlength=clusters)
+    return x, gap
 
 
 def _culprits(rows: Rows, rp: np.ndarray, rs: np.ndarray, count: int = 6) -> list[int]:
