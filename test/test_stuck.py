@@ -17,7 +17,7 @@ from test_projection import reference
 
 import sweep_core as sc
 from sweep_core.numerics.constraints import linearise
-from sweep_core.numerics.projection import backends, clusters, pivot, polish
+from sweep_core.numerics.projection import backends, certified, clusters, pivot, polish
 
 project_module = importlib.import_module("sweep_core.numerics.projection.project")
 
@@ -47,6 +47,8 @@ def test_a_cluster_the_rounds_leave_skips_them_until_the_retry(monkeypatch):
     assert seen[k + 1][0] == 0 and seen[k + 1][1] > 0 and seen[k + 1][2] == 1, seen
     assert seen[k + 2][0] == 0 and seen[k + 2][2] == 2, seen
     assert seen[k + 3][0] > 0 and seen[k + 3][2] == 0, seen
+    # and the retry's rounds are capped
+    assert seen[k + 3][0] <= project_module.RETRY_ROUNDS * certified.SWEEPS, seen
 
 
 def test_without_a_previous_step_nothing_is_skipped():

@@ -34,6 +34,9 @@ from sweep_core.numerics.projection.warm import carry_multipliers
 #: a cluster the certified rounds left to the cluster solvers is sent there directly on the
 #: following steps, and given the rounds again on one step in RETRY
 RETRY = 10
+#: rounds at most on a retry (a jam that has become solvable certifies in 4 to 10; the rounds
+#: of a cluster that has not cost a few times the backend's solve otherwise)
+RETRY_ROUNDS = 10
 
 
 @dataclass(frozen=True)
@@ -110,7 +113,8 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
             start = (carry_multipliers(warm.rows, np.concatenate([warm.lam_pair,
                                                                   warm.lam_single]), rows, n)
                      if opts.warm_start and warm is not None and len(warm.y) == n else None)
-            solved = _solve(rows, q, pred, opts, start, skip)
+            solved = _solve(rows, q, pred, opts, start, skip,
+                            RETRY_ROUNDS if held_for and skip is None else None)
             solves += 1
             y, lam, bound, by_backend, sweeps, todo, ok = solved
             fallback = int(np.count_nonzero(todo))
@@ -137,17 +141,20 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
 
 
 def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
-           start: np.ndarray | None, skip: np.ndarray | None
+           start: np.ndarray | None, skip: np.ndarray | None, cap: int | None = None
            ) -> tuple[np.ndarray, np.ndarray, float, int, int, np.ndarray, bool]:
     """The QP of ``rows``: y (N, 2), multipliers (K,), certified bound (m), agents solved by
     the interior-point backend, Gauss-Seidel sweeps, the agents (N,) bool of the clusters left
     to the cluster solvers, and whether every cluster was solved. skip: (N,) bool or None,
-    agents whose clusters go to the cluster solvers without the certified rounds."""
+    agents whose clusters go to the cluster solvers without the certified rounds; cap: the
+    rounds at most (None: ``opts.max_rounds``)."""
     n = len(q)
     ri, rj, re, h = rows.displacement_rows(q)
     d = pred - q
     lam0 = start if start is not None else np.zeros(len(ri))
     rounds = opts.max_rounds if opts.method == "certified" else 0
+    if cap is not None:
+        rounds = min(rounds, cap)
     label, clusters = dual.cluster_labels(n, ri, rj)
     held = np.zeros(len(ri), dtype=bool)  # rows of the clusters that skip the rounds
     if skip is not None and rounds > 0:
