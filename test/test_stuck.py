@@ -22,21 +22,27 @@ from sweep_core.numerics.projection import backends, certified, clusters, pivot,
 project_module = importlib.import_module("sweep_core.numerics.projection.project")
 
 
+def hex_steps(steps: int, warmup: int, opts: sc.SolverOptions | None = None):
+    """(projection, its distance to the exact projection) of each step of a pressed 8 x 8
+    hexagonal lattice after ``warmup`` steps."""
+    scene = sc.Scene.from_dict(hex_jam(8, 8))
+    sim = sc.Simulator(scene, dt=0.01, seed=3, solver=opts)
+    sim.step(warmup)
+    for _ in range(steps):
+        q, t1 = sim.positions, sim.t + sim.dt
+        sim.step()
+        want = reference(scene, t1, q, sim.last.prediction)
+        proj = sim.last.projection
+        yield proj, float(np.sqrt(((proj.y - want) ** 2).sum()))
+
+
 def test_a_cluster_the_rounds_leave_skips_them_until_the_retry(monkeypatch):
     """A pressed hexagonal lattice (degenerate: the rounds stall and hand it over): on the
     steps after a hand-over the rounds are skipped (no sweeps), on every RETRY-th they run
     again, and every answer is the exact projection to 1e-8 m, within its bound."""
     monkeypatch.setattr(project_module, "RETRY", 3)
-    scene = sc.Scene.from_dict(hex_jam(8, 8))
-    sim = sc.Simulator(scene, dt=0.01, seed=3)
-    sim.step(2)
     seen = []
-    for _ in range(14):
-        q, t1 = sim.positions, sim.t + sim.dt
-        sim.step()
-        proj = sim.last.projection
-        want = reference(scene, t1, q, sim.last.prediction)
-        dist = float(np.sqrt(((proj.y - want) ** 2).sum()))
+    for proj, dist in hex_steps(14, 2):
         assert dist <= proj.bound + 1e-12 and dist < 1e-8
         seen.append((proj.sweeps, proj.fallback_agents, proj.stuck_steps))
     handed = [k for k, (sweeps, fallback, held) in enumerate(seen) if sweeps > 0 and fallback]
@@ -153,17 +159,8 @@ def test_a_jam_left_to_the_backend_is_polished_within_its_bound():
     """Every cluster to the backend (no exact path, no rounds): the polished answers are the
     exact projection within their bound, and the bound is below what the backend's own
     answer proves (sqrt(2 x skin x sum of multipliers))."""
-    opts = sc.SolverOptions(exact_vars=0, method="clusters")
-    scene = sc.Scene.from_dict(hex_jam(8, 8))
-    sim = sc.Simulator(scene, dt=0.01, seed=3, solver=opts)
-    sim.step(3)
     lowered = 0
-    for _ in range(4):
-        q, t1 = sim.positions, sim.t + sim.dt
-        sim.step()
-        proj = sim.last.projection
-        want = reference(scene, t1, q, sim.last.prediction)
-        dist = float(np.sqrt(((proj.y - want) ** 2).sum()))
+    for proj, dist in hex_steps(4, 3, sc.SolverOptions(exact_vars=0, method="clusters")):
         assert proj.backend_agents > 0
         assert dist <= proj.bound
         total = float(proj.lam_pair.sum() + proj.lam_single.sum())
