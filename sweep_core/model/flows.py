@@ -11,7 +11,8 @@ user's page; the run-time state (who is present, who left) is
       sources:  [{region, rate | times, start, count, radius, group, speeds, delays}, ...]
       journeys: [{group, legs: [{goal: [x, y]} | {region: {...}}, ...], arrive_radius,
                   cell, wall_buffer}, ...]
-      headway:  {time_gap: T, margin: w}    s, m
+      headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D}   s, -, m
+              | {law: lanes, time_gap: T, margin: w}                      s, m
 
 Regions: :mod:`sweep_core.model.regions`. Values drawn from a distribution are drawn per run
 from the run's seed (:func:`draw`), never stored in the spec.
@@ -29,10 +30,20 @@ from sweep_core.errors import SceneError, show
 from sweep_core.model.fields import Field, Groups
 from sweep_core.model.regions import Region, region_from_spec
 
-#: time gap T (s) of the headway law when the scene gives none: calibrated against Weidmann's
-#: speed-density relation in a ring corridor (docs/flows.md, scripts/calibrate_headway.py)
-DEFAULT_TIME_GAP = 0.35
-#: lateral margin w (m) of the headway law when the scene gives none (calibrated with T)
+#: the speed laws of ``flows.headway``: the collision-free speed model (numerics/csm.py) and
+#: the free distance with a lateral margin (numerics/headway.py)
+LAWS = ("csm", "lanes")
+#: the law, time gap T (s), repulsion strength a and range D (m) of ``flows.headway`` when the
+#: scene gives none: calibrated jointly against Weidmann's speed-density relation in a ring
+#: corridor and the bottleneck flows of Seyfried et al. (docs/validation.md,
+#: scripts/calibrate_speed_law.py)
+DEFAULT_LAW = "csm"
+DEFAULT_TIME_GAP = 1.0
+DEFAULT_REPULSION = 5.0
+DEFAULT_REPULSION_RANGE = 0.1
+#: the ``lanes`` law's time gap T (s) and lateral margin w (m) when the scene gives none
+#: (calibrated against Weidmann alone, scripts/calibrate_headway.py)
+LANES_TIME_GAP = 0.35
 DEFAULT_MARGIN = 0.3
 #: most agents one source may emit
 MAX_SOURCE_COUNT = 100_000
@@ -169,6 +180,9 @@ class Flows:
     margin: float
     group_speed: np.ndarray
     spec: dict
+    law: str = DEFAULT_LAW
+    repulsion: float = 0.0
+    repulsion_range: float = DEFAULT_REPULSION_RANGE
 
     @property
     def changes_population(self) -> bool:
@@ -335,19 +349,48 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
         journeys.append(_journey(j, f"flows.journeys[{k}]", names, float(gspeed[g]), geometry,
                                  grid))
     spec["journeys"] = [j.spec for j in journeys]
-    time_gap, margin = None, 0.0
-    if raw.get("headway") is not None:
-        hw = checks.mapping(raw["headway"], "flows.headway", allowed={"time_gap", "margin"})
-        time_gap = checks.number(hw.get("time_gap", DEFAULT_TIME_GAP), "flows.headway.time_gap",
-                                 positive=True)
-        margin = checks.length(hw.get("margin", DEFAULT_MARGIN), "flows.headway.margin",
-                               nonnegative=True)
-        spec["headway"] = {"time_gap": time_gap, "margin": margin}
-    out = Flows(speeds, delays, tuple(sinks), tuple(sources), tuple(journeys), time_gap,
-                margin, gspeed, spec)
+    law = headway_from_spec(raw.get("headway"))
+    if law is not None:
+        spec["headway"] = law
+    out = Flows(speeds, delays, tuple(sinks), tuple(sources), tuple(journeys),
+                None if law is None else law["time_gap"], law.get("margin", 0.0) if law else 0.0,
+                gspeed, spec, law["law"] if law else DEFAULT_LAW,
+                law.get("repulsion", 0.0) if law else 0.0,
+                law.get("repulsion_range", DEFAULT_REPULSION_RANGE) if law else
+                DEFAULT_REPULSION_RANGE)
     if out.changes_population:
         _check_changing(out, drift, sigma)
     return out
+
+
+def headway_from_spec(raw: Any) -> dict | None:
+    """``flows.headway`` validated and normalised (None: absent): ``law`` (``csm``, default,
+    or ``lanes``; a ``margin`` without a ``law`` is the ``lanes`` law, whose parameter it is)
+    with its parameters, defaults filled in."""
+    if raw is None:
+        return None
+    hw = checks.mapping(raw, "flows.headway", allowed={"law", "time_gap", "margin", "repulsion",
+                                                       "repulsion_range"})
+    law = hw.get("law", "lanes" if "margin" in hw else DEFAULT_LAW)
+    if law not in LAWS:
+        raise SceneError("flows.headway.law", f"unknown law {show(law)}",
+                         f"use one of {', '.join(LAWS)} (or omit it for {DEFAULT_LAW})")
+    own = {"csm": {"repulsion", "repulsion_range"}, "lanes": {"margin"}}[law]
+    for key in sorted(set(hw) - own - {"law", "time_gap"}):
+        raise SceneError(f"flows.headway.{key}", f"is not a parameter of the {law} law",
+                         "remove it, or set flows.headway.law to the law it belongs to")
+    if law == "lanes":
+        return {"law": law, "time_gap": checks.number(hw.get("time_gap", LANES_TIME_GAP),
+                                                      "flows.headway.time_gap", positive=True),
+                "margin": checks.length(hw.get("margin", DEFAULT_MARGIN), "flows.headway.margin",
+                                        nonnegative=True)}
+    return {"law": law,
+            "time_gap": checks.number(hw.get("time_gap", DEFAULT_TIME_GAP),
+                                      "flows.headway.time_gap", positive=True),
+            "repulsion": checks.number(hw.get("repulsion", DEFAULT_REPULSION),
+                                       "flows.headway.repulsion", nonnegative=True),
+            "repulsion_range": checks.length(hw.get("repulsion_range", DEFAULT_REPULSION_RANGE),
+                                             "flows.headway.repulsion_range", positive=True)}
 
 
 def _listed(raw: dict, key: str) -> list:

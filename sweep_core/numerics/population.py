@@ -29,6 +29,7 @@ from sweep_core.model.flows import Flows, Source, draw
 from sweep_core.model.geometry import single_rows
 from sweep_core.model.maps import OccupancyMap, map_from_spec
 from sweep_core.model.scene import Scene
+from sweep_core.numerics.csm import csm
 from sweep_core.numerics.headway import headway
 
 #: the flows' random stream: a SeedSequence entry beside the run's seed
@@ -149,8 +150,11 @@ class Population:
             u *= (self.speed[ids] / self.flows.group_speed[group])[:, None]
         if self.waits:
             u[t < self.start[ids]] = 0.0
-        if self.flows.time_gap is not None:
-            u = headway(q, self.radius[ids], u, self.flows.time_gap, self.flows.margin)
+        law = self.flows
+        if law.time_gap is not None and law.law == "csm":
+            u = csm(q, self.radius[ids], u, law.time_gap, law.repulsion, law.repulsion_range)
+        elif law.time_gap is not None:
+            u = headway(q, self.radius[ids], u, law.time_gap, law.margin)
         return u
 
     # -- after a step ---------------------------------------------------------------------------

@@ -26,7 +26,6 @@ from pathlib import Path
 import numpy as np
 
 from sweep_core.analysis.pedpy_export import density_speed, line_flow, rectangle
-from sweep_core.model.flows import DEFAULT_TIME_GAP
 from sweep_core.model.ring import ring_corridor, weidmann
 from sweep_core.verify.base import Case, Test, Trace, Verdict
 from sweep_core.verify.figures import figure, save
@@ -58,9 +57,11 @@ def _cases_4(quick: bool) -> list[Case]:
     out = []
     for rho in QUICK_DENSITIES if quick else DENSITIES:
         for law in LAWS:
-            gap = DEFAULT_TIME_GAP if law == "headway" else None
+            spec = ring_corridor(rho)
+            if law == "headway":
+                spec["flows"] = {"headway": {}}  # the default law at its default parameters
             out.append(Case(f"{law}/{rho:g}", "ring", 30.0 if quick else 70.0,
-                            inline=ring_corridor(rho, time_gap=gap), record_every=5))
+                            inline=spec, record_every=5))
     return out
 
 
@@ -141,10 +142,10 @@ WIDTHS = (0.8, 1.0, 1.2)
 PEOPLE = 150
 
 
-def bottleneck_scene(width: float, time_gap: float | None, people: int = PEOPLE) -> dict:
+def bottleneck_scene(width: float, headway: dict | None, people: int = PEOPLE) -> dict:
     """A 10 m x 8 m room, a 2 m long bottleneck of ``width`` m centred at y = 4 m, open space
-    beyond it, where agents leave 1 m after the bottleneck; the headway law with
-    ``time_gap`` (s; None: the pure model)."""
+    beyond it, where agents leave 1 m after the bottleneck; ``headway`` the scene's
+    ``flows.headway`` ({}: the default law; None: the pure model)."""
     lo, hi = 4.0 - width / 2, 4.0 + width / 2
     spec: dict = {
         "name": f"bottleneck_{width:g}",
@@ -161,8 +162,8 @@ def bottleneck_scene(width: float, time_gap: float | None, people: int = PEOPLE)
                              "min": 0.58, "max": 1.61},
                   "sinks": [{"kind": "rectangle", "min": [13.0, 0.0], "max": [15.0, 8.0]}]},
     }
-    if time_gap is not None:
-        spec["flows"]["headway"] = {"time_gap": time_gap}
+    if headway is not None:
+        spec["flows"]["headway"] = dict(headway)
     return spec
 
 
@@ -176,8 +177,7 @@ def experiments() -> list[tuple[str, float, float]]:
 def _cases_b(quick: bool) -> list[Case]:
     people = 60 if quick else PEOPLE
     return [Case(f"{law}/{w:g}", "bottleneck", 400.0,
-                 inline=bottleneck_scene(w, DEFAULT_TIME_GAP if law == "headway" else None,
-                                         people),
+                 inline=bottleneck_scene(w, {} if law == "headway" else None, people),
                  record_every=2, stop_when_empty=True)
             for w in WIDTHS for law in LAWS]
 
@@ -197,7 +197,8 @@ def steady_flow(tr: Trace, width: float) -> float:
     return (b - a) / (t[b] - t[a]) if t[b] > t[a] else math.nan
 
 
-def _seyfried(width: float) -> float:
+def seyfried(width: float) -> float:
+    """Seyfried et al.'s flow (1/s) at a width (m), interpolated linearly."""
     pts = [(w, j) for s, w, j in experiments() if s == "seyfried2009"]
     return float(np.interp(width, [w for w, _ in pts], [j for _, j in pts]))
 
@@ -211,13 +212,13 @@ def _judge_b(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
     n_seeds = len(next(iter(traces.values())))
     values, ok = [], []
     for k in range(n_seeds):
-        worst = max(abs(flows["headway"][w][k] / _seyfried(w) - 1.0) for w in WIDTHS)
+        worst = max(abs(flows["headway"][w][k] / seyfried(w) - 1.0) for w in WIDTHS)
         values.append(worst)
         ok.append(worst <= TARGET)
     notes = "; ".join(
         f"{law}: " + ", ".join(f"w {w:g} m J/w {np.nanmean(js) / w:.2f}" for w, js in
                                sorted(flows[law].items())) for law in LAWS)
-    notes += "; Seyfried 2009 J/w " + ", ".join(f"{w:g}: {_seyfried(w) / w:.2f}"
+    notes += "; Seyfried 2009 J/w " + ", ".join(f"{w:g}: {seyfried(w) / w:.2f}"
                                                 for w in WIDTHS)
     verdict = Verdict(values, ok, "", notes)
     verdict.figures = flows
