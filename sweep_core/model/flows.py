@@ -11,6 +11,7 @@ user's page; the run-time state (who is present, who left) is
       sources:  [{region, rate | times, start, count, radius, group, speeds, delays}, ...]
       journeys: [{group, legs: [{goal: [x, y]} | {region: {...}}, ...], arrive_radius,
                   cell, wall_buffer}, ...]
+      exit_choice: [{group, exits: [{region} | {goal}, ...], capacity}, ...]   (exit_choice.py)
       headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D}   s, -, m
               | {law: lanes, time_gap: T, margin: w}                      s, m
 
@@ -27,6 +28,7 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
+from sweep_core.model.exit_choice import ExitChoice, exit_choice_from_spec
 from sweep_core.model.fields import Field, Groups
 from sweep_core.model.regions import Region, region_from_spec
 
@@ -183,6 +185,7 @@ class Flows:
     law: str = DEFAULT_LAW
     repulsion: float = 0.0
     repulsion_range: float = DEFAULT_REPULSION_RANGE
+    exit_choices: tuple[ExitChoice, ...] = ()
 
     @property
     def changes_population(self) -> bool:
@@ -315,7 +318,7 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
     if raw is None:
         return None
     checks.mapping(raw, "flows", allowed={"speeds", "delays", "sinks", "sources", "journeys",
-                                          "headway"})
+                                          "exit_choice", "headway"})
     names: tuple[str, ...] = drift.names if isinstance(drift, Groups) else ()
     if isinstance(drift, Groups):
         gspeed = np.array(list(drift.speeds) + [float(getattr(drift.rest, "speed", speed))])
@@ -349,6 +352,20 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
         journeys.append(_journey(j, f"flows.journeys[{k}]", names, float(gspeed[g]), geometry,
                                  grid))
     spec["journeys"] = [j.spec for j in journeys]
+    choices: list[ExitChoice] = []
+    for k, c in enumerate(_listed(raw, "exit_choice")):
+        field = f"flows.exit_choice[{k}]"
+        g = _group(c.get("group") if isinstance(c, dict) else None, f"{field}.group", names)
+        if g in seen:
+            raise SceneError(f"{field}.group", f"gives group {show(c.get('group'))} an exit "
+                             "choice and a journey", "give a group a journey or an exit choice")
+        if any(o.group == g for o in choices):
+            raise SceneError(f"{field}.group", f"gives group {show(c.get('group'))} a second "
+                             "exit choice", "give each group one exit choice")
+        choices.append(exit_choice_from_spec(c, field, g, names[g] if g >= 0 else None,
+                                             float(gspeed[g]), geometry, grid))
+    if choices:
+        spec["exit_choice"] = [c.spec for c in choices]
     law = headway_from_spec(raw.get("headway"))
     if law is not None:
         spec["headway"] = law
@@ -357,7 +374,7 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
                 gspeed, spec, law["law"] if law else DEFAULT_LAW,
                 law.get("repulsion", 0.0) if law else 0.0,
                 law.get("repulsion_range", DEFAULT_REPULSION_RANGE) if law else
-                DEFAULT_REPULSION_RANGE)
+                DEFAULT_REPULSION_RANGE, tuple(choices))
     if out.changes_population:
         _check_changing(out, drift, sigma)
     return out
