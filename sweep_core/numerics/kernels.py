@@ -118,7 +118,7 @@ def _exercise() -> None:
     neighbours.segments_within(far[:4], far[:3], far[3:6], 1.0)
     # the headway law's kernels (flows.headway)
     headway.headway(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 1.0)
-    csm.csm(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 1.0, 5.0, 0.1)
+    csm.csm(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 0.8, 2.0, 0.1)
     exit_choice.assign(far[:8, :2].copy(), np.ones(2))
     # kernels a small jam may not reach (the factored face step's products, the bridge's
     # logarithm of a wall contact), called with the types their callers pass
