@@ -1,6 +1,7 @@
 """RiMEA test 4 (the fundamental diagram) and the bottleneck validation (specific flow
 against width, with the experiments of Seyfried et al. 2009 and Kretz et al. 2006), each with
-the headway speed law at its default time gap and without it (the pure model).
+the default speed law (flows.headway: {}, the csm law at its defaults) and without it (the
+pure model).
 
 Fundamental diagram: the ring corridor of :func:`sweep_core.model.ring.ring_corridor` (inner
 radius 3 m, outer 5 m, disks of 0.2 m) holds a fixed density N / area; RiMEA asks for the
@@ -9,11 +10,11 @@ m^2 cannot be placed at random with 0.2 m disks (random sequential addition jams
 coverage of 0.547; in this ring 183 disks fit where 4 per m^2 needs 201), so the diagram
 stops at 3.5 per m^2. Speed and density are measured by
 PedPy (Voronoi density and speed) in a 2 m x 1.5 m area of the ring. Target: with the
-headway law, the mean speed within 15 % of Weidmann's at 0.5 to 3 per m^2.
+speed law, the mean speed within 15 % of Weidmann's at 0.5 to 3 per m^2.
 
 Bottleneck: a 10 m x 8 m room, a 2 m long bottleneck of width w (0.8, 1.0, 1.2 m), 150
 people; the flow J (1/s) where the bottleneck ends, by PedPy's crossings, between the 10th and
-the 90th percent of the crossings; specific flow J / w. Target: with the headway law, J within
+the 90th percent of the crossings; specific flow J / w. Target: with the speed law, J within
 15 % of Seyfried et al.'s at the same width.
 """
 from __future__ import annotations
@@ -100,7 +101,7 @@ def _judge_4(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
         return ", ".join(f"{rho:g}: {np.nanmean([v for _, v in s]):.2f}" for rho, s in
                          sorted(d.items()))
 
-    notes = (f"speeds (m/s) with the headway law {row(head)}; pure model {row(pure)}; "
+    notes = (f"speeds (m/s) with the speed law {row(head)}; pure model {row(pure)}; "
              "Weidmann " + ", ".join(f"{r:g}: {float(weidmann(r)):.2f}" for r in sorted(head)))
     verdict = Verdict(values, ok, "", notes)
     verdict.figures = {"headway": head, "pure": pure}
@@ -119,7 +120,7 @@ def _plot_4(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> l
             d = np.asarray([p[0] for p in pts])
             v = np.asarray([p[1] for p in pts])
             ax.scatter(d, v * (d if what == "flow" else 1.0), marker=marker, s=18,
-                       label=f"{'headway law (default time gap)' if law == 'headway' else 'pure model'}")
+                       label=f"{'speed law (csm, defaults)' if law == 'headway' else 'pure model'}")
         ax.set_xlabel("Voronoi density (1/m^2)")
         ax.set_ylabel("speed (m/s)" if what == "speed" else "specific flow (1/(m s))")
         ax.set_title(f"RiMEA 4: fundamental diagram in a ring corridor ({what})")
@@ -130,7 +131,7 @@ def _plot_4(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> l
 
 TEST_4 = Test(
     "rimea4", "RiMEA 4 fundamental diagram",
-    "largest relative departure of the mean speed (headway law) from Weidmann's at "
+    "largest relative departure of the mean speed (speed law) from Weidmann's at "
     "0.5-3 /m^2 (ring corridor, PedPy Voronoi)", f"<= {TARGET:.0%} (target; RiMEA sets none)",
     _cases_4, _judge_4, _plot_4,
     source="RiMEA 3.0 test 4; Weidmann 1993; the ring corridor of sweep_core.model.ring",
@@ -237,7 +238,7 @@ def _plot_b(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> l
         js = [np.asarray(verdict.figures[law][w]) / w for w in ws]
         ax.errorbar(ws, [np.nanmean(j) for j in js], yerr=[np.nanstd(j) for j in js],
                     marker="o", capsize=3,
-                    label="headway law (default time gap)" if law == "headway" else "pure model")
+                    label="speed law (csm, defaults)" if law == "headway" else "pure model")
     ax.set_xlabel("bottleneck width w (m)")
     ax.set_ylabel("specific flow J / w (1/(m s))")
     ax.set_title("Bottleneck: specific flow against width")
@@ -247,7 +248,7 @@ def _plot_b(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> l
 
 TEST_BOTTLENECK = Test(
     "bottleneck", "Bottleneck flow against width (validation)",
-    "largest relative departure of the flow (headway law) from Seyfried et al. 2009 at "
+    "largest relative departure of the flow (speed law) from Seyfried et al. 2009 at "
     "widths 0.8, 1.0, 1.2 m (150 people)", f"<= {TARGET:.0%} (target)",
     _cases_b, _judge_b, _plot_b,
     source="Seyfried et al. 2009, Kretz et al. 2006 (data as in JuPedSim's validation folder)",

@@ -226,7 +226,7 @@ def _judge_12(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
     pure = [_jams(tr) for tr in traces["pure"]]
     notes = ("peak density before the corridor " + ", ".join(f"{b:.2f}" for _, _, b in flows)
              + "; flows corridor/exit " + ", ".join(f"{a:.2f}/{b:.2f}" for a, b, _ in flows)
-             + " 1/s; without the headway law, peak densities corridor/exit "
+             + " 1/s; without a speed law, peak densities corridor/exit "
              + ", ".join(f"{a:.2f}/{b:.2f}" for a, b, _, _ in pure) + " /m^2, flows "
              + ", ".join(f"{c:.2f}/{d:.2f}" for _, _, c, d in pure) + " 1/s")
     return Verdict(values, ok, " /m^2", notes)
@@ -234,7 +234,7 @@ def _judge_12(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
 
 TEST_12 = Test(
     "rimea12", "RiMEA 12 bottleneck between two rooms",
-    "peak classic density (PedPy) in 2 m x 2 m before the exit, with the headway law",
+    "peak classic density (PedPy) in 2 m x 2 m before the exit, with the speed law",
     f"< {JAM_DENSITY:g} /m^2, and >= {JAM_DENSITY:g} before the corridor",
     _cases_12, _judge_12, source="RiMEA 3.0 test 12 (documentation only in the guideline); "
     "JuPedSim's flows at the corridor's end and 1 m before the exit")
