@@ -147,7 +147,7 @@ EXIT_2 = ((27.0, 20.0), (28.0, 21.0))
 
 def _cases_11(quick: bool) -> list[Case]:
     n = 150 if quick else 1000
-    return [Case("hall", "rimea11_exits", 120.0 if quick else 400.0,
+    return [Case("hall", "rimea11_exits", 120.0 if quick else 900.0,
                  (("agents.spawn.count", n),), stop_when_empty=True)]
 
 
