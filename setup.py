@@ -26,6 +26,7 @@ setup(
         "scipy>=1.10",
         "proxsuite>=0.6",
         "clarabel>=0.9",
+        "piqp==0.6.4",
         "qpsolvers>=4.0",
         "PyYAML>=6",
         "mcap>=1.6",

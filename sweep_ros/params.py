@@ -132,7 +132,7 @@ SPECS: tuple[ParamSpec, ...] = (
               False, 0, 100000),
     ParamSpec("solver_backend", _DEFAULT_SOLVER.backend, "QP solver (through qpsolvers) of "
               "the contact clusters too large for the exact active-set solver: any installed "
-              "one (clarabel, piqp, osqp, proxqp, ...).", False,
+              "one (piqp, clarabel, osqp, proxqp, ...).", False,
               constraints="the name of an installed QP solver"),
     ParamSpec("solver_tol", _DEFAULT_SOLVER.tol, "Certified accuracy of each projection, m: "
               "every step's distance to the exact projection is proved below it (reported as "

@@ -73,3 +73,19 @@ def test_proxsuite_is_read_as_proxqp():
     if "proxqp" not in qpsolvers.available_solvers:
         pytest.skip("proxsuite is not installed")
     assert sc.SolverOptions.from_values(backend="proxsuite").backend == "proxqp"
+
+
+def test_a_factored_face_step_leaves_cvxopt_as_it_found_it():
+    """The face step's factorisation sets CHOLMOD's options for itself only: cvxopt's QP
+    solver, which reads them, still solves the small jam after one (it failed on it while the
+    simplicial setting stayed behind)."""
+    from cvxopt import cholmod
+
+    from sweep_core.numerics.projection import factored
+    before = dict(cholmod.options)
+    m = factored.face_matrix(3, np.array([0, 1]), np.array([0, 1]), np.array([1, 2]),
+                             np.array([[1.0, 0.0], [0.0, 1.0]]))
+    assert factored.factorise((m @ m.T).tocsr()) is not None
+    assert dict(cholmod.options) == before
+    if "cvxopt" in qpsolvers.available_solvers:
+        test_every_installed_backend_solves_a_small_jam("cvxopt")

@@ -22,9 +22,9 @@ from test_node import (  # noqa: F401 - installed and probe are fixtures
     DT,
     SCENE,
     Running,
-    _read_standard,
     installed,
     probe,
+    read_standard,
 )
 
 from sweep_ros import client as sweep_client
@@ -123,7 +123,7 @@ def test_client_reports_refusals_and_the_step_a_command_applies_from(installed, 
     finally:
         code = node.stop(signal.SIGTERM)
     assert code == 0, node.log
-    counts, meta = _read_standard(record)  # rosbags reads command_result too
+    counts, meta = read_standard(record)  # rosbags reads command_result too
     commands = [meta[k] for k in sorted(meta) if k.startswith("command_")]
     assert len(commands) == 1 and commands[0]["topic"] == "/goal"
     assert commands[0]["step"] == str(step)

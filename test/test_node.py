@@ -51,7 +51,7 @@ SCENE = {
 }
 
 
-def _ros_env() -> dict[str, str]:
+def ros_env() -> dict[str, str]:
     """The DDS isolation of this test process, passed on explicitly."""
     return {"ROS_AUTOMATIC_DISCOVERY_RANGE": os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"],
             "ROS_DOMAIN_ID": os.environ["ROS_DOMAIN_ID"]}
@@ -71,7 +71,7 @@ def build_prefix(base: Path, use_colcon: bool) -> Path:
     lib/sweep_ros)."""
     build, install = base / "build", base / "install"
     build.mkdir(parents=True, exist_ok=True)
-    env = dict(os.environ, **_ros_env())
+    env = dict(os.environ, **ros_env())
     if use_colcon:
         colcon = shutil.which("colcon") or str(Path(sys.executable).with_name("colcon"))
         cmd = [colcon, "--log-base", str(base / "log"), "build", "--paths", str(REPO),
@@ -109,7 +109,7 @@ def installed(tmp_path_factory):
     site = prefix / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / \
         "site-packages"
     # what sourcing the underlay (this venv) and then install/setup.bash does
-    env = dict(os.environ, **_ros_env(), PYTHONPATH=str(site),
+    env = dict(os.environ, **ros_env(), PYTHONPATH=str(site),
                AMENT_PREFIX_PATH=os.pathsep.join([str(prefix), sys.prefix]))
     # the executable's interpreter imports the installed copy, not the source tree
     shebang = exe.read_text().splitlines()[0].removeprefix("#!").strip()
@@ -533,7 +533,7 @@ def test_broken_params_file_is_one_line_error(installed, tmp_path):
     assert f"params file {bad} line" in out and "fix:" in out and "Traceback" not in out, out
 
 
-def _read_standard(record: Path) -> tuple[dict, dict[str, dict[str, str]]]:
+def read_standard(record: Path) -> tuple[dict, dict[str, dict[str, str]]]:
     """What the standard readers see: mcap's seeking reader (summary section, metadata) and
     rosbags' AnyReader when it is installed. Returns (message counts per topic, metadata)."""
     from mcap.reader import make_reader
@@ -571,7 +571,7 @@ def test_signal_closes_recording_with_status(installed, probe, tmp_path, sig):
         code = node.stop(sig)
     assert code == 0, node.log
     assert "Traceback" not in node.log and "never retrieved" not in node.log, node.log
-    counts, meta = _read_standard(record)
+    counts, meta = read_standard(record)
     assert counts["/poses"] >= 10
     status = meta["sweep_status"]
     assert status["status"] == "interrupted" and status["error"] == sig.name, status
@@ -617,7 +617,7 @@ def test_command_burst_latest_wins_and_counted(installed, probe, tmp_path):
     finally:
         code = node.stop(signal.SIGTERM)
     assert code == 0, node.log
-    counts, meta = _read_standard(record)
+    counts, meta = read_standard(record)
     commands = [meta[k] for k in sorted(meta) if k.startswith("command_")]
     assert len(commands) == applied == counts["/crowd/cmd_vel"]
     assert yaml.safe_load(commands[-1]["field"])["velocity"] == pytest.approx(list(last))
@@ -998,7 +998,7 @@ def test_goal_builds_a_geodesic_field_round_the_wall(installed, probe, tmp_path)
     assert "/goal: the geodesic field refused: agent 0 at [1, 1] has no way to the goal" \
         in refused[1]
 
-    counts, meta = _read_standard(record)  # rosbags deserialises every message
+    counts, meta = read_standard(record)  # rosbags deserialises every message
     assert counts["/navigation_field"] == 2 and counts["/goal"] == 1
     commands = [meta[k] for k in sorted(meta) if k.startswith("command_")]
     assert [yaml.safe_load(c["field"])["kind"] for c in commands] == ["geodesic", "uniform"]
@@ -1112,7 +1112,7 @@ def test_group_goals_replace_only_their_group(installed, probe, tmp_path):
     assert [r for r in refusals if r.startswith(
         "/goal/b: the geodesic field refused: agent 3 at [1, 1] has no way to the goal")], refusals
 
-    counts, meta = _read_standard(record)  # rosbags deserialises every message
+    counts, meta = read_standard(record)  # rosbags deserialises every message
     assert counts["/goal/a"] == 2 and counts["/goal/b"] == 1 and counts["/goal"] == 1
     assert counts["/navigation_field"] == 4
     specs = [yaml.safe_load(meta[k]["field"]) for k in sorted(meta) if k.startswith("command_")]

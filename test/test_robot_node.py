@@ -10,31 +10,17 @@ a verdict, a process exit) with a generous deadline, never on how fast the node 
 from __future__ import annotations
 
 import math
-import os
 import signal
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
 import yaml
-from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
-from nav_msgs.msg import Odometry
-from test_node import (
-    DISCOVERY_S,
-    WAIT_S,
-    Probe,
-    Running,
-    _read_standard,
-    _ros_env,
-    diag_value,
-)
+from robot_node import editable_installation, robot_probe, start, verdict_on
+from test_node import WAIT_S, Running, diag_value, read_standard
 
 from sweep_core.io import cdr
 from sweep_core.io.recording import read_recording
-from sweep_ros import results
 
 DT = 0.01
 RADIUS = 0.3
@@ -60,95 +46,13 @@ SCENE = {
 @pytest.fixture(scope="module")
 def installed():
     """The sweep_node of this checkout's editable installation, and the DDS isolation."""
-    exe = Path(sys.executable).with_name("sweep_node")
-    assert exe.is_file(), f"{exe} missing (pip install -e .)"
-    return exe, dict(os.environ, **_ros_env())
-
-
-class RobotProbe(Probe):
-    """The test side: a controller of robot bot (TwistStamped on /bot/cmd_vel), its odometry,
-    initialpose and the verdicts."""
-
-    def __init__(self, context):
-        super().__init__(context)
-        from rclpy.qos import QoSProfile, ReliabilityPolicy
-        qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
-        self.odom: list[Odometry] = []
-        self.node.create_subscription(Odometry, "/bot/odom", self.odom.append, qos)
-        self.robot_cmd = self.node.create_publisher(TwistStamped, "/bot/cmd_vel", qos)
-        self.initialpose = self.node.create_publisher(PoseWithCovarianceStamped,
-                                                      "/bot/initialpose", qos)
-        self.verdicts: list[dict[str, str]] = []
-
-        def keep(msg: DiagnosticArray) -> None:
-            parsed = results.parse(msg)
-            if parsed is not None:
-                self.verdicts.append(parsed)
-        self.node.create_subscription(DiagnosticArray, "/command_result", keep, results.QOS)
-
-    def drive(self, v: float, w: float) -> None:
-        msg = TwistStamped()
-        msg.header.frame_id = "base_link"
-        msg.twist.linear.x, msg.twist.angular.z = v, w
-        self.robot_cmd.publish(msg)
-
-    def drive_until(self, v: float, w: float, pred, what: str, node: Running) -> None:
-        """Sends (v, w) every 0.05 s, as a controller does (a command older than the node's
-        cmd_vel_timeout stops the robot), until pred() holds."""
-        import time
-        last = [-1.0]
-
-        def check():
-            if time.monotonic() - last[0] >= 0.05:
-                self.drive(v, w)
-                last[0] = time.monotonic()
-            return pred()
-        self.spin_until(check, WAIT_S, what, node)
-
-    def place(self, x: float, y: float, yaw: float) -> None:
-        msg = PoseWithCovarianceStamped()
-        msg.header.frame_id = "map"
-        msg.pose.pose.position.x, msg.pose.pose.position.y = x, y
-        msg.pose.pose.orientation.z = math.sin(yaw / 2)
-        msg.pose.pose.orientation.w = math.cos(yaw / 2)
-        self.initialpose.publish(msg)
+    return editable_installation()
 
 
 @pytest.fixture
 def probe():
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    p = RobotProbe(context)
-    yield p
-    p.close()
-    rclpy.shutdown(context=context)
-
-
-def start(installed, tmp_path: Path, probe: RobotProbe, record: Path) -> Running:
-    scene_path = tmp_path / "scene.yaml"
-    scene_path.write_text(yaml.safe_dump(SCENE))
-    node = Running(installed, tmp_path, {
-        "scene": str(scene_path), "dt": DT, "seed": 5, "rate_hz": 50.0, "steps_per_tick": 2,
-        "record": str(record), "record_flush_interval_s": 0.2, "publish_markers": False})
-    try:  # a node that never comes up is stopped, not left running
-        probe.connect(node)
-        for pub in (probe.robot_cmd, probe.initialpose):
-            probe.spin_until(lambda p=pub: p.get_subscription_count() > 0, DISCOVERY_S,
-                             f"sweep_node subscribing {pub.topic_name}", node)
-        probe.spin_until(lambda: probe.odom, DISCOVERY_S, "the first odometry", node)
-    except BaseException:
-        node.stop(signal.SIGINT)
-        raise
-    return node
-
-
-def verdict_on(probe: RobotProbe, n: int, node: Running) -> dict[str, str]:
-    """The n-th final verdict (applied or refused) on /bot/initialpose."""
-    def got():
-        final = [v for v in probe.verdicts if v["topic"] == "/bot/initialpose"
-                 and v["verdict"] in ("applied", "refused")]
-        return final[n - 1] if len(final) >= n else None
-    return probe.spin_until(got, WAIT_S, f"verdict {n} on /bot/initialpose", node)
+    with robot_probe() as p:
+        yield p
 
 
 def arc(pose: np.ndarray, v: float, w: float, h: float) -> np.ndarray:
@@ -166,7 +70,9 @@ def wall_distance(p: np.ndarray) -> float:
 
 def test_a_controller_drives_the_robot_through_a_crowd(installed, probe, tmp_path):
     record = tmp_path / "robot.mcap"
-    node = start(installed, tmp_path, probe, record)
+    node = start(installed, tmp_path, probe, SCENE, {
+        "dt": DT, "seed": 5, "rate_hz": 50.0, "steps_per_tick": 2, "record": str(record),
+        "record_flush_interval_s": 0.2, "publish_markers": False})
     try:
         # initialpose: onto a person, into a wall: refused with the reason; the state stays
         probe.place(7.0, 1.6, 0.0)
@@ -202,7 +108,7 @@ def test_a_controller_drives_the_robot_through_a_crowd(installed, probe, tmp_pat
 
 
 def check_recording(record: Path) -> None:
-    counts, meta = _read_standard(record)  # mcap's reader and rosbags' read every message
+    counts, meta = read_standard(record)  # mcap's reader and rosbags' read every message
     assert counts["/bot/odom"] == counts["/poses"] > 100
     assert counts["/bot/cmd_vel"] > counts["/bot/odom"]  # after every step, odom at ticks
     assert counts["/bot/scan"] >= 1 and counts["/tf"] == counts["/bot/odom"]

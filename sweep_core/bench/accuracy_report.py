@@ -22,35 +22,36 @@ from sweep_core.bench.accuracy_problems import STUDIES, study_crowd, study_featu
 from sweep_core.bench.tables import write_csv
 from sweep_core.errors import SweepError
 from sweep_core.numerics.schemes import SCHEMES
+from sweep_core.text import text_table
 
 
 def format_table(ms: list[Measurement]) -> str:
-    head = (f"{'problem':<12}{'metric':<7}{'scheme':<17}{'tol':<17}{'dt':>10}{'error':>11}"
-            f"{'+-95%':>10}{'wall s/s':>10}{'sub':>6}")
-    lines = [head, "-" * len(head)]
-    for m in ms:
-        lines.append(f"{m.problem:<12}{m.metric:<7}{m.scheme:<17}{m.tol:<17}{m.dt:>10.3g}"
-                     f"{m.error:>11.3e}{m.ci:>10.2e}{m.wall_per_s:>10.3g}{m.substeps:>6.2f}")
-    return "\n".join(lines)
+    """The measurements, one line each: problem, metric, scheme, solver tolerance, dt (s),
+    error and its 95 % half-width (m), wall seconds per simulated second, substeps."""
+    return text_table(
+        ("problem", "metric", "scheme", "tol", "dt", "error", "+-95%", "wall s/s", "sub"),
+        [(m.problem, m.metric, m.scheme, m.tol, f"{m.dt:.3g}", f"{m.error:.3e}", f"{m.ci:.2e}",
+          f"{m.wall_per_s:.3g}", f"{m.substeps:.2f}") for m in ms],
+        "<<<<>>>>>", widths=(11, 6, 16, 16, 10, 10, 9, 9, 5), gaps=" ", rule=True)
 
 
 def format_slopes(slopes: list[Slope]) -> str:
-    head = f"{'problem':<12}{'metric':<7}{'scheme':<17}{'tol':<17}{'slope':>7}  {'95% interval':<17}note"
-    lines = [head, "-" * len(head)]
-    for s in slopes:
-        shown = f"{s.slope:>7.2f}  [{s.lo:.2f}, {s.hi:.2f}]" if np.isfinite(s.slope) else (
-            f"{'-':>7}  {'':<15}")
-        lines.append(f"{s.problem:<12}{s.metric:<7}{s.scheme:<17}{s.tol:<17}{shown:<26}{s.note}")
-    return "\n".join(lines)
+    """The fitted slopes with their 95 % intervals ("-" when none could be fitted)."""
+    rows = [(s.problem, s.metric, s.scheme, s.tol,
+             *((f"{s.slope:.2f}", f"[{s.lo:.2f}, {s.hi:.2f}]") if np.isfinite(s.slope)
+               else ("-", "")), s.note) for s in slopes]
+    return text_table(("problem", "metric", "scheme", "tol", "slope", "95% interval", "note"),
+                      rows, "<<<<><<", widths=(11, 6, 16, 16, 7, 16),
+                      gaps=(" ", " ", " ", " ", "  ", " "), rule=True)
 
 
 def format_features(rows: list[dict]) -> str:
-    lines = [f"{'free-flow crowd, 120 agents':<30}{'ms/step':>9}{'x none':>8}{'contacts':>10}",
-             "-" * 57]
-    for r in rows:
-        lines.append(f"{r['scene']:<30}{r['ms_per_step']:>9.3f}{r['ratio_to_none']:>8.2f}"
-                     f"{r['contacts']:>10}")
-    return "\n".join(lines)
+    """The cost of the model's features on a free-flow crowd: ms per step, its ratio to the
+    bare scene's, contacts."""
+    return text_table(("free-flow crowd, 120 agents", "ms/step", "x none", "contacts"),
+                      [(r["scene"], f"{r['ms_per_step']:.3f}", f"{r['ratio_to_none']:.2f}",
+                        str(r["contacts"])) for r in rows],
+                      "<>>>", widths=(29, 9, 7, 9), gaps=" ", rule=True)
 
 
 def _mrow(m: Measurement) -> dict:

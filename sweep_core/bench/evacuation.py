@@ -27,8 +27,10 @@ def room_side(n: int) -> float:
     return 23.0 * max(1.0, math.sqrt(n / 1000.0))
 
 
-def evacuation(n: int, seed: int = 0) -> Scene:
-    """The scene of the module docstring with n agents (seeded jitter)."""
+def evacuation(n: int, seed: int = 0, mixed: bool = False) -> Scene:
+    """The scene of the module docstring with n agents (seeded jitter); mixed: radii drawn
+    uniformly in [0.20, 0.27] m instead (seeded), the polydisperse crowd the equal one is
+    compared with."""
     rng = np.random.default_rng(seed)
     side = room_side(n)
     cols = int(math.ceil(math.sqrt(n)))
@@ -37,12 +39,13 @@ def evacuation(n: int, seed: int = 0) -> Scene:
     grid = np.array([(start + c * SPACING, start + r * SPACING)
                      for r in range(cols) for c in range(cols)][:n])
     pos = grid + rng.uniform(-JITTER, JITTER, grid.shape)
+    radius = rng.uniform(0.20, 0.27, n).tolist() if mixed else RADIUS
     lo, hi = 0.5 * (side - DOOR), 0.5 * (side + DOOR)
     walls = [{"kind": "segment", "a": a, "b": b} for a, b in (
         ([0.0, 0.0], [side, 0.0]), ([side, 0.0], [side, lo]), ([side, hi], [side, side]),
         ([side, side], [0.0, side]), ([0.0, side], [0.0, 0.0]))]
     return Scene.from_dict({
-        "agents": {"positions": pos.tolist(), "radius": RADIUS},
+        "agents": {"positions": pos.tolist(), "radius": radius},
         "walls": walls,
         "drift": {"kind": "geodesic", "goal": [side + 3.0, 0.5 * side], "speed": SPEED},
         "noise": {"sigma": 0.05}})

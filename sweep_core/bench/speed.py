@@ -58,7 +58,7 @@ COLUMNS = ("N", "scene", "tol", "contacts", "bound_max_m", "certified_share",
            "proxsuite_max_dist_m", "cromosim_median_ms", "step_over_cromosim",
            "cromosim_solved", "cromosim_max_dist_m", "notes")
 #: table header and width of each column printed
-_SHOWN = (("N", "N", 6), ("scene", "scene", 10), ("tol", "tol", 6),
+_SHOWN = (("N", "N", 6), ("scene", "scene", 16), ("tol", "tol", 6),
           ("contacts", "contacts", 8), ("bound_max_m", "bound", 8),
           ("certified_share", "cert", 5),
           ("floor_median_ms", "floor", 8), ("step_median_ms", "step", 9),
@@ -76,7 +76,7 @@ _SHOWN = (("N", "N", 6), ("scene", "scene", 10), ("tol", "tol", 6),
 def disordered(n: int, seed: int = 0) -> Scene:
     """n disks of radii uniform in [0.20, 0.27] m on a lattice of spacing 0.6 m jittered by up
     to 3 cm, pushed to the centre at 1 m/s with sigma 0.08: a disordered, polydisperse jam
-    once pressed (issue 11's dense-crowd problem)."""
+    once pressed."""
     rng = np.random.default_rng(seed)
     cols = int(math.ceil(math.sqrt(n)))
     pos = np.array([(c * 0.6 + (r % 2) * 0.3, r * 0.6 * math.sqrt(3) / 2)
@@ -93,7 +93,8 @@ def disordered(n: int, seed: int = 0) -> Scene:
 SCENES = {"hex": (lambda n: crowd(n, True), 0.01),
           "disordered": (disordered, 0.02),
           "free": (lambda n: crowd(n, False), 0.01),
-          "evacuation": (evacuation, EVACUATION_DT)}
+          "evacuation": (evacuation, EVACUATION_DT),
+          "evacuation_mixed": (lambda n: evacuation(n, mixed=True), EVACUATION_DT)}
 #: the jams (the backends are compared on their QPs)
 JAMS = ("hex", "disordered", "evacuation")
 
@@ -174,7 +175,7 @@ def _external(worker: Worker, name: str, qps: list[dict], build: list[float], dt
 
 def measure(n: int, scene: str, steps: int, warmup: int, baseline: bool,
             worker: Worker | None = None, limit_s: float = 30.0,
-            cromosim: bool = False, tol: float | None = None, backend: str = "clarabel"
+            cromosim: bool = False, tol: float | None = None, backend: str = "piqp"
             ) -> dict:
     """One row of the table (see the module docstring and COLUMNS); tol: the projection's
     certified tolerance (m; None: the default)."""
@@ -299,6 +300,18 @@ def run(args: argparse.Namespace) -> int:
                 print(" ".join(_cell(r[c], w) for c, _, w in _SHOWN), flush=True)
                 if r["notes"]:
                     print(f"{'':>14}{r['notes']}", flush=True)
+                if evac:
+                    # the same run with radii 0.20-0.27 m: what equal radii cost over a run
+                    mixed = measure(n, "evacuation_mixed", args.evacuation_steps,
+                                    args.evacuation_warmup, False, None, args.timeout,
+                                    tol=tol, backend=args.backend)
+                    mixed.pop("qps")
+                    results.append(mixed)
+                    print(" ".join(_cell(mixed[c], w) for c, _, w in _SHOWN), flush=True)
+                    print(f"{'':>14}whole run ({args.evacuation_warmup + args.evacuation_steps}"
+                          f" steps): equal radii {r['run_s']:.1f} s, radii 0.20-0.27 m "
+                          f"{mixed['run_s']:.1f} s, ratio {r['run_s'] / mixed['run_s']:.2f}",
+                          flush=True)
                 if worker is not None and tol is None and scene in JAMS and args.backend_qps:
                     for row in compare_backends(worker, qps[: args.backend_qps],
                                                 args.backend_timeout):
@@ -356,11 +369,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add ``speed`` to the ``bench`` subcommands."""
     p = sub.add_parser("speed", help="step time vs floor and whole-set QP baselines")
     p.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 4000, 10000])
-    p.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES),
+    shown = [s for s in SCENES if s != "evacuation_mixed"]  # run with "evacuation"
+    p.add_argument("--scenes", nargs="+", default=shown, choices=shown,
                    help="hex: hexagonal jam pushed to its centre; disordered: polydisperse "
                         "jam (radii 0.20-0.27 m, sigma 0.08, dt 0.02); free: free flow; "
                         "evacuation: equal radii 0.25 m jammed at the 1.2 m door of a 23 m "
-                        "room (dt 0.02, sigma 0.05; its own sizes, warm-up and steps)")
+                        "room (dt 0.02, sigma 0.05; its own sizes, warm-up and steps), "
+                        "followed by the same run with radii 0.20-0.27 m")
     p.add_argument("--evacuation-sizes", type=int, nargs="+", default=[1000], metavar="N",
                    help="sizes of the evacuation scene (default 1000; 5000 is about 10 times "
                         "longer)")
@@ -368,9 +383,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="evacuation steps before measuring (default 400: 8 s, the jam formed)")
     p.add_argument("--evacuation-steps", type=int, default=100, metavar="STEPS",
                    help="measured evacuation steps (default 100)")
-    p.add_argument("--backend", default="clarabel", metavar="NAME",
+    p.add_argument("--backend", default=projection.SolverOptions.backend, metavar="NAME",
                    help="QP solver of the clusters the exact solver does not take, in the "
-                        "measured steps: any installed one (default clarabel)")
+                        "measured steps: any installed one (default piqp)")
     p.add_argument("--backend-qps", type=int, default=3, metavar="K",
                    help="QPs of each jam (its first K measured steps) every installed backend "
                         "solves for the backend table (default 3; 0: no table)")

@@ -217,9 +217,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--max-iter", type=int, default=SolverOptions.max_iter,
                         help="iteration cap of the proxqp backend")
     parser.add_argument("--backend", default=SolverOptions.backend, metavar="NAME",
-                        help="QP solver (through qpsolvers) of the clusters too large for the "
-                             "exact active-set solver: any installed one, e.g. clarabel "
-                             "(default), piqp, osqp, proxqp; an unknown name lists them")
+                        help="QP solver of the clusters too large for the exact active-set "
+                             "solver: any installed one (through qpsolvers), e.g. piqp "
+                             "(default), clarabel, osqp, proxqp; an unknown name lists them")
     parser.add_argument("--exact-vars", type=int, default=SolverOptions.exact_vars, metavar="V",
                         help="contact clusters of up to V variables (2 per agent) are solved exactly "
                              "by the active-set solver, larger ones by the interior-point backend "

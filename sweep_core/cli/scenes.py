@@ -4,14 +4,14 @@ from __future__ import annotations
 import argparse
 
 from sweep_core.model.gallery import bundled_scenes, measured_on, scenes_dir
+from sweep_core.text import text_table
 
 
 def _scenes(args: argparse.Namespace) -> int:
     scenes = bundled_scenes()
-    width = max(len(s.name) for s in scenes)
-    print(f"{'name':<{width}}  agents  run s  shows")
-    for s in scenes:
-        print(f"{s.name:<{width}}  {s.agents:>6}  {s.run_s:>5.0f}  {s.shows}")
+    print(text_table(("name", "agents", "run s", "shows"),
+                     [(s.name, str(s.agents), f"{s.run_s:.0f}", s.shows) for s in scenes],
+                     "<>><"))
     print("\nrun one with: sweep run NAME (a name is a bundled scene when no such file exists)")
     print(f"run s: wall time of sweep run NAME (10 s simulated, dt 0.01, every step recorded), "
           f"measured on {measured_on()}")

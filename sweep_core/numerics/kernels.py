@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from types import ModuleType
 
@@ -46,22 +46,47 @@ class WarmUp:
     compiled: int
 
 
-def dispatchers() -> list[CPUDispatcher]:
-    """Every compiled kernel of the engine: those of :data:`MODULES` and of any other
-    ``sweep_core`` module imported so far."""
-    modules = {m.__name__: m for m in MODULES}
-    modules.update((name, m) for name, m in list(sys.modules.items())
-                   if name.startswith("sweep_core.") and m is not None)
+def kernels_in(modules: Iterable[ModuleType]) -> list[CPUDispatcher]:
+    """The compiled kernels defined in ``modules`` (a kernel a module imports from another is
+    the other's), each once, in the modules' order."""
     seen: dict[int, CPUDispatcher] = {}
-    for module in modules.values():
+    for module in modules:
         for value in list(vars(module).values()):
             if isinstance(value, CPUDispatcher) and value.py_func.__module__ == module.__name__:
                 seen[id(value)] = value
     return list(seen.values())
 
 
+#: the kernels the last scan found, and the state of ``sys.modules`` it saw (see dispatchers)
+_found: tuple[tuple[int, str], list[CPUDispatcher]] | None = None
+
+
+def dispatchers() -> list[CPUDispatcher]:
+    """Every compiled kernel of the engine: those of :data:`MODULES` and of any other
+    ``sweep_core`` module imported so far.
+
+    The modules are scanned once, and again only after an import (``sys.modules`` has another
+    length or another newest entry): every kernel is decorated at its module's top level, so
+    no import, no new kernel. (A module reloaded in place is not scanned again.)"""
+    global _found
+    modules = sys.modules
+    try:
+        key: tuple[int, str] | None = (len(modules), next(reversed(modules)))
+    except RuntimeError:  # another thread imported meanwhile: scan
+        key = None
+    found = _found
+    if found is None or found[0] != key:
+        named = {m.__name__: m for m in MODULES}
+        named.update((name, m) for name, m in list(modules.items())
+                     if name.startswith("sweep_core.") and m is not None)
+        found = (key or (-1, ""), kernels_in(named.values()))
+        _found = found
+    return list(found[1])
+
+
 def compiled_count() -> int:
-    """Kernel signatures compiled in this process so far (not loaded from the cache)."""
+    """Kernel signatures compiled in this process so far (not loaded from the cache), read
+    from the kernels' own counters at each call (cheap: the node asks once a second)."""
     return sum(sum(d.stats.cache_misses.values()) for d in dispatchers())
 
 

@@ -6,8 +6,9 @@ cluster's lam (x = t + C^T z). Each solver gets the tight tolerances of ``SETTIN
 passes them to the solver as they are): 1e-12 where the solver's own criterion allows it, so
 that the answer is certified by the duality gap rather than taken on trust.
 
-Clarabel keeps its own module (:mod:`.interior`, the same settings without the conversion);
-proxsuite is qpsolvers' ``proxqp``.
+Clarabel and PIQP keep their own modules (:mod:`.interior`; :mod:`.pivot`, which loads PIQP's
+baseline build so that the answer does not depend on the CPU); proxsuite is qpsolvers'
+``proxqp``.
 """
 from __future__ import annotations
 
@@ -17,6 +18,8 @@ import scipy.sparse as sp
 
 from sweep_core.numerics.projection.interior import solve_clarabel
 from sweep_core.numerics.projection.options import ALIASES, SolverOptions, available_backends
+from sweep_core.numerics.projection.pivot import SETTINGS as PIQP_SETTINGS
+from sweep_core.numerics.projection.pivot import solve_piqp
 
 #: tolerances given to each solver (qpsolvers forwards them to the solver's settings)
 SETTINGS: dict[str, dict] = {
@@ -25,8 +28,7 @@ SETTINGS: dict[str, dict] = {
     "daqp": {"primal_tol": 1e-12, "dual_tol": 1e-12, "iter_limit": 100000},
     "highs": {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10},
     "osqp": {"eps_abs": 1e-10, "eps_rel": 0.0, "max_iter": 100000, "polishing": True},
-    "piqp": {"eps_abs": 1e-12, "eps_rel": 0.0, "eps_duality_gap_abs": 1e-12,
-             "eps_duality_gap_rel": 0.0, "check_duality_gap": True, "max_iter": 250},
+    "piqp": PIQP_SETTINGS,  # :func:`.pivot.solve_piqp`, its baseline build
     "proxqp": {"eps_abs": 1e-10, "eps_rel": 0.0, "max_iter": 1000},
 }
 
@@ -51,6 +53,8 @@ def solve_backend(target: np.ndarray, c: sp.spmatrix, b: np.ndarray, opts: Solve
     name = ALIASES.get(opts.backend, opts.backend)
     if name == "clarabel":
         return solve_clarabel(target, sp.csr_matrix(c), b, opts)
+    if name == "piqp":
+        return solve_piqp(target, c, b, opts)
     n, m = c.shape[1], c.shape[0]
     if m == 0:
         return target.copy(), np.zeros(0), True

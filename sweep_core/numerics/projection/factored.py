@@ -58,14 +58,19 @@ def factorise(m: sp.csr_matrix) -> object | None:
     shifted = (sp.tril(m) + SHIFT * sp.identity(m.shape[0])).tocoo()
     lower = cvxopt.spmatrix(shifted.data, shifted.row.astype(np.int64), shifted.col.astype(np.int64),
                             shifted.shape)
-    # simplicial (no supernodes, hence no BLAS); set on every call, the options are cvxopt's
-    # module-wide ones
+    # simplicial (no supernodes, hence no BLAS); the options are cvxopt's module-wide ones,
+    # which its own QP solver reads too (left at simplicial, cvxopt's backend failed on a small
+    # jam it otherwise solves): set for this factorisation only
+    saved = dict(cholmod.options)
     cholmod.options["supernodal"] = 0
-    factor = cholmod.symbolic(lower, uplo="L")
     try:
+        factor = cholmod.symbolic(lower, uplo="L")
         cholmod.numeric(lower, factor)
     except ArithmeticError:
         return None
+    finally:
+        cholmod.options.clear()
+        cholmod.options.update(saved)
     return factor
 
 

@@ -26,10 +26,17 @@ import numpy as np
 from sweep_core.errors import InfeasibleError
 from sweep_core.model.geometry import Geometry
 from sweep_core.numerics.constraints import Rows, linearise
-from sweep_core.numerics.projection import certified, dual
+from sweep_core.numerics.projection import certified, dual, polish
 from sweep_core.numerics.projection.clusters import row_matrix, solve_qp
 from sweep_core.numerics.projection.options import ROW_TOLERANCE, SolverOptions
 from sweep_core.numerics.projection.warm import carry_multipliers
+
+#: a cluster the certified rounds left to the cluster solvers is sent there directly on the
+#: following steps, and given the rounds again on one step in RETRY
+RETRY = 10
+#: rounds at most on a retry (a jam that has become solvable certifies in 4 to 10; the rounds
+#: of a cluster that has not cost a few times the backend's solve otherwise)
+RETRY_ROUNDS = 10
 
 
 @dataclass(frozen=True)
@@ -44,7 +51,9 @@ class Projection:
     interior-point backend; bound: proved bound (m) on the distance from y to the exact
     projection onto the linearised set (0 when the prediction was feasible; ``inf`` if a
     cluster could not be certified); sweeps: Gauss-Seidel sweeps; fallback_agents: agents of
-    the clusters the sweeps left to the cluster solvers.
+    the clusters the sweeps left to the cluster solvers; stuck: (N,) bool, the agents of those
+    clusters (None: none), and stuck_steps: consecutive steps that have sent clusters holding
+    them straight to the cluster solvers (``RETRY``).
     """
 
     y: np.ndarray
@@ -58,6 +67,8 @@ class Projection:
     bound: float = 0.0
     sweeps: int = 0
     fallback_agents: int = 0
+    stuck: np.ndarray | None = None
+    stuck_steps: int = 0
 
 
 def first_cutoff(q: np.ndarray, pred: np.ndarray, r1: np.ndarray) -> float:
@@ -83,6 +94,13 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
         return Projection(pred.copy(), empty, np.empty(0), np.empty(0), 0, 0, 0)
     cut = first_cutoff(q, pred, r1)
     solves = 0
+    # clusters holding agents whose cluster the rounds could not certify last step go straight
+    # to the cluster solvers, but for one step in RETRY (a jam that has become solvable, or a
+    # cluster that only stalled for a while, gets the rounds again)
+    held_for = warm.stuck_steps if warm is not None and warm.stuck is not None else 0
+    skip = (warm.stuck if warm is not None and warm.stuck is not None and len(warm.y) == n
+            and held_for + 1 < RETRY else None)
+    todo = np.zeros(n, dtype=bool)
     while True:
         rows = linearise(geom, t1, q, r1, cut)
         rp, rs = rows.residuals(pred)
@@ -95,9 +113,11 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
             start = (carry_multipliers(warm.rows, np.concatenate([warm.lam_pair,
                                                                   warm.lam_single]), rows, n)
                      if opts.warm_start and warm is not None and len(warm.y) == n else None)
-            solved = _solve(rows, q, pred, opts, start)
+            solved = _solve(rows, q, pred, opts, start, skip,
+                            RETRY_ROUNDS if held_for and skip is None else None)
             solves += 1
-            y, lam, bound, by_backend, sweeps, fallback, ok = solved
+            y, lam, bound, by_backend, sweeps, todo, ok = solved
+            fallback = int(np.count_nonzero(todo))
             lam_p, lam_s = lam[: len(rp)], lam[len(rp):]
             rp, rs = rows.residuals(y)
             worst = min(rp.min(initial=np.inf), rs.min(initial=np.inf))
@@ -115,29 +135,49 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
     # a row is active when it holds with equality (to the solver tolerance); an interior-point
     # solver leaves tiny positive multipliers on slack rows, so multipliers are not counted
     active = int(np.count_nonzero(rp <= ROW_TOLERANCE) + np.count_nonzero(rs <= ROW_TOLERANCE))
+    stuck = todo if todo.any() else None
     return Projection(y, rows, lam_p, lam_s, active, qp_size, solves, by_backend, bound,
-                      sweeps, fallback)
+                      sweeps, fallback, stuck, held_for + 1 if skip is not None else 0)
 
 
 def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
-           start: np.ndarray | None
-           ) -> tuple[np.ndarray, np.ndarray, float, int, int, int, bool]:
+           start: np.ndarray | None, skip: np.ndarray | None, cap: int | None = None
+           ) -> tuple[np.ndarray, np.ndarray, float, int, int, np.ndarray, bool]:
     """The QP of ``rows``: y (N, 2), multipliers (K,), certified bound (m), agents solved by
-    the interior-point backend, Gauss-Seidel sweeps, agents left to the cluster solvers, and
-    whether every cluster was solved."""
+    the interior-point backend, Gauss-Seidel sweeps, the agents (N,) bool of the clusters left
+    to the cluster solvers, and whether every cluster was solved. skip: (N,) bool or None,
+    agents whose clusters go to the cluster solvers without the certified rounds; cap: the
+    rounds at most (None: ``opts.max_rounds``)."""
     n = len(q)
     ri, rj, re, h = rows.displacement_rows(q)
     d = pred - q
     lam0 = start if start is not None else np.zeros(len(ri))
     rounds = opts.max_rounds if opts.method == "certified" else 0
-    res = certified.solve(d, ri, rj, re, h, lam0, tol=opts.tol, max_rounds=rounds)
-    x, lam = res.x, res.lam
-    by_backend = fallback = 0
+    if cap is not None:
+        rounds = min(rounds, cap)
+    label, clusters = dual.cluster_labels(n, ri, rj)
+    held = np.zeros(len(ri), dtype=bool)  # rows of the clusters that skip the rounds
+    if skip is not None and rounds > 0:
+        hit = np.zeros(clusters, dtype=bool)
+        hit[label[skip & (label >= 0)]] = True
+        held = hit[label[ri]]
+    free = ~held
+    res = certified.solve(d, ri[free], rj[free], re[free], h[free], lam0[free], tol=opts.tol,
+                          max_rounds=rounds)
+    lam = np.zeros(len(ri))
+    lam[free] = res.lam
+    x = res.x
+    by_backend = 0
     ok = True
-    gap = res.gap
-    if not res.done.all():
+    # the agents of the clusters not certified (and of the held ones)
+    agent_todo = ((res.label >= 0) & ~res.done[np.maximum(res.label, 0)] if res.clusters
+                  else np.zeros(n, dtype=bool))
+    agent_todo |= np.bincount(np.concatenate([ri[held], rj[held][rj[held] >= 0]]),
+                              minlength=n)[:n] > 0
+    if not agent_todo.any():
+        gap = res.gap
+    else:
         # the clusters not certified: the cluster solvers, in absolute coordinates
-        agent_todo = (res.label >= 0) & ~res.done[np.maximum(res.label, 0)]
         pick_p, pick_s = agent_todo[rows.pair_i], agent_todo[rows.single_a]
         sub = rows.select(pick_p, pick_s)
         agents = sub.agents()
@@ -149,26 +189,43 @@ def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
         # skin, so that an answer exact up to rounding holds every true row
         xs, lam_sub, ok, by_backend = solve_qp(d[agents].ravel(), c, h[picked] + res.skin,
                                                opts)
-        lam = lam.copy()
         lam[picked] = lam_sub
-        x = dual.apply_multipliers(d, ri, rj, re, lam)
-        # the cluster solvers' own x, where it differs from d + A^T lam by more than rounding
-        # (an interior point's multipliers do not reproduce its x exactly), is kept with the
-        # residual term 1/2 |r|^2 of the certificate
-        r = np.zeros_like(d)
-        r[agents] = xs.reshape(-1, 2) - x[agents]
-        x[agents] += r[agents]
-        fallback = len(agents)
-        gap, _, _, _ = certified.certify(x, ri, rj, re, h, lam, res.label, res.clusters,
-                                         opts.tol, certified.rounding_floor(d, h))
-        # add 1/2 |r|^2 per cluster (x no longer equals d + A^T lam there)
-        gap = gap + 0.5 * np.bincount(res.label[agents], weights=(r[agents] ** 2).sum(axis=1),
-                                      minlength=res.clusters)
+        floor = certified.rounding_floor(d, h)
+        x, gap = _certified_point(d, ri, rj, re, h, lam, label, clusters, agents, xs, opts.tol,
+                                  floor)
+        if by_backend and float(np.sqrt(2.0 * gap.sum())) > opts.tol:
+            # an interior point's answer: moved towards the projection, kept per cluster
+            # where the certificate proves it closer
+            moved = polish.shrink(xs, c, h[picked], floor)
+            x2, gap2 = _certified_point(d, ri, rj, re, h, lam, label, clusters, agents, moved,
+                                        opts.tol, floor)
+            better = gap2 < gap
+            take = better[label] & (label >= 0)
+            x[take] = x2[take]
+            gap = np.where(better, gap2, gap)
     bound = float(np.sqrt(2.0 * gap.sum()))
     # y = p + A^T lam (+ r): agents in no row, or with no multiplier, keep their prediction
     # bit for bit
     y = pred + (x - d)
-    return y, lam, bound, by_backend // 2, res.sweeps, fallback, ok
+    return y, lam, bound, by_backend // 2, res.sweeps, agent_todo, ok
+
+
+def _certified_point(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray,
+                     h: np.ndarray, lam: np.ndarray, label: np.ndarray, clusters: int,
+                     agents: np.ndarray, xs: np.ndarray, tol: float, floor: float
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """x (N, 2): d + A^T lam, with the cluster solvers' own answer xs (2 per agent of
+    ``agents``) there, and the gap (m^2) of each cluster for x and lam."""
+    x = dual.apply_multipliers(d, ri, rj, re, lam)
+    # the cluster solvers' own x, where it differs from d + A^T lam by more than rounding (an
+    # interior point's multipliers do not reproduce its x exactly), is kept with the residual
+    # term 1/2 |r|^2 of the certificate
+    r = xs.reshape(-1, 2) - x[agents]
+    x[agents] += r
+    gap, _, _, _ = certified.certify(x, ri, rj, re, h, lam, label, clusters, tol, floor)
+    gap = gap + 0.5 * np.bincount(label[agents], weights=(r ** 2).sum(axis=1),
+                                  minlength=clusters)
+    return x, gap
 
 
 def _culprits(rows: Rows, rp: np.ndarray, rs: np.ndarray, count: int = 6) -> list[int]:
