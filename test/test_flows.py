@@ -265,7 +265,7 @@ def test_the_headway_law_slows_a_dense_ring_the_pure_model_does_not():
             v.append(tangential_speed(sim.positions, sim.velocities).mean())
         return float(np.mean(v))
 
-    pure, law = speed(None), speed(0.35)
-    # free speed 1.34 m/s: the pure model keeps it at 2 per m^2, the law roughly halves it
-    # (Weidmann: 0.61 m/s; docs/flows.md measures 0.60 at the defaults)
+    pure, law = speed(None), speed(1.0)
+    # free speed 1.34 m/s: the pure model keeps it at 2 per m^2, the law (csm, T = 1 s)
+    # roughly halves it (Weidmann: 0.61 m/s)
     assert pure > 1.2 and law < 0.9

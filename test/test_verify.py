@@ -135,3 +135,19 @@ def test_a_bad_replaced_scene_is_refused_in_one_line(tmp_path, capsys):
                  "--no-report"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) >= 1 and "agents.radius" in err[-1] and err[-1].startswith("sweep: error")
+
+
+def test_exit_choice_test_fails_when_nobody_chooses(tmp_path, capsys):
+    """Test 11 without its exit choice: everyone walks to the nearer exit 1, exit 2 stays
+    unused, and the test must say FAIL with exit status 1."""
+    spec = load_yaml(scene_text("rimea11_exits"))
+    del spec["flows"]["exit_choice"]
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    (folder / "rimea11_exits.yaml").write_text(dump_yaml(spec))
+    rc = main(["verify", "--quick", "--tests", "rimea11", "--seeds", "1", "--scenes",
+               str(folder), "--no-report"])
+    line = _lines(capsys.readouterr().out)["rimea11"]
+    assert rc == 1
+    assert line.split()[1] == "FAIL", line
+    assert "exit 2 used by 0-0 people" in line

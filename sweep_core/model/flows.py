@@ -11,7 +11,9 @@ user's page; the run-time state (who is present, who left) is
       sources:  [{region, rate | times, start, count, radius, group, speeds, delays}, ...]
       journeys: [{group, legs: [{goal: [x, y]} | {region: {...}}, ...], arrive_radius,
                   cell, wall_buffer}, ...]
-      headway:  {time_gap: T, margin: w}    s, m
+      exit_choice: [{group, exits: [{region} | {goal}, ...], capacity}, ...]   (exit_choice.py)
+      headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D}   s, -, m
+              | {law: lanes, time_gap: T, margin: w}                      s, m
 
 Regions: :mod:`sweep_core.model.regions`. Values drawn from a distribution are drawn per run
 from the run's seed (:func:`draw`), never stored in the spec.
@@ -26,14 +28,11 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
+from sweep_core.model.exit_choice import ExitChoice, exit_choice_from_spec
 from sweep_core.model.fields import Field, Groups
 from sweep_core.model.regions import Region, region_from_spec
+from sweep_core.model.speed_law import DEFAULT_LAW, DEFAULT_REPULSION_RANGE, headway_from_spec
 
-#: time gap T (s) of the headway law when the scene gives none: calibrated against Weidmann's
-#: speed-density relation in a ring corridor (docs/flows.md, scripts/calibrate_headway.py)
-DEFAULT_TIME_GAP = 0.35
-#: lateral margin w (m) of the headway law when the scene gives none (calibrated with T)
-DEFAULT_MARGIN = 0.3
 #: most agents one source may emit
 MAX_SOURCE_COUNT = 100_000
 #: most legs of a journey
@@ -169,6 +168,10 @@ class Flows:
     margin: float
     group_speed: np.ndarray
     spec: dict
+    law: str = DEFAULT_LAW
+    repulsion: float = 0.0
+    repulsion_range: float = DEFAULT_REPULSION_RANGE
+    exit_choices: tuple[ExitChoice, ...] = ()
 
     @property
     def changes_population(self) -> bool:
@@ -301,7 +304,7 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
     if raw is None:
         return None
     checks.mapping(raw, "flows", allowed={"speeds", "delays", "sinks", "sources", "journeys",
-                                          "headway"})
+                                          "exit_choice", "headway"})
     names: tuple[str, ...] = drift.names if isinstance(drift, Groups) else ()
     if isinstance(drift, Groups):
         gspeed = np.array(list(drift.speeds) + [float(getattr(drift.rest, "speed", speed))])
@@ -335,16 +338,29 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
         journeys.append(_journey(j, f"flows.journeys[{k}]", names, float(gspeed[g]), geometry,
                                  grid))
     spec["journeys"] = [j.spec for j in journeys]
-    time_gap, margin = None, 0.0
-    if raw.get("headway") is not None:
-        hw = checks.mapping(raw["headway"], "flows.headway", allowed={"time_gap", "margin"})
-        time_gap = checks.number(hw.get("time_gap", DEFAULT_TIME_GAP), "flows.headway.time_gap",
-                                 positive=True)
-        margin = checks.length(hw.get("margin", DEFAULT_MARGIN), "flows.headway.margin",
-                               nonnegative=True)
-        spec["headway"] = {"time_gap": time_gap, "margin": margin}
-    out = Flows(speeds, delays, tuple(sinks), tuple(sources), tuple(journeys), time_gap,
-                margin, gspeed, spec)
+    choices: list[ExitChoice] = []
+    for k, c in enumerate(_listed(raw, "exit_choice")):
+        field = f"flows.exit_choice[{k}]"
+        g = _group(c.get("group") if isinstance(c, dict) else None, f"{field}.group", names)
+        if g in seen:
+            raise SceneError(f"{field}.group", f"gives group {show(c.get('group'))} an exit "
+                             "choice and a journey", "give a group a journey or an exit choice")
+        if any(o.group == g for o in choices):
+            raise SceneError(f"{field}.group", f"gives group {show(c.get('group'))} a second "
+                             "exit choice", "give each group one exit choice")
+        choices.append(exit_choice_from_spec(c, field, g, names[g] if g >= 0 else None,
+                                             float(gspeed[g]), geometry, grid))
+    if choices:
+        spec["exit_choice"] = [c.spec for c in choices]
+    law = headway_from_spec(raw.get("headway"))
+    if law is not None:
+        spec["headway"] = law
+    out = Flows(speeds, delays, tuple(sinks), tuple(sources), tuple(journeys),
+                None if law is None else law["time_gap"], law.get("margin", 0.0) if law else 0.0,
+                gspeed, spec, law["law"] if law else DEFAULT_LAW,
+                law.get("repulsion", 0.0) if law else 0.0,
+                law.get("repulsion_range", DEFAULT_REPULSION_RANGE) if law else
+                DEFAULT_REPULSION_RANGE, tuple(choices))
     if out.changes_population:
         _check_changing(out, drift, sigma)
     return out

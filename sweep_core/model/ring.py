@@ -21,8 +21,8 @@ def ring_corridor(density: float, inner: float = 3.0, outer: float = 5.0,
                   sides: int = 96, cell: float = 0.1) -> dict:
     """A scene dict: round(density x area) agents of ``radius`` (m) spawned at random (seed)
     in the annulus inner < |q| < outer (m), walking at ``speed`` (m/s) round it, with the
-    headway law of time gap ``time_gap`` (s; None: the pure model) and lateral ``margin`` (m;
-    None: the default). density in agents/m^2."""
+    speed law of ``flows.headway`` with time gap ``time_gap`` (s; None: the pure model): the
+    default law (csm), or with a lateral ``margin`` (m) the lanes law. density in agents/m^2."""
     area = math.pi * (outer * outer - inner * inner)
     n = int(round(density * area))
     ang = 2.0 * math.pi * np.arange(sides) / sides

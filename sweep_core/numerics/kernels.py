@@ -24,7 +24,7 @@ from numba.core.registry import CPUDispatcher
 
 from sweep_core.model import neighbours
 from sweep_core.model.scene import Scene
-from sweep_core.numerics import headway, schemes
+from sweep_core.numerics import csm, exit_choice, headway, schemes
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clusters import solve_active
 from sweep_core.numerics.robots import scan as robot_scan
@@ -143,6 +143,8 @@ def _exercise() -> None:
     neighbours.segments_within(far[:4], far[:3], far[3:6], 1.0)
     # the headway law's kernels (flows.headway)
     headway.headway(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 1.0)
+    csm.csm(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 0.8, 2.0, 0.1)
+    exit_choice.assign(far[:8, :2].copy(), np.ones(2))
     # kernels a small jam may not reach (the factored face step's products, the bridge's
     # logarithm of a wall contact), called with the types their callers pass
     v = np.ones(3)

@@ -29,6 +29,8 @@ from sweep_core.model.flows import Flows, Source, draw
 from sweep_core.model.geometry import single_rows
 from sweep_core.model.maps import OccupancyMap, map_from_spec
 from sweep_core.model.scene import Scene
+from sweep_core.numerics.csm import csm
+from sweep_core.numerics.exit_choice import towards
 from sweep_core.numerics.headway import headway
 
 #: the flows' random stream: a SeedSequence entry beside the run's seed
@@ -89,6 +91,7 @@ class Population:
         self._grid: OccupancyMap | None = None  # the scene's map, read when a source needs it
         self._base: Scene | None = None
         self._journey = {j.group: j for j in flows.journeys}
+        self._exits = {c.group: c for c in flows.exit_choices}
 
     # -- views ----------------------------------------------------------------------------
     @property
@@ -145,12 +148,19 @@ class Population:
                     sel = np.flatnonzero(ing & (leg == k))
                     if len(sel):
                         u[sel] = f(t, q[sel])
+        for g, c in self._exits.items():  # each agent towards the exit it chooses now
+            sel = np.flatnonzero(group == g)
+            if len(sel):
+                u[sel] = towards(c, t, q[sel], self.speed[ids[sel]])
         if self.scaled:
             u *= (self.speed[ids] / self.flows.group_speed[group])[:, None]
         if self.waits:
             u[t < self.start[ids]] = 0.0
-        if self.flows.time_gap is not None:
-            u = headway(q, self.radius[ids], u, self.flows.time_gap, self.flows.margin)
+        law = self.flows
+        if law.time_gap is not None and law.law == "csm":
+            u = csm(q, self.radius[ids], u, law.time_gap, law.repulsion, law.repulsion_range)
+        elif law.time_gap is not None:
+            u = headway(q, self.radius[ids], u, law.time_gap, law.margin)
         return u
 
     # -- after a step ---------------------------------------------------------------------------

@@ -1,6 +1,7 @@
 """RiMEA test 4 (the fundamental diagram) and the bottleneck validation (specific flow
 against width, with the experiments of Seyfried et al. 2009 and Kretz et al. 2006), each with
-the headway speed law at its default time gap and without it (the pure model).
+the default speed law (flows.headway: {}, the csm law at its defaults) and without it (the
+pure model).
 
 Fundamental diagram: the ring corridor of :func:`sweep_core.model.ring.ring_corridor` (inner
 radius 3 m, outer 5 m, disks of 0.2 m) holds a fixed density N / area; RiMEA asks for the
@@ -9,11 +10,11 @@ m^2 cannot be placed at random with 0.2 m disks (random sequential addition jams
 coverage of 0.547; in this ring 183 disks fit where 4 per m^2 needs 201), so the diagram
 stops at 3.5 per m^2. Speed and density are measured by
 PedPy (Voronoi density and speed) in a 2 m x 1.5 m area of the ring. Target: with the
-headway law, the mean speed within 15 % of Weidmann's at 0.5 to 3 per m^2.
+speed law, the mean speed within 15 % of Weidmann's at 0.5 to 3 per m^2.
 
 Bottleneck: a 10 m x 8 m room, a 2 m long bottleneck of width w (0.8, 1.0, 1.2 m), 150
 people; the flow J (1/s) where the bottleneck ends, by PedPy's crossings, between the 10th and
-the 90th percent of the crossings; specific flow J / w. Target: with the headway law, J within
+the 90th percent of the crossings; specific flow J / w. Target: with the speed law, J within
 15 % of Seyfried et al.'s at the same width.
 """
 from __future__ import annotations
@@ -26,7 +27,6 @@ from pathlib import Path
 import numpy as np
 
 from sweep_core.analysis.pedpy_export import density_speed, line_flow, rectangle
-from sweep_core.model.flows import DEFAULT_TIME_GAP
 from sweep_core.model.ring import ring_corridor, weidmann
 from sweep_core.verify.base import Case, Test, Trace, Verdict
 from sweep_core.verify.figures import figure, save
@@ -58,9 +58,11 @@ def _cases_4(quick: bool) -> list[Case]:
     out = []
     for rho in QUICK_DENSITIES if quick else DENSITIES:
         for law in LAWS:
-            gap = DEFAULT_TIME_GAP if law == "headway" else None
+            spec = ring_corridor(rho)
+            if law == "headway":
+                spec["flows"] = {"headway": {}}  # the default law at its default parameters
             out.append(Case(f"{law}/{rho:g}", "ring", 30.0 if quick else 70.0,
-                            inline=ring_corridor(rho, time_gap=gap), record_every=5))
+                            inline=spec, record_every=5))
     return out
 
 
@@ -99,7 +101,7 @@ def _judge_4(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
         return ", ".join(f"{rho:g}: {np.nanmean([v for _, v in s]):.2f}" for rho, s in
                          sorted(d.items()))
 
-    notes = (f"speeds (m/s) with the headway law {row(head)}; pure model {row(pure)}; "
+    notes = (f"speeds (m/s) with the speed law {row(head)}; pure model {row(pure)}; "
              "Weidmann " + ", ".join(f"{r:g}: {float(weidmann(r)):.2f}" for r in sorted(head)))
     verdict = Verdict(values, ok, "", notes)
     verdict.figures = {"headway": head, "pure": pure}
@@ -118,7 +120,7 @@ def _plot_4(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> l
             d = np.asarray([p[0] for p in pts])
             v = np.asarray([p[1] for p in pts])
             ax.scatter(d, v * (d if what == "flow" else 1.0), marker=marker, s=18,
-                       label=f"{'headway law (default time gap)' if law == 'headway' else 'pure model'}")
+                       label=f"{'speed law (csm, defaults)' if law == 'headway' else 'pure model'}")
         ax.set_xlabel("Voronoi density (1/m^2)")
         ax.set_ylabel("speed (m/s)" if what == "speed" else "specific flow (1/(m s))")
         ax.set_title(f"RiMEA 4: fundamental diagram in a ring corridor ({what})")
@@ -129,7 +131,7 @@ def _plot_4(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> l
 
 TEST_4 = Test(
     "rimea4", "RiMEA 4 fundamental diagram",
-    "largest relative departure of the mean speed (headway law) from Weidmann's at "
+    "largest relative departure of the mean speed (speed law) from Weidmann's at "
     "0.5-3 /m^2 (ring corridor, PedPy Voronoi)", f"<= {TARGET:.0%} (target; RiMEA sets none)",
     _cases_4, _judge_4, _plot_4,
     source="RiMEA 3.0 test 4; Weidmann 1993; the ring corridor of sweep_core.model.ring",
@@ -141,10 +143,10 @@ WIDTHS = (0.8, 1.0, 1.2)
 PEOPLE = 150
 
 
-def bottleneck_scene(width: float, time_gap: float | None, people: int = PEOPLE) -> dict:
+def bottleneck_scene(width: float, headway: dict | None, people: int = PEOPLE) -> dict:
     """A 10 m x 8 m room, a 2 m long bottleneck of ``width`` m centred at y = 4 m, open space
-    beyond it, where agents leave 1 m after the bottleneck; the headway law with
-    ``time_gap`` (s; None: the pure model)."""
+    beyond it, where agents leave 1 m after the bottleneck; ``headway`` the scene's
+    ``flows.headway`` ({}: the default law; None: the pure model)."""
     lo, hi = 4.0 - width / 2, 4.0 + width / 2
     spec: dict = {
         "name": f"bottleneck_{width:g}",
@@ -161,8 +163,8 @@ def bottleneck_scene(width: float, time_gap: float | None, people: int = PEOPLE)
                              "min": 0.58, "max": 1.61},
                   "sinks": [{"kind": "rectangle", "min": [13.0, 0.0], "max": [15.0, 8.0]}]},
     }
-    if time_gap is not None:
-        spec["flows"]["headway"] = {"time_gap": time_gap}
+    if headway is not None:
+        spec["flows"]["headway"] = dict(headway)
     return spec
 
 
@@ -176,8 +178,7 @@ def experiments() -> list[tuple[str, float, float]]:
 def _cases_b(quick: bool) -> list[Case]:
     people = 60 if quick else PEOPLE
     return [Case(f"{law}/{w:g}", "bottleneck", 400.0,
-                 inline=bottleneck_scene(w, DEFAULT_TIME_GAP if law == "headway" else None,
-                                         people),
+                 inline=bottleneck_scene(w, {} if law == "headway" else None, people),
                  record_every=2, stop_when_empty=True)
             for w in WIDTHS for law in LAWS]
 
@@ -197,7 +198,8 @@ def steady_flow(tr: Trace, width: float) -> float:
     return (b - a) / (t[b] - t[a]) if t[b] > t[a] else math.nan
 
 
-def _seyfried(width: float) -> float:
+def seyfried(width: float) -> float:
+    """Seyfried et al.'s flow (1/s) at a width (m), interpolated linearly."""
     pts = [(w, j) for s, w, j in experiments() if s == "seyfried2009"]
     return float(np.interp(width, [w for w, _ in pts], [j for _, j in pts]))
 
@@ -211,13 +213,13 @@ def _judge_b(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
     n_seeds = len(next(iter(traces.values())))
     values, ok = [], []
     for k in range(n_seeds):
-        worst = max(abs(flows["headway"][w][k] / _seyfried(w) - 1.0) for w in WIDTHS)
+        worst = max(abs(flows["headway"][w][k] / seyfried(w) - 1.0) for w in WIDTHS)
         values.append(worst)
         ok.append(worst <= TARGET)
     notes = "; ".join(
         f"{law}: " + ", ".join(f"w {w:g} m J/w {np.nanmean(js) / w:.2f}" for w, js in
                                sorted(flows[law].items())) for law in LAWS)
-    notes += "; Seyfried 2009 J/w " + ", ".join(f"{w:g}: {_seyfried(w) / w:.2f}"
+    notes += "; Seyfried 2009 J/w " + ", ".join(f"{w:g}: {seyfried(w) / w:.2f}"
                                                 for w in WIDTHS)
     verdict = Verdict(values, ok, "", notes)
     verdict.figures = flows
@@ -236,7 +238,7 @@ def _plot_b(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> l
         js = [np.asarray(verdict.figures[law][w]) / w for w in ws]
         ax.errorbar(ws, [np.nanmean(j) for j in js], yerr=[np.nanstd(j) for j in js],
                     marker="o", capsize=3,
-                    label="headway law (default time gap)" if law == "headway" else "pure model")
+                    label="speed law (csm, defaults)" if law == "headway" else "pure model")
     ax.set_xlabel("bottleneck width w (m)")
     ax.set_ylabel("specific flow J / w (1/(m s))")
     ax.set_title("Bottleneck: specific flow against width")
@@ -246,7 +248,7 @@ def _plot_b(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> l
 
 TEST_BOTTLENECK = Test(
     "bottleneck", "Bottleneck flow against width (validation)",
-    "largest relative departure of the flow (headway law) from Seyfried et al. 2009 at "
+    "largest relative departure of the flow (speed law) from Seyfried et al. 2009 at "
     "widths 0.8, 1.0, 1.2 m (150 people)", f"<= {TARGET:.0%} (target)",
     _cases_b, _judge_b, _plot_b,
     source="Seyfried et al. 2009, Kretz et al. 2006 (data as in JuPedSim's validation folder)",

@@ -1,0 +1,95 @@
+"""Exit choice (the scene's optional ``flows.exit_choice``): a group's agents choose among
+several exits by estimated time, and re-choose at every step.
+
+    flows:
+      exit_choice:
+        - group: NAME            # omitted: the agents in no group
+          exits: [{region: {...}} | {goal: [x, y]}, ...]      2 to MAX_EXITS
+          capacity: C | [C_0, ...]                            1/s, > 0 (default 1.2)
+          cell, wall_buffer                                    as for the geodesic drift
+
+Each exit k gets a geodesic field round the walls (its travel distance T_k, m). Agent i's
+estimated time by exit k is
+
+    E_ik = T_k(q_i) / v_i + n_ik / C_k,
+
+its walk at its preferred speed v_i (m/s) plus the wait behind the n_ik agents assigned to
+exit k before it, at the exit's flow C_k (1/s). Agents are assigned one after the other in
+order of their least walking time min_k T_k / v_i (ties by id), each to the exit of least
+E_ik (ties: the lower index), so the nearest agents take their nearest exit and the ones
+behind turn to another exit once the queue makes it quicker
+(:func:`sweep_core.numerics.exit_choice.assign`). The assignment depends on the positions
+alone, so a run replays bit for bit. The default capacity, 1.2 per second, is the flow of a
+1 m door with the default speed law (docs/validation.md, the bottleneck).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from sweep_core import checks
+from sweep_core.errors import SceneError, show
+from sweep_core.model.fields import Field
+from sweep_core.model.regions import Region, region_from_spec
+
+#: most exits of one choice
+MAX_EXITS = 16
+#: an exit's flow (1/s) when the scene gives none
+DEFAULT_CAPACITY = 1.2
+
+
+@dataclass(frozen=True, eq=False)
+class ExitChoice:
+    """A group's choice among exits (module docstring): ``group`` (-1: the agents in no
+    group), ``fields[k]`` the geodesic field to exit k (``travel_distance`` gives T_k),
+    ``capacity`` (K,) 1/s, ``spec`` the normalised dict."""
+
+    group: int
+    fields: tuple[Field, ...]
+    capacity: np.ndarray
+    spec: dict
+
+
+def exit_choice_from_spec(value: Any, field: str, group: int, group_name: str | None,
+                          speed: float, geometry: Any, grid: Any) -> ExitChoice:
+    """One entry of ``flows.exit_choice`` (``field`` names it) for the group ``group``
+    (already checked), whose drift moves at ``speed`` m/s."""
+    from sweep_core.model.geodesic import navigation_from_spec  # built on fields
+
+    checks.mapping(value, field, required={"exits"},
+                   allowed={"group", "exits", "capacity", "cell", "wall_buffer"})
+    raw = value["exits"]
+    if not isinstance(raw, list) or not 2 <= len(raw) <= MAX_EXITS:
+        raise SceneError(f"{field}.exits", f"must be a list of 2 to {MAX_EXITS} exits, got "
+                         f"{show(raw)}", f"write {field}.exits as [{{region: {{...}}}}, "
+                         "{goal: [x, y]}, ...], one item per exit")
+    cap = value.get("capacity", DEFAULT_CAPACITY)
+    if isinstance(cap, list):
+        capacity = checks.per_agent(cap, len(raw), f"{field}.capacity", positive=True)
+    else:
+        capacity = np.full(len(raw), checks.number(
+            cap, f"{field}.capacity", positive=True,
+            fix=f"give {field}.capacity the flow of each exit (1/s, > 0): one number or one "
+                "per exit"))
+    extra = {k: value[k] for k in ("cell", "wall_buffer") if k in value}
+    fields, exits = [], []
+    for k, e in enumerate(raw):
+        ef = f"{field}.exits[{k}]"
+        checks.mapping(e, ef, allowed={"goal", "region"})
+        if ("goal" in e) == ("region" in e):
+            raise SceneError(ef, f"gives {'both' if 'goal' in e else 'neither'} goal and "
+                             "region", f"give {ef}.goal: [x, y] or {ef}.region: {{kind: "
+                             "rectangle, min: [x, y], max: [x, y]}")
+        if "goal" in e:
+            one: dict = {"goal": checks.point(e["goal"], f"{ef}.goal").tolist()}
+        else:
+            region: Region = region_from_spec(e["region"], f"{ef}.region")
+            one = {"region": region.spec}
+        exits.append(one)
+        fields.append(navigation_from_spec({"kind": "geodesic", **one, "speed": speed, **extra},
+                                           ef, geometry, grid, np.empty((0, 2))))
+    spec = {**({"group": group_name} if group_name is not None else {}), "exits": exits,
+            "capacity": capacity.tolist(), **extra}
+    return ExitChoice(group, tuple(fields), np.asarray(capacity, dtype=np.float64), spec)

@@ -1,0 +1,59 @@
+"""The speed laws of the scene's optional ``flows.headway`` (docs/flows.md): their names,
+default parameters and the validation of the key. The laws themselves are compiled kernels:
+:mod:`sweep_core.numerics.csm` (``csm``, the default) and :mod:`sweep_core.numerics.headway`
+(``lanes``).
+
+    headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D}   s, -, m
+            | {law: lanes, time_gap: T, margin: w}                      s, m
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from sweep_core import checks
+from sweep_core.errors import SceneError, show
+
+#: the speed laws of ``flows.headway``: the collision-free speed model (numerics/csm.py) and
+#: the free distance with a lateral margin (numerics/headway.py)
+LAWS = ("csm", "lanes")
+#: the law, time gap T (s), repulsion strength a and range D (m) of ``flows.headway`` when the
+#: scene gives none: calibrated jointly against Weidmann's speed-density relation in a ring
+#: corridor and the bottleneck flows of Seyfried et al. (docs/validation.md,
+#: scripts/calibrate_speed_law.py)
+DEFAULT_LAW = "csm"
+DEFAULT_TIME_GAP = 0.8
+DEFAULT_REPULSION = 2.0
+DEFAULT_REPULSION_RANGE = 0.1
+#: the ``lanes`` law's time gap T (s) and lateral margin w (m) when the scene gives none
+#: (calibrated against Weidmann alone, scripts/calibrate_headway.py)
+LANES_TIME_GAP = 0.35
+DEFAULT_MARGIN = 0.3
+
+def headway_from_spec(raw: Any) -> dict | None:
+    """``flows.headway`` validated and normalised (None: absent): ``law`` (``csm``, default,
+    or ``lanes``; a ``margin`` without a ``law`` is the ``lanes`` law, whose parameter it is)
+    with its parameters, defaults filled in."""
+    if raw is None:
+        return None
+    hw = checks.mapping(raw, "flows.headway", allowed={"law", "time_gap", "margin", "repulsion",
+                                                       "repulsion_range"})
+    law = hw.get("law", "lanes" if "margin" in hw else DEFAULT_LAW)
+    if law not in LAWS:
+        raise SceneError("flows.headway.law", f"unknown law {show(law)}",
+                         f"use one of {', '.join(LAWS)} (or omit it for {DEFAULT_LAW})")
+    own = {"csm": {"repulsion", "repulsion_range"}, "lanes": {"margin"}}[law]
+    for key in sorted(set(hw) - own - {"law", "time_gap"}):
+        raise SceneError(f"flows.headway.{key}", f"is not a parameter of the {law} law",
+                         "remove it, or set flows.headway.law to the law it belongs to")
+    if law == "lanes":
+        return {"law": law, "time_gap": checks.number(hw.get("time_gap", LANES_TIME_GAP),
+                                                      "flows.headway.time_gap", positive=True),
+                "margin": checks.length(hw.get("margin", DEFAULT_MARGIN), "flows.headway.margin",
+                                        nonnegative=True)}
+    return {"law": law,
+            "time_gap": checks.number(hw.get("time_gap", DEFAULT_TIME_GAP),
+                                      "flows.headway.time_gap", positive=True),
+            "repulsion": checks.number(hw.get("repulsion", DEFAULT_REPULSION),
+                                       "flows.headway.repulsion", nonnegative=True),
+            "repulsion_range": checks.length(hw.get("repulsion_range", DEFAULT_REPULSION_RANGE),
+                                             "flows.headway.repulsion_range", positive=True)}
