@@ -20,6 +20,7 @@ import numpy as np
 import rclpy
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import LaserScan
@@ -112,7 +113,9 @@ def main(args: list[str] | None = None) -> int:
     except (SceneError, ValueError) as err:  # the scene, the robot, or a robot without goal
         print(f"{NODE_NAME}: error: {err}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):
+        # Ctrl-C or a SIGINT/SIGTERM: rclpy's handler may shut the context down while spin
+        # waits, which it reports as ExternalShutdownException rather than KeyboardInterrupt
         pass
     finally:
         if node is not None:
