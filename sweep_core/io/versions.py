@@ -8,7 +8,7 @@ from importlib import metadata
 from pathlib import Path
 
 #: the libraries whose versions can change a run's floats
-SHAPING = ("numpy", "scipy", "numba", "llvmlite", "cvxopt", "proxsuite", "clarabel",
+SHAPING = ("numpy", "scipy", "numba", "llvmlite", "cvxopt", "proxsuite", "clarabel", "piqp",
            "qpsolvers")
 #: the CPU features that select a different code path in one of them (numpy's SIMD kernels,
 #: OpenBLAS's, the C library's FMA variants, numba's target)

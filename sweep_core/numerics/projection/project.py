@@ -26,7 +26,7 @@ import numpy as np
 from sweep_core.errors import InfeasibleError
 from sweep_core.model.geometry import Geometry
 from sweep_core.numerics.constraints import Rows, linearise
-from sweep_core.numerics.projection import certified, dual, polish
+from sweep_core.numerics.projection import certified, dual, polish, refine
 from sweep_core.numerics.projection.clusters import row_matrix, solve_qp
 from sweep_core.numerics.projection.options import ROW_TOLERANCE, SolverOptions
 from sweep_core.numerics.projection.warm import carry_multipliers
@@ -194,15 +194,21 @@ def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
         x, gap = _certified_point(d, ri, rj, re, h, lam, label, clusters, agents, xs, opts.tol,
                                   floor)
         if by_backend and float(np.sqrt(2.0 * gap.sum())) > opts.tol:
-            # an interior point's answer: moved towards the projection, kept per cluster
-            # where the certificate proves it closer
-            moved = polish.shrink(xs, c, h[picked], floor)
+            # an interior point's answer: refined (solved again around itself, magnified),
+            # and where that is not within tol, moved towards the projection; each kept per
+            # cluster where the certificate proves it closer
+            refined = refine.refine(d[agents].ravel(), xs, c, h[picked])
+            if refined is not None:
+                lam2 = lam.copy()
+                lam2[picked] = refined[1]
+                x2, gap2 = _certified_point(d, ri, rj, re, h, lam2, label, clusters, agents,
+                                            refined[0], opts.tol, floor)
+                x, lam, gap = _keep_better(x, lam, gap, x2, lam2, gap2, label, ri)
+        if by_backend and float(np.sqrt(2.0 * gap.sum())) > opts.tol:
+            moved = polish.shrink(x[agents].ravel(), c, h[picked], floor)
             x2, gap2 = _certified_point(d, ri, rj, re, h, lam, label, clusters, agents, moved,
                                         opts.tol, floor)
-            better = gap2 < gap
-            take = better[label] & (label >= 0)
-            x[take] = x2[take]
-            gap = np.where(better, gap2, gap)
+            x, lam, gap = _keep_better(x, lam, gap, x2, lam, gap2, label, ri)
     bound = float(np.sqrt(2.0 * gap.sum()))
     # y = p + A^T lam (+ r): agents in no row, or with no multiplier, keep their prediction
     # bit for bit
@@ -226,6 +232,21 @@ def _certified_point(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarr
     gap = gap + 0.5 * np.bincount(label[agents], weights=(r ** 2).sum(axis=1),
                                   minlength=clusters)
     return x, gap
+
+
+def _keep_better(x: np.ndarray, lam: np.ndarray, gap: np.ndarray, x2: np.ndarray,
+                 lam2: np.ndarray, gap2: np.ndarray, label: np.ndarray, ri: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per cluster, the point and multipliers of the smaller gap: x (N, 2), lam (K,), gap
+    (clusters,) (m^2); label: the cluster of each agent (-1: none), ri: the first agent of each
+    row."""
+    better = gap2 < gap
+    take = better[label] & (label >= 0)
+    rows = better[label[ri]]
+    x, lam = x.copy(), lam.copy()
+    x[take] = x2[take]
+    lam[rows] = lam2[rows]
+    return x, lam, np.where(better, gap2, gap)
 
 
 def _culprits(rows: Rows, rp: np.ndarray, rs: np.ndarray, count: int = 6) -> list[int]:
