@@ -11,7 +11,7 @@ projection leaves slack is a question for the QP itself (docs/jam_solvers.md).
 
 How (the iterative refinement of Gleixner, Steffy and Wolter for linear programs, INFORMS J.
 Computing 28(3), 2016, applied to this QP). With x^ the answer, s^ = C x^ - h its slacks and
-W the rows of slack below ``NEAR``, substitute x = x^ + v / D (D = ``SCALE``): up to a
+W the rows of slack below ``NEAR``, substitute x = x^ + v / D (D in ``SCALES``): up to a
 constant and the factor D,
 
     min  (x^ - t) . v + 1/(2 D) |v|^2   s.t.   C_W v >= -D (s^_W - skin)
@@ -39,18 +39,20 @@ from sweep_core.numerics.projection import pivot
 #: multipliers on rows of slack up to about 1e-9 m; left out, their agents' correction is
 #: free and the refined QP wanders (rows broken by 1e-8 m on 5 of 62 jammed steps with 1e-9)
 NEAR = 1e-6
-#: magnification of the correction: the refined QP's right-hand sides are at most
-#: NEAR x SCALE = 1e4 (at 1e6 PIQP reached its iteration cap on some jams)
-SCALE = 1e10
+#: magnifications of the correction, tried in turn until PIQP reports the refined QP solved:
+#: its right-hand sides are at most NEAR x D (at 1e6 PIQP reached its iteration cap on
+#: some jams; at 1e4 it wandered off on one QP in about 200 and solved it at 1e3)
+SCALES = (1e10, 1e9)
 #: the skin (m) in ulp of the largest displacement: it keeps the rounding of x^ + v / D, a few
 #: ulp a coordinate, from breaking a row; it costs skin x sum(lam) in the gap (7e-14 m^2 on a
 #: 1000-agent jam, a bound of 3.8e-7 m)
 SKIN_ULPS = 16.0
-#: PIQP's settings for the refined QP, in its scaled units: rows to 1e-8 / SCALE m, the
-#: stationarity to 1e-8 m, the duality gap to 1e-4 / SCALE m^2 (a gap far below the skin's)
+#: PIQP's settings for the refined QP, in its scaled units: rows to 1e-8 / D m, the
+#: stationarity to 1e-8 m, the duality gap to 1e-4 / D m^2 (far below the skin's cost); a
+#: solve takes 10 to 25 iterations
 SETTINGS: dict[str, float | bool | int] = {
     "eps_abs": 1e-8, "eps_rel": 0.0, "eps_duality_gap_abs": 1e-4,
-    "eps_duality_gap_rel": 0.0, "check_duality_gap": True, "max_iter": 100}
+    "eps_duality_gap_rel": 0.0, "check_duality_gap": True, "max_iter": 40}
 
 
 def skin(x: np.ndarray) -> float:
@@ -62,8 +64,10 @@ def refine(target: np.ndarray, x: np.ndarray, c: sp.spmatrix, h: np.ndarray
            ) -> tuple[np.ndarray, np.ndarray] | None:
     """One refinement of x (n,), an approximate solution of min 1/2 |x - target|^2 s.t.
     c x >= h (c: (m, n) rows, h: (m,) bounds, m): the refined x (n,) and multipliers (m,),
-    zero off the near-active rows; None when no row is near-active or the solve gave nothing
-    finite. By PIQP's baseline build (the same bits on every x86-64 CPU)."""
+    zero off the near-active rows; None when no row is near-active or the solves gave nothing
+    finite. The first magnification of ``SCALES`` that PIQP solves is taken (else the last
+    finite answer: the certificate judges it). By PIQP's baseline build (the same bits on
+    every x86-64 CPU)."""
     cr = sp.csr_matrix(c)
     s = cr @ x - h
     near = np.flatnonzero(s < NEAR)
@@ -71,19 +75,23 @@ def refine(target: np.ndarray, x: np.ndarray, c: sp.spmatrix, h: np.ndarray
         return None
     n = len(x)
     piqp = pivot.baseline()
-    solver = piqp.SparseSolver()
-    for key, value in SETTINGS.items():
-        setattr(solver.settings, key, value)
-    solver.settings.verbose = False
-    # PIQP's form: min 1/2 v' P v + g' v  s.t.  G v <= b
-    solver.setup((1.0 / SCALE) * sp.identity(n, format="csc"),
-                 np.asarray(x - target, dtype=float), sp.csc_matrix((0, n)), np.zeros(0),
-                 sp.csc_matrix(-cr[near]), None, SCALE * (s[near] - skin(x)), None, None)
-    solver.solve()
-    v = np.array(solver.result.x, dtype=float)
-    lam_near = np.maximum(np.array(solver.result.z_u, dtype=float), 0.0)
-    if not (np.all(np.isfinite(v)) and np.all(np.isfinite(lam_near))):
-        return None
-    lam = np.zeros(len(h))
-    lam[near] = lam_near
-    return x + v / SCALE, lam
+    found = None
+    for scale in SCALES:
+        solver = piqp.SparseSolver()
+        for key, value in SETTINGS.items():
+            setattr(solver.settings, key, value)
+        solver.settings.verbose = False
+        # PIQP's form: min 1/2 v' P v + g' v  s.t.  G v <= b
+        solver.setup((1.0 / scale) * sp.identity(n, format="csc"),
+                     np.asarray(x - target, dtype=float), sp.csc_matrix((0, n)), np.zeros(0),
+                     sp.csc_matrix(-cr[near]), None, scale * (s[near] - skin(x)), None, None)
+        status = solver.solve()
+        v = np.array(solver.result.x, dtype=float)
+        lam_near = np.maximum(np.array(solver.result.z_u, dtype=float), 0.0)
+        if np.all(np.isfinite(v)) and np.all(np.isfinite(lam_near)):
+            lam = np.zeros(len(h))
+            lam[near] = lam_near
+            found = (x + v / scale, lam)
+            if status == piqp.PIQP_SOLVED:
+                break
+    return found
