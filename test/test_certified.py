@@ -188,6 +188,9 @@ def test_an_uncertified_answer_keeps_a_finite_cutoff(monkeypatch):
         return real(target, c, b - 5e-10, opts)
 
     monkeypatch.setattr(project_module, "solve_qp", short)
+    # without the refinement and the polish, which would repair the answer (the next test)
+    monkeypatch.setattr(project_module.refine, "refine", lambda *args: None)
+    monkeypatch.setattr(project_module.polish, "shrink", lambda x, *args: x)
     scene = sc.Scene.from_dict(deep_jam(n=120))
     sim = sc.Simulator(scene, dt=0.02, seed=1, solver=loose(max_rounds=0))
     sim.step(3)
@@ -196,6 +199,29 @@ def test_an_uncertified_answer_keeps_a_finite_cutoff(monkeypatch):
     assert proj.solves == 1
     every_pair = scene.n_agents * (scene.n_agents - 1) // 2
     assert len(proj.rows.pair_i) < every_pair / 10
+
+
+def test_a_slightly_infeasible_answer_is_repaired_by_the_refinement(monkeypatch):
+    """The same answer, rows broken by up to 5e-10 m: the refinement (the QP solved again
+    around it, magnified) returns a point that holds every row, certified within tol, and
+    that close to the exact projection."""
+    real = project_module.solve_qp
+
+    def short(target, c, b, opts):
+        return real(target, c, b - 5e-10, opts)
+
+    monkeypatch.setattr(project_module, "solve_qp", short)
+    scene = sc.Scene.from_dict(deep_jam(n=120))
+    sim = sc.Simulator(scene, dt=0.02, seed=1, solver=loose(max_rounds=0))
+    sim.step(2)
+    q, t1 = sim.positions, sim.t + sim.dt
+    sim.step()
+    proj = sim.last.projection
+    assert proj.fallback_agents > 0 and proj.bound <= sc.SolverOptions().tol
+    rp, rs = proj.rows.residuals(proj.y)
+    assert min(rp.min(), rs.min(initial=np.inf)) >= 0.0
+    want = reference(scene, t1, q, sim.last.prediction)
+    assert np.sqrt(((proj.y - want) ** 2).sum()) <= proj.bound
 
 
 def test_bundled_door_scene_is_certified_every_step_without_fallback() -> None:

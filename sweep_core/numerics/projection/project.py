@@ -174,6 +174,7 @@ def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
                   else np.zeros(n, dtype=bool))
     agent_todo |= np.bincount(np.concatenate([ri[held], rj[held][rj[held] >= 0]]),
                               minlength=n)[:n] > 0
+    floor = certified.rounding_floor(d, h)
     if not agent_todo.any():
         gap = res.gap
     else:
@@ -190,25 +191,11 @@ def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
         xs, lam_sub, ok, by_backend = solve_qp(d[agents].ravel(), c, h[picked] + res.skin,
                                                opts)
         lam[picked] = lam_sub
-        floor = certified.rounding_floor(d, h)
         x, gap = _certified_point(d, ri, rj, re, h, lam, label, clusters, agents, xs, opts.tol,
                                   floor)
-        if by_backend and float(np.sqrt(2.0 * gap.sum())) > opts.tol:
-            # an interior point's answer: refined (solved again around itself, magnified),
-            # and where that is not within tol, moved towards the projection; each kept per
-            # cluster where the certificate proves it closer
-            refined = refine.refine(d[agents].ravel(), xs, c, h[picked])
-            if refined is not None:
-                lam2 = lam.copy()
-                lam2[picked] = refined[1]
-                x2, gap2 = _certified_point(d, ri, rj, re, h, lam2, label, clusters, agents,
-                                            refined[0], opts.tol, floor)
-                x, lam, gap = _keep_better(x, lam, gap, x2, lam2, gap2, label, ri)
-        if by_backend and float(np.sqrt(2.0 * gap.sum())) > opts.tol:
-            moved = polish.shrink(x[agents].ravel(), c, h[picked], floor)
-            x2, gap2 = _certified_point(d, ri, rj, re, h, lam, label, clusters, agents, moved,
-                                        opts.tol, floor)
-            x, lam, gap = _keep_better(x, lam, gap, x2, lam, gap2, label, ri)
+    if ok and float(np.sqrt(2.0 * gap.sum())) > opts.tol:
+        x, lam, gap = _improve(rows, d, ri, rj, re, h, x, lam, gap, label, clusters, opts.tol,
+                               floor, agent_todo)
     bound = float(np.sqrt(2.0 * gap.sum()))
     # y = p + A^T lam (+ r): agents in no row, or with no multiplier, keep their prediction
     # bit for bit
@@ -232,6 +219,45 @@ def _certified_point(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarr
     gap = gap + 0.5 * np.bincount(label[agents], weights=(r ** 2).sum(axis=1),
                                   minlength=clusters)
     return x, gap
+
+
+def _improve(rows: Rows, d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray,
+             h: np.ndarray, x: np.ndarray, lam: np.ndarray, gap: np.ndarray, label: np.ndarray,
+             clusters: int, tol: float, floor: float, solved: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The clusters of the agents ``solved`` (N,) bool by the cluster solvers whose gap is
+    above their share of tol (an interior point's answer): refined (the QP solved again
+    around the answer, magnified, :mod:`.refine`), and where that does not prove tol, moved
+    towards the projection (:mod:`.polish`); each kept per cluster where the certificate
+    proves it closer. x (N, 2), lam (K,), gap (clusters,) in and out. (The rounds' clusters
+    are left as they are: where the rounding floor of their skin sets a budget above tol,
+    refining them doubled the step of a 1000-agent jam of radii 0.20-0.27 m at a door for a
+    bound of 3e-7 m instead of 1.2e-6 m.)"""
+    _, share, _, _ = certified.certify(x, ri, rj, re, h, lam, label, clusters, tol, 0.0)
+    over = gap > share
+    todo = solved & (label >= 0) & over[np.maximum(label, 0)]
+    pick_p, pick_s = todo[rows.pair_i], todo[rows.single_a]
+    sub = rows.select(pick_p, pick_s)
+    agents = sub.agents()
+    if len(agents) == 0:
+        return x, lam, gap
+    loc = np.full(len(x), -1, dtype=np.intp)
+    loc[agents] = np.arange(len(agents))
+    c, _ = row_matrix(sub, loc, len(agents))
+    picked = np.concatenate([pick_p, pick_s])
+    refined = refine.refine(d[agents].ravel(), x[agents].ravel(), c, h[picked])
+    if refined is not None:
+        lam2 = lam.copy()
+        lam2[picked] = refined[1]
+        x2, gap2 = _certified_point(d, ri, rj, re, h, lam2, label, clusters, agents, refined[0],
+                                    tol, floor)
+        x, lam, gap = _keep_better(x, lam, gap, x2, lam2, gap2, label, ri)
+    if float(np.sqrt(2.0 * gap.sum())) > tol:
+        moved = polish.shrink(x[agents].ravel(), c, h[picked], floor)
+        x2, gap2 = _certified_point(d, ri, rj, re, h, lam, label, clusters, agents, moved, tol,
+                                    floor)
+        x, lam, gap = _keep_better(x, lam, gap, x2, lam, gap2, label, ri)
+    return x, lam, gap
 
 
 def _keep_better(x: np.ndarray, lam: np.ndarray, gap: np.ndarray, x2: np.ndarray,
