@@ -12,7 +12,8 @@ user's page; the run-time state (who is present, who left) is
       journeys: [{group, legs: [{goal: [x, y]} | {region: {...}}, ...], arrive_radius,
                   cell, wall_buffer}, ...]
       exit_choice: [{group, exits: [{region} | {goal}, ...], capacity}, ...]   (exit_choice.py)
-      headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D}   s, -, m
+      headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D, lateral: k}
+                                                                    s, -, m, -  (speed_law.py)
               | {law: lanes, time_gap: T, margin: w}                      s, m
 
 Regions: :mod:`sweep_core.model.regions`. Values drawn from a distribution are drawn per run
