@@ -18,6 +18,8 @@ from sweep_core.io.metadata import describe_status
 from sweep_core.io.recording import ChannelInfo, scan_recording
 from sweep_core.model.maps import replace_map
 from sweep_core.model.scene import Scene
+from sweep_core.model.speed_law import recorded_headway
+from sweep_core.model.yaml_files import load_yaml
 from sweep_core.numerics.projection import SolverOptions
 
 #: nanoseconds per second
@@ -205,6 +207,9 @@ def load_run(path: str | Path) -> RunMeta:
             # a recording is data: its scene is rebuilt from what it carries, and a map it
             # names by path is refused, never read from this machine
             scene = Scene.from_yaml_text(raw["scene"], source="the recorded scene", files=False)
+            older = recorded_headway(load_yaml(raw["scene"]))
+            if older is not None:  # a speed law recorded before flows.headway.lateral existed
+                scene = Scene.from_dict(older, files=False)
         except SweepError as err:
             problems.append(f"the recorded scene does not load: {err}")
     dt = _number(raw, "dt", float, problems)

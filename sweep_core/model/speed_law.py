@@ -3,7 +3,8 @@ default parameters and the validation of the key. The laws themselves are compil
 :mod:`sweep_core.numerics.csm` (``csm``, the default) and :mod:`sweep_core.numerics.headway`
 (``lanes``).
 
-    headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D}   s, -, m
+    headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D, lateral: k}
+                                                                  s, -, m, -
             | {law: lanes, time_gap: T, margin: w}                      s, m
 """
 from __future__ import annotations
@@ -21,9 +22,15 @@ LAWS = ("csm", "lanes")
 #: corridor and the bottleneck flows of Seyfried et al. (docs/validation.md,
 #: scripts/calibrate_speed_law.py)
 DEFAULT_LAW = "csm"
-DEFAULT_TIME_GAP = 0.8
+DEFAULT_TIME_GAP = 1.1
 DEFAULT_REPULSION = 2.0
 DEFAULT_REPULSION_RANGE = 0.1
+#: the fraction k of l_ij = r_i + r_j within which a neighbour beside the line of motion counts
+#: as ahead (numerics/csm.py); 1 is the published law
+DEFAULT_LATERAL = 0.7
+#: ``lateral`` of a recorded scene that does not name it: recordings made before the key
+#: existed walked with the full stripe (analysis/run.py)
+RECORDED_LATERAL = 1.0
 #: the ``lanes`` law's time gap T (s) and lateral margin w (m) when the scene gives none
 #: (calibrated against Weidmann alone, scripts/calibrate_headway.py)
 LANES_TIME_GAP = 0.35
@@ -36,12 +43,12 @@ def headway_from_spec(raw: Any) -> dict | None:
     if raw is None:
         return None
     hw = checks.mapping(raw, "flows.headway", allowed={"law", "time_gap", "margin", "repulsion",
-                                                       "repulsion_range"})
+                                                       "repulsion_range", "lateral"})
     law = hw.get("law", "lanes" if "margin" in hw else DEFAULT_LAW)
     if law not in LAWS:
         raise SceneError("flows.headway.law", f"unknown law {show(law)}",
                          f"use one of {', '.join(LAWS)} (or omit it for {DEFAULT_LAW})")
-    own = {"csm": {"repulsion", "repulsion_range"}, "lanes": {"margin"}}[law]
+    own = {"csm": {"repulsion", "repulsion_range", "lateral"}, "lanes": {"margin"}}[law]
     for key in sorted(set(hw) - own - {"law", "time_gap"}):
         raise SceneError(f"flows.headway.{key}", f"is not a parameter of the {law} law",
                          "remove it, or set flows.headway.law to the law it belongs to")
@@ -56,4 +63,31 @@ def headway_from_spec(raw: Any) -> dict | None:
             "repulsion": checks.number(hw.get("repulsion", DEFAULT_REPULSION),
                                        "flows.headway.repulsion", nonnegative=True),
             "repulsion_range": checks.length(hw.get("repulsion_range", DEFAULT_REPULSION_RANGE),
-                                             "flows.headway.repulsion_range", positive=True)}
+                                             "flows.headway.repulsion_range", positive=True),
+            "lateral": lateral_from_spec(hw.get("lateral", DEFAULT_LATERAL))}
+
+
+def lateral_from_spec(raw: Any) -> float:
+    """``flows.headway.lateral`` validated: a number in (0, 1]."""
+    k = checks.number(raw, "flows.headway.lateral", positive=True,
+                      fix="set flows.headway.lateral to a number in (0, 1] (the fraction of "
+                          "the two radii within which a neighbour beside the path is ahead)")
+    if k > 1.0:
+        raise SceneError("flows.headway.lateral", f"must be at most 1, got {show(raw)}",
+                         "set flows.headway.lateral to a number in (0, 1] (1: every neighbour "
+                         "whose disk overlaps the path is ahead)")
+    return k
+
+
+def recorded_headway(spec: Any) -> dict | None:
+    """A recorded scene dict with the csm law's ``lateral`` filled in as it walked when the
+    recording was made (``RECORDED_LATERAL``: recordings made before the key existed have none),
+    or None when nothing is to be filled in. Recorded scenes carry their law normalised, every
+    other parameter written out."""
+    if not isinstance(spec, dict) or not isinstance(spec.get("flows"), dict):
+        return None
+    flows = spec["flows"]
+    hw = flows.get("headway")
+    if not isinstance(hw, dict) or hw.get("law") != "csm" or "lateral" in hw:
+        return None
+    return {**spec, "flows": {**flows, "headway": {**hw, "lateral": RECORDED_LATERAL}}}

@@ -158,7 +158,8 @@ class Population:
             u[t < self.start[ids]] = 0.0
         law = self.flows
         if law.time_gap is not None and law.law == "csm":
-            u = csm(q, self.radius[ids], u, law.time_gap, law.repulsion, law.repulsion_range)
+            u = csm(q, self.radius[ids], u, law.time_gap, law.repulsion, law.repulsion_range,
+                    law.lateral)
         elif law.time_gap is not None:
             u = headway(q, self.radius[ids], u, law.time_gap, law.margin)
         return u

@@ -112,7 +112,23 @@ def _judge_9(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
         ok.append(1.6 <= ratio <= 2.4)
     notes = "evacuation times 4 doors / 2 doors " + ", ".join(
         f"{a:.1f}/{b:.1f} s" for a, b in times)
+    stuck = [f"{label} doors, seed {tr.seed}: {remaining(tr)}" for four, two in
+             zip(traces["four"], traces["two"]) for label, tr in (("4", four), ("2", two))
+             if remaining(tr)]
+    if stuck:
+        notes += "; not emptied: " + "; ".join(stuck)
     return Verdict(values, ok, "", notes)
+
+
+def remaining(tr: Trace) -> str:
+    """Who never left a run, said plainly ("" if everyone did): the count still inside when
+    the run ended, the time of the last departure, and the error if the run failed."""
+    if not tr.error and tr.n0 and len(tr.left_at) >= tr.n0:
+        return ""
+    last = max(tr.left_at.values(), default=0.0)
+    out = (f"{tr.n0 - len(tr.left_at)} of {tr.n0} still inside at {tr.t_end:.0f} s, "
+           f"the last one out at {last:.1f} s")
+    return out + (f" ({tr.error})" if tr.error else "")
 
 
 def _plot_9(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> list[Path]:

@@ -54,19 +54,22 @@ def _annulus() -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
             [(inner * math.cos(a), inner * math.sin(a)) for a in ang])
 
 
+def ring_case(rho: float, headway: dict | None, label: str = "ring",
+              quick: bool = False) -> Case:
+    """Test 4's run at density ``rho`` (1/m^2) with ``headway`` as the scene's
+    ``flows.headway`` ({}: the default law; None: the pure model)."""
+    spec = ring_corridor(rho)
+    if headway is not None:
+        spec["flows"] = {"headway": dict(headway)}
+    return Case(label, "ring", 30.0 if quick else 70.0, inline=spec, record_every=5)
+
+
 def _cases_4(quick: bool) -> list[Case]:
-    out = []
-    for rho in QUICK_DENSITIES if quick else DENSITIES:
-        for law in LAWS:
-            spec = ring_corridor(rho)
-            if law == "headway":
-                spec["flows"] = {"headway": {}}  # the default law at its default parameters
-            out.append(Case(f"{law}/{rho:g}", "ring", 30.0 if quick else 70.0,
-                            inline=spec, record_every=5))
-    return out
+    return [ring_case(rho, {} if law == "headway" else None, f"{law}/{rho:g}", quick)
+            for rho in (QUICK_DENSITIES if quick else DENSITIES) for law in LAWS]
 
 
-def _measure_4(tr: Trace) -> tuple[float, float]:
+def ring_measure(tr: Trace) -> tuple[float, float]:
     """PedPy's Voronoi density (1/m^2) and speed (m/s) in the area, after 10 s."""
     outer, inner = _annulus()
     m = density_speed(tr.traj, AREA, outer, frame_step=2, since_s=10.0, obstacles=[inner])
@@ -79,7 +82,7 @@ def _diagram(traces: dict[str, list[Trace]], law: str) -> dict[float, list[tuple
     for label, trs in traces.items():
         name, rho = label.split("/")
         if name == law:
-            out[float(rho)] = [_measure_4(tr) if not tr.error else (math.nan, math.nan)
+            out[float(rho)] = [ring_measure(tr) if not tr.error else (math.nan, math.nan)
                                for tr in trs]
     return out
 
