@@ -10,28 +10,18 @@ from dataclasses import replace
 import numpy as np
 from scenes import hex_jam
 from test_projection import reference
+from test_stuck import lattice_qp
 
 import sweep_core as sc
-from sweep_core.numerics.constraints import linearise
-from sweep_core.numerics.projection import backends, clusters, exact, refine
+from sweep_core.numerics.projection import backends, exact, refine
 
 project_module = importlib.import_module("sweep_core.numerics.projection.project")
 
 
 def pressed_lattice(radius: float | list[float]) -> tuple[np.ndarray, object, np.ndarray]:
-    """A 10 x 10 lattice pressed towards its centre at 1 m/s for 5 steps of 0.05 s: the last
-    step's QP in displacement coordinates (target, C, h), every row built."""
-    spec = hex_jam(10, 10)
-    spec["agents"]["radius"] = radius
-    scene = sc.Scene.from_dict(spec)
-    sim = sc.Simulator(scene, dt=0.05, seed=3)
-    sim.step(4)
-    q, t1 = sim.positions, sim.t + sim.dt
-    sim.step()
-    rows = linearise(scene.geometry, t1, q, scene.radii(t1), np.inf)
-    c, _ = clusters.row_matrix(rows, np.arange(len(q)), len(q))
-    _, _, _, h = rows.displacement_rows(q)
-    return (sim.last.prediction - q).ravel(), c, h
+    """A 10 x 10 lattice pressed towards its centre at 1 m/s, steps of 0.05 s: the QP of its
+    4th step (target, C, h), every row built."""
+    return lattice_qp(10, 0.05, 3, radius)
 
 
 def certified_bound(target: np.ndarray, c, h: np.ndarray, x: np.ndarray, lam: np.ndarray

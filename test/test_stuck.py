@@ -70,10 +70,14 @@ def test_without_a_previous_step_nothing_is_skipped():
     assert proj.sweeps > 0 and proj.stuck_steps == 0
 
 
-def small_cluster() -> tuple[np.ndarray, object, np.ndarray]:
-    """A 25-agent hexagonal jam's QP in displacement coordinates: target, C, h."""
-    scene = sc.Scene.from_dict(hex_jam(5, 5))
-    sim = sc.Simulator(scene, dt=0.01, seed=5)
+def lattice_qp(side: int, dt: float, seed: int, radius: float | list[float] = 0.24
+               ) -> tuple[np.ndarray, object, np.ndarray]:
+    """The QP of the 4th step of a side x side hexagonal lattice pressed towards its centre
+    at 1 m/s, in displacement coordinates (target, C, h), every row built."""
+    spec = hex_jam(side, side)
+    spec["agents"]["radius"] = radius
+    scene = sc.Scene.from_dict(spec)
+    sim = sc.Simulator(scene, dt=dt, seed=seed)
     sim.step(3)
     q, t1 = sim.positions, sim.t + sim.dt
     sim.step()
@@ -81,6 +85,11 @@ def small_cluster() -> tuple[np.ndarray, object, np.ndarray]:
     c, _ = clusters.row_matrix(rows, np.arange(len(q)), len(q))
     _, _, _, h = rows.displacement_rows(q)
     return (sim.last.prediction - q).ravel(), c, h
+
+
+def small_cluster() -> tuple[np.ndarray, object, np.ndarray]:
+    """A 25-agent hexagonal jam's QP in displacement coordinates: target, C, h."""
+    return lattice_qp(5, 0.01, 5)
 
 
 @pytest.mark.parametrize("thin_holds", [True, False])
