@@ -25,7 +25,7 @@ rounding of x^ + v / D from breaking a row. Rows left out of W had a slack of at
 result and keeps it per cluster only where its proved bound is smaller.
 
 Measured on 1000-agent jams of equal disks at a door (2400 loaded rows): the bound of PIQP's
-answer, 2.9e-5 m (5.6e-6 to 6.7e-6 m after :mod:`.polish`), becomes about 3e-7 m, for a
+answer, 2.9e-5 m (5.6e-6 to 6.7e-6 m after :mod:`.polish`), becomes about 2e-7 m, for a
 solve of 13 to 18 iterations (25 to 40 ms, about half the first solve).
 """
 from __future__ import annotations
@@ -43,10 +43,11 @@ NEAR = 1e-6
 #: its right-hand sides are at most NEAR x D (at 1e6 PIQP reached its iteration cap on
 #: some jams; at 1e4 it wandered off on one QP in about 200 and solved it at 1e3)
 SCALES = (1e10, 1e9)
-#: the skin (m) in ulp of the largest displacement: it keeps the rounding of x^ + v / D, a few
-#: ulp a coordinate, from breaking a row; it costs skin x sum(lam) in the gap (7e-14 m^2 on a
-#: 1000-agent jam, a bound of 3.8e-7 m)
-SKIN_ULPS = 16.0
+#: the skin (m) in ulp of the largest displacement: it keeps the rounding of x^ + v / D (about
+#: half an ulp a coordinate; the refined rows of 1000-agent jams came out within 0.3 ulp of
+#: their skin) from breaking a row, and costs skin x sum(lam) in the gap: 1.8e-14 m^2 on a
+#: 1000-agent jam at a door, a bound of 1.9e-7 m (16 ulp: 3.3e-7 m)
+SKIN_ULPS = 4.0
 #: PIQP's settings for the refined QP, in its scaled units: rows to 1e-8 / D m, the
 #: stationarity to 1e-8 m, the duality gap to 1e-4 / D m^2 (far below the skin's cost); a
 #: solve takes 10 to 25 iterations
