@@ -15,7 +15,9 @@ How the QP is solved (``SolverOptions.method``): "certified" runs the compiled d
 :mod:`.certified` on every row at once, and sends the clusters they cannot certify within
 ``tol`` to the cluster solvers of :mod:`.clusters` (exact active set, interior point);
 "clusters" uses those alone. Either way every answer gets the duality-gap certificate of
-:mod:`.dual`, and ``Projection.bound`` is the proved bound on |y - y*|.
+:mod:`.dual`, and ``Projection.bound`` is the proved bound on |y - y*|. A cluster solver's
+answer whose bound is above its share of ``tol`` is refined (:mod:`.refine`: the QP solved
+again around it, magnified) and, failing that, polished (:mod:`.polish`).
 """
 from __future__ import annotations
 
