@@ -8,9 +8,7 @@ import importlib
 from dataclasses import replace
 
 import numpy as np
-from scenes import hex_jam
-from test_projection import reference
-from test_stuck import lattice_qp
+from test_stuck import hex_steps, lattice_qp
 
 import sweep_core as sc
 from sweep_core.numerics.projection import backends, exact, refine
@@ -66,16 +64,7 @@ def test_refinement_is_reproducible_and_needs_a_near_active_row():
 def lattice_steps(steps: int):
     """(projection, distance to the exact projection) of each step of the equal-radius 10 x 10
     lattice pressed at 1 m/s, every cluster sent to the backend (no rounds, no exact path)."""
-    scene = sc.Scene.from_dict(hex_jam(10, 10))
-    sim = sc.Simulator(scene, dt=0.05, seed=3,
-                       solver=sc.SolverOptions(exact_vars=0, method="clusters"))
-    sim.step(3)
-    for _ in range(steps):
-        q, t1 = sim.positions, sim.t + sim.dt
-        sim.step()
-        want = reference(scene, t1, q, sim.last.prediction)
-        proj = sim.last.projection
-        yield proj, float(np.sqrt(((proj.y - want) ** 2).sum()))
+    return hex_steps(steps, 3, sc.SolverOptions(exact_vars=0, method="clusters"), 10, 0.05)
 
 
 def test_an_equal_radius_lattice_left_to_the_backend_is_certified_within_tol():

@@ -22,11 +22,12 @@ from sweep_core.numerics.projection import backends, certified, clusters, pivot,
 project_module = importlib.import_module("sweep_core.numerics.projection.project")
 
 
-def hex_steps(steps: int, warmup: int, opts: sc.SolverOptions | None = None):
-    """(projection, its distance to the exact projection) of each step of a pressed 8 x 8
-    hexagonal lattice after ``warmup`` steps."""
-    scene = sc.Scene.from_dict(hex_jam(8, 8))
-    sim = sc.Simulator(scene, dt=0.01, seed=3, solver=opts)
+def hex_steps(steps: int, warmup: int, opts: sc.SolverOptions | None = None, side: int = 8,
+              dt: float = 0.01):
+    """(projection, its distance to the exact projection) of each step of a pressed side x
+    side hexagonal lattice (seed 3) after ``warmup`` steps of dt (s)."""
+    scene = sc.Scene.from_dict(hex_jam(side, side))
+    sim = sc.Simulator(scene, dt=dt, seed=3, solver=opts)
     sim.step(warmup)
     for _ in range(steps):
         q, t1 = sim.positions, sim.t + sim.dt

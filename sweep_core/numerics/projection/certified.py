@@ -97,13 +97,20 @@ def certify(x: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np
     cost 4 floor sum_c lam."""
     comp, low, total = dual.cluster_certificates(x, ri, rj, re, h, lam, label, clusters)
     gap = np.where(low >= 0.0, np.maximum(comp, 0.0), np.inf)
+    budget = budgets(label, clusters, total, tol, floor)
+    return gap, budget, gap <= budget, low
+
+
+def budgets(label: np.ndarray, clusters: int, total: np.ndarray, tol: float, floor: float
+            ) -> np.ndarray:
+    """The gap (m^2) each cluster may keep (:func:`certify`): label (N,) the cluster of each
+    agent (-1: none), total (clusters,) the sum of its multipliers (m)."""
     sizes = np.bincount(label[label >= 0], minlength=clusters).astype(float)
     share = sizes / max(float(sizes.sum()), 1.0)
     lam_all = float(total.sum())
     if lam_all > 0.0:
         share = 0.5 * (share + total / lam_all)
-    budget = np.maximum(0.5 * tol * tol * share, 4.0 * floor * total)
-    return gap, budget, gap <= budget, low
+    return np.maximum(0.5 * tol * tol * share, 4.0 * floor * total)
 
 
 def solve(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.ndarray,

@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from sweep_core.errors import InfeasibleError
 from sweep_core.model.geometry import Geometry
@@ -181,13 +182,7 @@ def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
         gap = res.gap
     else:
         # the clusters not certified: the cluster solvers, in absolute coordinates
-        pick_p, pick_s = agent_todo[rows.pair_i], agent_todo[rows.single_a]
-        sub = rows.select(pick_p, pick_s)
-        agents = sub.agents()
-        loc = np.full(n, -1, dtype=np.intp)
-        loc[agents] = np.arange(len(agents))
-        c, _ = row_matrix(sub, loc, len(agents))
-        picked = np.concatenate([pick_p, pick_s])
+        agents, c, picked = _sub_qp(rows, agent_todo)
         # in displacement coordinates (the rows' bounds h, small numbers), tightened by the
         # skin, so that an answer exact up to rounding holds every true row
         xs, lam_sub, ok, by_backend = solve_qp(d[agents].ravel(), c, h[picked] + res.skin,
@@ -235,18 +230,13 @@ def _improve(rows: Rows, d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.n
     are left as they are: where the rounding floor of their skin sets a budget above tol,
     refining them doubled the step of a 1000-agent jam of radii 0.20-0.27 m at a door for a
     bound of 3e-7 m instead of 1.2e-6 m.)"""
-    _, share, _, _ = certified.certify(x, ri, rj, re, h, lam, label, clusters, tol, 0.0)
+    share = certified.budgets(label, clusters, np.bincount(label[ri], weights=lam,
+                                                           minlength=clusters), tol, 0.0)
     over = gap > share
     todo = solved & (label >= 0) & over[np.maximum(label, 0)]
-    pick_p, pick_s = todo[rows.pair_i], todo[rows.single_a]
-    sub = rows.select(pick_p, pick_s)
-    agents = sub.agents()
-    if len(agents) == 0:
+    if not todo.any():
         return x, lam, gap
-    loc = np.full(len(x), -1, dtype=np.intp)
-    loc[agents] = np.arange(len(agents))
-    c, _ = row_matrix(sub, loc, len(agents))
-    picked = np.concatenate([pick_p, pick_s])
+    agents, c, picked = _sub_qp(rows, todo)
     refined = refine.refine(d[agents].ravel(), x[agents].ravel(), c, h[picked])
     if refined is not None:
         lam2 = lam.copy()
@@ -260,6 +250,18 @@ def _improve(rows: Rows, d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.n
                                     floor)
         x, lam, gap = _keep_better(x, lam, gap, x2, lam, gap2, label, ri)
     return x, lam, gap
+
+
+def _sub_qp(rows: Rows, todo: np.ndarray) -> tuple[np.ndarray, sp.csc_matrix, np.ndarray]:
+    """The rows holding the agents ``todo`` (N,) bool as one QP: its agents (m,), the row
+    matrix C (rows x 2m) and which of ``rows`` (pairs, then walls) it holds (bool)."""
+    pick_p, pick_s = todo[rows.pair_i], todo[rows.single_a]
+    sub = rows.select(pick_p, pick_s)
+    agents = sub.agents()
+    loc = np.full(len(todo), -1, dtype=np.intp)
+    loc[agents] = np.arange(len(agents))
+    c, _ = row_matrix(sub, loc, len(agents))
+    return agents, c, np.concatenate([pick_p, pick_s])
 
 
 def _keep_better(x: np.ndarray, lam: np.ndarray, gap: np.ndarray, x2: np.ndarray,
