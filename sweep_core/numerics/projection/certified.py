@@ -81,8 +81,17 @@ class Certified:
 
 
 def rounding_floor(d: np.ndarray, h: np.ndarray) -> float:
-    """Smallest skin (m) that rounding cannot eat: 64 ulp of the largest displacement or bound."""
-    scale = max(float(np.abs(d).max(initial=0.0)), float(np.abs(h).max(initial=0.0)), 1e-3)
+    """Smallest skin (m) that rounding cannot eat: 64 ulp of the step's scale, the largest
+    displacement d (N, 2) or positive bound h (K,) (m).
+
+    A row that can hold with equality has |<a_k, x>| = |h_k|, and x (from the compensated
+    :func:`dual.apply_multipliers`) is exact up to its own last bits, so its slack is computed
+    to a few ulp of the displacements. Rows with a negative bound (pairs apart by up to the
+    cutoff) have slacks of about |h_k| and never need the skin, so they do not set the scale:
+    with them the floor was 3 times larger in a jam at a door (bounds down to -0.15 m against
+    displacements of 0.05 m), and the skin's cost in the gap, 4 floor sum lam, kept the bound
+    of half the steps of a 1000-agent jam of radii 0.20-0.27 m above 1e-6 m."""
+    scale = max(float(np.abs(d).max(initial=0.0)), float(np.max(h, initial=0.0)), 1e-3)
     return 64.0 * float(np.finfo(float).eps) * scale
 
 
