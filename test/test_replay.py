@@ -154,6 +154,18 @@ def test_one_ulp_is_a_divergence_with_its_step_and_agent(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["divergence"]["agent"] == 3
 
 
+def test_a_recording_of_another_engine_version_is_named_as_such():
+    """The engine shapes every float of a run: a recording made by another sweep_ros version
+    is reported with both versions, like a library of SHAPING."""
+    from types import SimpleNamespace
+
+    here = sc.__version__
+    notes = replay.version_notes(SimpleNamespace(versions={"sweep_ros": "0.0.1"}))
+    assert any(note.startswith(f"sweep_ros {here} here, 0.0.1 in the recording")
+               for note in notes), notes
+    assert replay.version_notes(SimpleNamespace(versions={"sweep_ros": here})) == []
+
+
 def test_a_command_recorded_at_the_wrong_step_diverges_after_it(tmp_path):
     f = tmp_path / "late.mcap"
     record(f, segments=((40, {20: UNIFORM}, {}),), command_step_shift=1)

@@ -103,10 +103,11 @@ class ReplayResult:
 
 
 def version_notes(meta: RunMeta) -> list[str]:
-    """Differences between the recorded versions and these that can change floats."""
+    """Differences between the recorded versions and these that can change floats: sweep_ros
+    itself (its engine) and the libraries of :data:`~sweep_core.io.versions.SHAPING`."""
     now = versions()
     out = []
-    for name in SHAPING:
+    for name in ("sweep_ros", *SHAPING):
         rec = meta.versions.get(name)
         if rec is not None and rec != now.get(name):
             out.append(f"{name} {now.get(name)} here, {rec} in the recording: bit identity is "

@@ -227,9 +227,8 @@ def _improve(rows: Rows, d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.n
     around the answer, magnified, :mod:`.refine`), and where that does not prove tol, moved
     towards the projection (:mod:`.polish`); each kept per cluster where the certificate
     proves it closer. x (N, 2), lam (K,), gap (clusters,) in and out. (The rounds' clusters
-    are left as they are: where the rounding floor of their skin sets a budget above tol,
-    refining them doubled the step of a 1000-agent jam of radii 0.20-0.27 m at a door for a
-    bound of 3e-7 m instead of 1.2e-6 m.)"""
+    are left as they are: where the rounding floor of their skin sets their budget, refining
+    them doubled the step of a 1000-agent jam of radii 0.20-0.27 m at a door.)"""
     share = certified.budgets(label, clusters, np.bincount(label[ri], weights=lam,
                                                            minlength=clusters), tol, 0.0)
     over = gap > share
