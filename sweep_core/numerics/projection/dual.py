@@ -31,7 +31,6 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-
 #: Dekker's splitter 2^27 + 1: it splits a double into two halves whose products are exact
 SPLIT = 134217729.0
 
