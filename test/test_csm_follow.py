@@ -142,6 +142,8 @@ def test_a_recording_made_before_the_options_existed_replays_identically(tmp_pat
     f = tmp_path / "old.mcap"
     _record(f, {"time_gap": 0.8, "lateral": 0.7}, NEW)
     assert not any(key in load_run(f).raw["scene"] for key in NEW)
+    law = load_run(f).scene.flows
+    assert (law.follow, law.length, law.fade, law.lateral) == (0.0, 1.0, 0.7, 0.7)
     res = replay.replay(f)
     assert res.identical and res.steps_simulated == 40
 

@@ -37,6 +37,10 @@ DEFAULT_FOLLOW = 0.0
 #: ``lateral`` of a recorded scene that does not name it: recordings made before the key
 #: existed walked with the full stripe (analysis/run.py)
 RECORDED_LATERAL = 1.0
+#: the csm parameters a recorded scene may lack (made before the key existed) and the values
+#: it walked with (analysis/run.py); ``fade`` missing is the sharp corridor of its ``lateral``
+RECORDED = {"lateral": RECORDED_LATERAL, "fade": RECORDED_LATERAL, "length": 1.0,
+            "follow": 0.0}
 #: the ``lanes`` law's time gap T (s) and lateral margin w (m) when the scene gives none
 #: (calibrated against Weidmann alone, scripts/calibrate_headway.py)
 LANES_TIME_GAP = 0.35
@@ -126,14 +130,17 @@ def lateral_from_spec(raw: Any) -> float:
 
 
 def recorded_headway(spec: Any) -> dict | None:
-    """A recorded scene dict with the csm law's ``lateral`` filled in as it walked when the
-    recording was made (``RECORDED_LATERAL``: recordings made before the key existed have none),
-    or None when nothing is to be filled in. Recorded scenes carry their law normalised, every
-    other parameter written out."""
+    """A recorded scene dict with the csm law's parameters that its recording does not name
+    filled in as it walked when the recording was made (``RECORDED``: recordings made before a
+    key existed have none of it), or None when nothing is to be filled in. Recorded scenes
+    carry their law normalised, every other parameter written out."""
     if not isinstance(spec, dict) or not isinstance(spec.get("flows"), dict):
         return None
     flows = spec["flows"]
     hw = flows.get("headway")
-    if not isinstance(hw, dict) or hw.get("law") != "csm" or "lateral" in hw:
+    if not isinstance(hw, dict) or hw.get("law") != "csm" or all(k in hw for k in RECORDED):
         return None
-    return {**spec, "flows": {**flows, "headway": {**hw, "lateral": RECORDED_LATERAL}}}
+    filled = {**RECORDED, **hw}
+    if "fade" not in hw:  # the sharp corridor of the recorded k
+        filled["fade"] = filled["lateral"]
+    return {**spec, "flows": {**flows, "headway": filled}}

@@ -25,6 +25,13 @@ lanes about 0.45 m apart for a body about 0.55 m wide), and the projection keeps
 contact exact if they touch. Walls do not enter either rule: the projection keeps every contact
 (agents and walls) exact, so the law only changes the prediction. Agents with U_i = 0 are
 left alone. With a = 0 the direction is e0_i and only the speed falls.
+
+Options (docs/flows.md), each neutral at its default: ``follow`` beta in [0, 1) adds beta
+times the speed the rule gives i's leader j (the agent setting s_i), along e_i when positive,
+to s_i / T (min(|U_i|, max(0, s_i / T + beta p_i)); a uniform single file then moves as with
+the time gap T / (1 + beta)); ``length`` f in (0, 1] takes d_ij - f l_ij as the gap;
+``fade`` k2 in [k, 1] lets a neighbour between k l_ij and k2 l_ij count with its gap divided
+by a cosine weight falling from 1 to 0.
 """
 from __future__ import annotations
 
