@@ -18,6 +18,7 @@ from sweep_core.errors import SceneError
 from sweep_core.io import topics
 from sweep_core.io.metadata import run_metadata
 from sweep_core.io.recording import Recorder
+from sweep_core.model.speed_law import DEFAULT_FOLLOW
 from sweep_core.model.yaml_files import dump_yaml
 from sweep_core.numerics.csm import csm
 
@@ -61,7 +62,7 @@ def test_neutral_values_are_the_law_as_it_was_bit_for_bit():
         assert np.array_equal(plain, csm(q, r, u, 1.1, 2.0, 0.1, k, k, 1.0, 0.0))
         assert not np.array_equal(plain, csm(q, r, u, 1.1, 2.0, 0.1, k, k, 1.0, 0.5))
     spec = sc.Scene.from_dict(_scene({"lateral": 0.6})).flows.spec["headway"]
-    assert (spec["fade"], spec["length"], spec["follow"]) == (0.6, 1.0, 0.0)
+    assert (spec["fade"], spec["length"], spec["follow"]) == (0.6, 1.0, DEFAULT_FOLLOW)
 
 
 def _file(n: int, spacing: float, v0: float = 1.3) -> tuple[np.ndarray, np.ndarray]:
@@ -140,7 +141,8 @@ def _record(path, headway: dict, drop: tuple[str, ...], steps: int = 40) -> None
 
 def test_a_recording_made_before_the_options_existed_replays_identically(tmp_path):
     f = tmp_path / "old.mcap"
-    _record(f, {"time_gap": 0.8, "lateral": 0.7}, NEW)
+    # run as the law ran before the options existed (follow 0), recorded without them
+    _record(f, {"time_gap": 0.8, "lateral": 0.7, "follow": 0.0}, NEW)
     assert not any(key in load_run(f).raw["scene"] for key in NEW)
     law = load_run(f).scene.flows
     assert (law.follow, law.length, law.fade, law.lateral) == (0.0, 1.0, 0.7, 0.7)

@@ -22,18 +22,18 @@ LAWS = ("csm", "lanes")
 #: corridor and the bottleneck flows of Seyfried et al. (docs/validation.md,
 #: scripts/calibrate_speed_law.py)
 DEFAULT_LAW = "csm"
-DEFAULT_TIME_GAP = 1.1
+DEFAULT_TIME_GAP = 2.1
 DEFAULT_REPULSION = 2.0
 DEFAULT_REPULSION_RANGE = 0.1
 #: the fraction k of l_ij = r_i + r_j within which a neighbour beside the line of motion counts
 #: as ahead (numerics/csm.py); 1 is the published law
-DEFAULT_LATERAL = 0.7
+DEFAULT_LATERAL = 0.8
 #: the fraction f of l_ij the speed rule takes as the body length (gap d_ij - f l_ij); 1 is the
 #: published law (numerics/csm.py)
 DEFAULT_LENGTH = 1.0
 #: the share beta of the leader's speed added to s / T (numerics/csm.py, ``follow``); 0 is the
-#: published law
-DEFAULT_FOLLOW = 0.0
+#: published law (with T = 2.1 s a uniform queue moves as the published law with T = 1.1 s)
+DEFAULT_FOLLOW = 0.9
 #: ``lateral`` of a recorded scene that does not name it: recordings made before the key
 #: existed walked with the full stripe (analysis/run.py)
 RECORDED_LATERAL = 1.0
