@@ -9,13 +9,18 @@ each target exactly as ``sweep verify`` does:
   1.2 m): the flow where the bottleneck ends (PedPy's crossings, 10 %-90 %), against
   Seyfried et al.'s at that width.
 
-For each point (T, k, a) of the grid (time gaps x lateral fractions x strengths; range D
-fixed) and each seed (the run's seed, which also draws the spawned crowd, as in the test) the
-runs are spread over ``--jobs`` processes. Prints one row per run and, per point, the largest
-relative error of each target over seeds and measurements; writes every row as CSV.
+For each point (T, k, a, k2, f) of the grid (time gaps x lateral fractions x strengths x
+fades x length fractions; range D fixed) and each seed (the run's seed, which also draws the
+spawned crowd, as in the test) the runs are spread over ``--jobs`` processes. Prints one row
+per run and, per point, the largest relative error of each target over seeds and
+measurements; writes every row as CSV.
 
     python scripts/calibrate_speed_law.py OUT.csv --time-gap 1.0,1.1 --lateral 0.65,1 \\
         --repulsion 2 --seeds 2 --jobs 2
+
+``--fade`` takes k2 values (a fade below k is the sharp corridor, written as k), ``--length``
+f values, ``--follow`` beta values; ``--first-seed`` starts the seeds elsewhere than 0.
+``--append`` adds the rows to an existing OUT.csv of the same columns.
 """
 from __future__ import annotations
 
@@ -36,8 +41,9 @@ from sweep_core.verify.diagrams import (
 )
 
 DENSITIES = (0.5, 1.0, 2.0, 3.0)
-HEADER = ["time_gap_s", "lateral", "repulsion", "repulsion_range_m", "seed", "measure",
-          "density_per_m2_or_width_m", "value", "reference", "relative_error"]
+HEADER = ["time_gap_s", "lateral", "repulsion", "repulsion_range_m", "fade", "length", "follow",
+          "seed", "measure", "density_per_m2_or_width_m", "value", "reference",
+          "relative_error"]
 
 
 def one(job: tuple[dict, int, str, float]) -> tuple:
@@ -54,11 +60,17 @@ def one(job: tuple[dict, int, str, float]) -> tuple:
         value, ref = (steady_flow(tr, x) if not tr.error else float("nan")), seyfried(x)
     if tr.error:
         print(f"  {what} {x:g} seed {seed}: {tr.error}", flush=True)
-    row = (law["time_gap"], law["lateral"], law["repulsion"], law["repulsion_range"], seed,
-           what, x, value, ref, value / ref - 1.0)
-    print(f"T={row[0]:g} k={row[1]:g} a={row[2]:g} seed={seed} {what} {x:g}: {value:.3f} "
+    row = (law["time_gap"], law["lateral"], law["repulsion"], law["repulsion_range"],
+           law["fade"], law["length"], law["follow"], seed, what, x, value, ref,
+           value / ref - 1.0)
+    print(f"{label(law)} seed={seed} {what} {x:g}: {value:.3f} "
           f"against {ref:.3f} ({row[-1]:+.1%}, {time.perf_counter() - t0:.0f} s)", flush=True)
     return row
+
+
+def label(law: dict) -> str:
+    return (f"T={law['time_gap']:g} k={law['lateral']:g} a={law['repulsion']:g} "
+            f"k2={law['fade']:g} f={law['length']:g} beta={law['follow']:g}")
 
 
 def numbers(text: str) -> list[float]:
@@ -72,28 +84,36 @@ def main() -> None:
     ap.add_argument("--lateral", type=numbers, default=[0.65, 1.0], help="k values, (0, 1]")
     ap.add_argument("--repulsion", type=numbers, default=[2.0], help="a values")
     ap.add_argument("--range", type=float, default=0.1, help="D (m)")
+    ap.add_argument("--fade", type=numbers, default=[0.0], help="k2 values, [k, 1]")
+    ap.add_argument("--length", type=numbers, default=[1.0], help="f values, (0, 1]")
+    ap.add_argument("--follow", type=numbers, default=[0.0], help="beta values, [0, 1)")
     ap.add_argument("--seeds", type=int, default=2)
+    ap.add_argument("--first-seed", type=int, default=0)
+    ap.add_argument("--append", action="store_true")
     ap.add_argument("--jobs", type=int, default=2)
     args = ap.parse_args()
     laws = [{"law": "csm", "time_gap": T, "lateral": k, "repulsion": a,
-             "repulsion_range": args.range}
-            for T in args.time_gap for k in args.lateral for a in args.repulsion]
-    jobs = [(law, seed, what, x) for law in laws for seed in range(args.seeds)
+             "repulsion_range": args.range, "fade": max(k2, k), "length": f, "follow": b}
+            for T in args.time_gap for k in args.lateral for a in args.repulsion
+            for k2 in args.fade for f in args.length for b in args.follow]
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    jobs = [(law, seed, what, x) for law in laws for seed in seeds
             for what, x in [("ring", d) for d in DENSITIES] + [("bottleneck", w)
                                                               for w in WIDTHS]]
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(one, jobs))
-    with open(args.out, "w", newline="") as f:
-        wr = csv.writer(f)
-        wr.writerow(HEADER)
+    with open(args.out, "a" if args.append else "w", newline="") as fh:
+        wr = csv.writer(fh)
+        if not args.append:
+            wr.writerow(HEADER)
         wr.writerows(rows)
     for law in laws:
-        key = (law["time_gap"], law["lateral"], law["repulsion"])
-        mine = [r for r in rows if r[:3] == key]
-        ring = max(abs(r[-1]) for r in mine if r[5] == "ring")
-        neck = max(abs(r[-1]) for r in mine if r[5] == "bottleneck")
-        print(f"T={key[0]:g} k={key[1]:g} a={key[2]:g}: largest |error| Weidmann {ring:.1%}, "
-              f"bottleneck {neck:.1%}")
+        key = (law["time_gap"], law["lateral"], law["repulsion"], law["repulsion_range"],
+               law["fade"], law["length"], law["follow"])
+        mine = [r for r in rows if r[:7] == key]
+        ring = max(abs(r[-1]) for r in mine if r[8] == "ring")
+        neck = max(abs(r[-1]) for r in mine if r[8] == "bottleneck")
+        print(f"{label(law)}: largest |error| Weidmann {ring:.1%}, bottleneck {neck:.1%}")
 
 
 if __name__ == "__main__":

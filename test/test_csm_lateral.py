@@ -62,12 +62,14 @@ def test_k_one_is_the_published_law_and_the_default_fills_the_spec():
 def _record_without_lateral(path, steps: int = 40) -> None:
     """A recording as one made before ``lateral`` existed: run with the full stripe, the
     recorded scene's headway without the key."""
-    scene = sc.Scene.from_dict(_scene({"time_gap": 0.8, "lateral": RECORDED_LATERAL}))
+    scene = sc.Scene.from_dict(_scene({"time_gap": 0.8, "lateral": RECORDED_LATERAL,
+                                       "follow": 0.0}))
     sim = sc.Simulator(scene, dt=0.05, seed=5)
     meta = run_metadata(scene, sim, None, 1)
     spec = dict(scene.spec)
     spec["flows"] = {**spec["flows"], "headway": {
-        k: v for k, v in spec["flows"]["headway"].items() if k != "lateral"}}
+        k: v for k, v in spec["flows"]["headway"].items()
+        if k not in ("lateral", "fade", "length", "follow")}}
     meta["scene"] = dump_yaml(spec)
     with Recorder(path, metadata=meta, flush_interval_s=None) as rec:
         for name, msgtype in topics.TYPES.items():

@@ -13,6 +13,7 @@ from sweep_core.analysis.frames import FrameReader
 from sweep_core.analysis.metrics import analyze
 from sweep_core.analysis.run import load_run
 from sweep_core.cli import main
+from sweep_core.model.speed_law import DEFAULT_TIME_GAP
 from sweep_core.numerics.headway import headway
 
 ROOM = [{"kind": "polyline", "points": [[0, 0], [10, 0], [10, 4], [0, 4]], "closed": True}]
@@ -265,7 +266,8 @@ def test_the_headway_law_slows_a_dense_ring_the_pure_model_does_not():
             v.append(tangential_speed(sim.positions, sim.velocities).mean())
         return float(np.mean(v))
 
-    pure, law = speed(None), speed(1.0)
-    # free speed 1.34 m/s: the pure model keeps it at 2 per m^2, the law (csm, T = 1 s)
-    # roughly halves it (Weidmann: 0.61 m/s)
+    pure, law = speed(None), speed(DEFAULT_TIME_GAP)
+    # free speed 1.34 m/s: the pure model keeps it at 2 per m^2, the law (csm at its
+    # defaults: in a uniform queue the published law with T = 1.1 s) roughly halves it
+    # (Weidmann: 0.61 m/s)
     assert pure > 1.2 and law < 0.9

@@ -208,7 +208,7 @@ def load_run(path: str | Path) -> RunMeta:
             # names by path is refused, never read from this machine
             scene = Scene.from_yaml_text(raw["scene"], source="the recorded scene", files=False)
             older = recorded_headway(load_yaml(raw["scene"]))
-            if older is not None:  # a speed law recorded before flows.headway.lateral existed
+            if older is not None:  # a speed law recorded before some of its keys existed
                 scene = Scene.from_dict(older, files=False)
         except SweepError as err:
             problems.append(f"the recorded scene does not load: {err}")

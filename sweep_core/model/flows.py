@@ -12,7 +12,8 @@ user's page; the run-time state (who is present, who left) is
       journeys: [{group, legs: [{goal: [x, y]} | {region: {...}}, ...], arrive_radius,
                   cell, wall_buffer}, ...]
       exit_choice: [{group, exits: [{region} | {goal}, ...], capacity}, ...]   (exit_choice.py)
-      headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D, lateral: k}
+      headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D, lateral: k,
+                 fade: k2, length: f, follow: beta}
                                                                     s, -, m, -  (speed_law.py)
               | {law: lanes, time_gap: T, margin: w}                      s, m
 
@@ -174,6 +175,9 @@ class Flows:
     repulsion_range: float = DEFAULT_REPULSION_RANGE
     exit_choices: tuple[ExitChoice, ...] = ()
     lateral: float = 1.0
+    fade: float = -1.0
+    length: float = 1.0
+    follow: float = 0.0
 
     @property
     def changes_population(self) -> bool:
@@ -363,7 +367,9 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
                 law.get("repulsion", 0.0) if law else 0.0,
                 law.get("repulsion_range", DEFAULT_REPULSION_RANGE) if law else
                 DEFAULT_REPULSION_RANGE, tuple(choices),
-                law.get("lateral", 1.0) if law else 1.0)
+                law.get("lateral", 1.0) if law else 1.0,
+                law.get("fade", -1.0) if law else -1.0, law.get("length", 1.0) if law else 1.0,
+                law.get("follow", 0.0) if law else 0.0)
     if out.changes_population:
         _check_changing(out, drift, sigma)
     return out

@@ -3,8 +3,8 @@ default parameters and the validation of the key. The laws themselves are compil
 :mod:`sweep_core.numerics.csm` (``csm``, the default) and :mod:`sweep_core.numerics.headway`
 (``lanes``).
 
-    headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D, lateral: k}
-                                                                  s, -, m, -
+    headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D, lateral: k,
+               fade: k2, length: f, follow: beta}                 s, -, m, -, -, -, -
             | {law: lanes, time_gap: T, margin: w}                      s, m
 """
 from __future__ import annotations
@@ -22,15 +22,25 @@ LAWS = ("csm", "lanes")
 #: corridor and the bottleneck flows of Seyfried et al. (docs/validation.md,
 #: scripts/calibrate_speed_law.py)
 DEFAULT_LAW = "csm"
-DEFAULT_TIME_GAP = 1.1
+DEFAULT_TIME_GAP = 2.1
 DEFAULT_REPULSION = 2.0
 DEFAULT_REPULSION_RANGE = 0.1
 #: the fraction k of l_ij = r_i + r_j within which a neighbour beside the line of motion counts
 #: as ahead (numerics/csm.py); 1 is the published law
-DEFAULT_LATERAL = 0.7
+DEFAULT_LATERAL = 0.8
+#: the fraction f of l_ij the speed rule takes as the body length (gap d_ij - f l_ij); 1 is the
+#: published law (numerics/csm.py)
+DEFAULT_LENGTH = 1.0
+#: the share beta of the leader's speed added to s / T (numerics/csm.py, ``follow``); 0 is the
+#: published law (with T = 2.1 s a uniform queue moves as the published law with T = 1.1 s)
+DEFAULT_FOLLOW = 0.9
 #: ``lateral`` of a recorded scene that does not name it: recordings made before the key
 #: existed walked with the full stripe (analysis/run.py)
 RECORDED_LATERAL = 1.0
+#: the csm parameters a recorded scene may lack (made before the key existed) and the values
+#: it walked with (analysis/run.py); ``fade`` missing is the sharp corridor of its ``lateral``
+RECORDED = {"lateral": RECORDED_LATERAL, "fade": RECORDED_LATERAL, "length": 1.0,
+            "follow": 0.0}
 #: the ``lanes`` law's time gap T (s) and lateral margin w (m) when the scene gives none
 #: (calibrated against Weidmann alone, scripts/calibrate_headway.py)
 LANES_TIME_GAP = 0.35
@@ -43,12 +53,14 @@ def headway_from_spec(raw: Any) -> dict | None:
     if raw is None:
         return None
     hw = checks.mapping(raw, "flows.headway", allowed={"law", "time_gap", "margin", "repulsion",
-                                                       "repulsion_range", "lateral"})
+                                                       "repulsion_range", "lateral", "fade",
+                                                       "length", "follow"})
     law = hw.get("law", "lanes" if "margin" in hw else DEFAULT_LAW)
     if law not in LAWS:
         raise SceneError("flows.headway.law", f"unknown law {show(law)}",
                          f"use one of {', '.join(LAWS)} (or omit it for {DEFAULT_LAW})")
-    own = {"csm": {"repulsion", "repulsion_range", "lateral"}, "lanes": {"margin"}}[law]
+    own = {"csm": {"repulsion", "repulsion_range", "lateral", "fade", "length", "follow"},
+           "lanes": {"margin"}}[law]
     for key in sorted(set(hw) - own - {"law", "time_gap"}):
         raise SceneError(f"flows.headway.{key}", f"is not a parameter of the {law} law",
                          "remove it, or set flows.headway.law to the law it belongs to")
@@ -57,6 +69,7 @@ def headway_from_spec(raw: Any) -> dict | None:
                                                       "flows.headway.time_gap", positive=True),
                 "margin": checks.length(hw.get("margin", DEFAULT_MARGIN), "flows.headway.margin",
                                         nonnegative=True)}
+    k = lateral_from_spec(hw.get("lateral", DEFAULT_LATERAL))
     return {"law": law,
             "time_gap": checks.number(hw.get("time_gap", DEFAULT_TIME_GAP),
                                       "flows.headway.time_gap", positive=True),
@@ -64,7 +77,44 @@ def headway_from_spec(raw: Any) -> dict | None:
                                        "flows.headway.repulsion", nonnegative=True),
             "repulsion_range": checks.length(hw.get("repulsion_range", DEFAULT_REPULSION_RANGE),
                                              "flows.headway.repulsion_range", positive=True),
-            "lateral": lateral_from_spec(hw.get("lateral", DEFAULT_LATERAL))}
+            "lateral": k, "fade": fade_from_spec(hw.get("fade", k), k),
+            "length": fraction_from_spec(hw.get("length", DEFAULT_LENGTH), "flows.headway.length",
+                                         "the fraction of the two radii the speed rule takes "
+                                         "as the body length"),
+            "follow": follow_from_spec(hw.get("follow", DEFAULT_FOLLOW))}
+
+
+def follow_from_spec(raw: Any) -> float:
+    """``flows.headway.follow`` validated: a number in [0, 1)."""
+    fix = ("set flows.headway.follow to a number in [0, 1) (the share of the leader's speed "
+           "added to the gap's speed; 0: the speed rule alone)")
+    beta = checks.number(raw, "flows.headway.follow", nonnegative=True, fix=fix)
+    if beta >= 1.0:
+        raise SceneError("flows.headway.follow", f"must be below 1, got {show(raw)}", fix)
+    return beta
+
+
+def fade_from_spec(raw: Any, lateral: float) -> float:
+    """``flows.headway.fade`` validated: a number in [k, 1], k the law's ``lateral`` (k: the
+    sharp corridor, no fade)."""
+    k2 = checks.number(raw, "flows.headway.fade", fix=f"set flows.headway.fade to a number "
+                       f"in [{show(lateral)}, 1] (flows.headway.lateral to 1)")
+    if not lateral <= k2 <= 1.0:
+        raise SceneError("flows.headway.fade", f"must be in [{show(lateral)}, 1] (from "
+                         f"flows.headway.lateral to 1), got {show(raw)}",
+                         f"set flows.headway.fade to a number in [{show(lateral)}, 1], or "
+                         "omit it for the sharp corridor")
+    return k2
+
+
+def fraction_from_spec(raw: Any, field: str, what: str) -> float:
+    """A number in (0, 1] at ``field``."""
+    f = checks.number(raw, field, positive=True,
+                      fix=f"set {field} to a number in (0, 1] ({what})")
+    if f > 1.0:
+        raise SceneError(field, f"must be at most 1, got {show(raw)}",
+                         f"set {field} to a number in (0, 1] ({what})")
+    return f
 
 
 def lateral_from_spec(raw: Any) -> float:
@@ -80,14 +130,17 @@ def lateral_from_spec(raw: Any) -> float:
 
 
 def recorded_headway(spec: Any) -> dict | None:
-    """A recorded scene dict with the csm law's ``lateral`` filled in as it walked when the
-    recording was made (``RECORDED_LATERAL``: recordings made before the key existed have none),
-    or None when nothing is to be filled in. Recorded scenes carry their law normalised, every
-    other parameter written out."""
+    """A recorded scene dict with the csm law's parameters that its recording does not name
+    filled in as it walked when the recording was made (``RECORDED``: recordings made before a
+    key existed have none of it), or None when nothing is to be filled in. Recorded scenes
+    carry their law normalised, every other parameter written out."""
     if not isinstance(spec, dict) or not isinstance(spec.get("flows"), dict):
         return None
     flows = spec["flows"]
     hw = flows.get("headway")
-    if not isinstance(hw, dict) or hw.get("law") != "csm" or "lateral" in hw:
+    if not isinstance(hw, dict) or hw.get("law") != "csm" or all(k in hw for k in RECORDED):
         return None
-    return {**spec, "flows": {**flows, "headway": {**hw, "lateral": RECORDED_LATERAL}}}
+    filled = {**RECORDED, **hw}
+    if "fade" not in hw:  # the sharp corridor of the recorded k
+        filled["fade"] = filled["lateral"]
+    return {**spec, "flows": {**flows, "headway": filled}}

@@ -25,6 +25,13 @@ lanes about 0.45 m apart for a body about 0.55 m wide), and the projection keeps
 contact exact if they touch. Walls do not enter either rule: the projection keeps every contact
 (agents and walls) exact, so the law only changes the prediction. Agents with U_i = 0 are
 left alone. With a = 0 the direction is e0_i and only the speed falls.
+
+Options (docs/flows.md), each neutral at its default: ``follow`` beta in [0, 1) adds beta
+times the speed the rule gives i's leader j (the agent setting s_i), along e_i when positive,
+to s_i / T (min(|U_i|, max(0, s_i / T + beta p_i)); a uniform single file then moves as with
+the time gap T / (1 + beta)); ``length`` f in (0, 1] takes d_ij - f l_ij as the gap;
+``fade`` k2 in [k, 1] lets a neighbour between k l_ij and k2 l_ij count with its gap divided
+by a cosine weight falling from 1 to 0.
 """
 from __future__ import annotations
 
@@ -79,12 +86,27 @@ def directions(q: np.ndarray, r: np.ndarray, u: np.ndarray, pi: np.ndarray, pj: 
 
 @numba.njit(cache=True, nogil=True)
 def gaps_ahead(q: np.ndarray, r: np.ndarray, e: np.ndarray, pi: np.ndarray,
-               pj: np.ndarray, lateral: float = 1.0) -> np.ndarray:
-    """s_i (N,) m: the gap d_ij - l_ij to the nearest agent ahead of i in its corridor of
-    half-width k l_ij along e_i (N, 2), k = ``lateral`` in (0, 1] (module docstring); inf
-    where there is none."""
+               pj: np.ndarray, lateral: float = 1.0, fade: float = -1.0,
+               length: float = 1.0) -> np.ndarray:
+    """s_i (N,) m: the gap d_ij - f l_ij to the nearest agent ahead of i in its corridor of
+    half-width k l_ij along e_i (N, 2), k = ``lateral`` in (0, 1], f = ``length`` in (0, 1]
+    (module docstring); with a ``fade`` k2 > k a neighbour at a lateral offset b between
+    k l_ij and k2 l_ij counts with its positive gap divided by the weight
+    (1 + cos(pi (b - k l_ij) / ((k2 - k) l_ij))) / 2 (1 at k l_ij, 0 at k2 l_ij); inf where
+    there is none. fade <= k (the default -1) is the sharp corridor of half-width k l_ij."""
+    return nearest_ahead(q, r, e, pi, pj, lateral, fade, length)[0]
+
+
+@numba.njit(cache=True, nogil=True)
+def nearest_ahead(q: np.ndarray, r: np.ndarray, e: np.ndarray, pi: np.ndarray,
+                  pj: np.ndarray, lateral: float, fade: float,
+                  length: float) -> tuple[np.ndarray, np.ndarray]:
+    """The gaps s_i (N,) m of :func:`gaps_ahead` and the index (N,) of the agent giving each
+    (-1 where there is none)."""
     n = q.shape[0]
     out = np.full(n, np.inf)
+    lead = np.full(n, -1, dtype=np.int64)
+    outer = max(fade, lateral)
     for k in range(pi.shape[0]):
         for side in range(2):
             i = pi[k] if side == 0 else pj[k]
@@ -96,12 +118,23 @@ def gaps_ahead(q: np.ndarray, r: np.ndarray, e: np.ndarray, pi: np.ndarray,
             if dx * ex + dy * ey < 0.0:
                 continue
             ll = r[i] + r[j]
-            if abs(dy * ex - dx * ey) > lateral * ll:
+            b = abs(dy * ex - dx * ey)
+            if b > outer * ll:
                 continue
-            s = math.sqrt(dx * dx + dy * dy) - ll
+            s = math.sqrt(dx * dx + dy * dy) - (ll if length == 1.0 else length * ll)
+            if b > lateral * ll:  # only with a fade: the partial band
+                if b >= outer * ll:
+                    continue
+                w = 0.5 * (1.0 + math.cos(math.pi * (b - lateral * ll) /
+                                          ((outer - lateral) * ll)))
+                if w <= 0.0:  # at k2 l_ij up to rounding: does not count
+                    continue
+                if s > 0.0:
+                    s = s / w
             if s < out[i]:
                 out[i] = s
-    return out
+                lead[i] = j
+    return out, lead
 
 
 @numba.njit(cache=True, nogil=True)
@@ -118,10 +151,35 @@ def speeds(u: np.ndarray, e: np.ndarray, s: np.ndarray, time_gap: float) -> np.n
     return out
 
 
+@numba.njit(cache=True, nogil=True)
+def follow(v: np.ndarray, u: np.ndarray, e: np.ndarray, s: np.ndarray, lead: np.ndarray,
+           time_gap: float, beta: float) -> np.ndarray:
+    """The speeds (N, 2) m/s of the follow rule: min(|u_i|, max(0, s_i / T + beta p_i)) e_i,
+    p_i = max(0, <v_j, e_i>) the speed v (N, 2) m/s of the speed rule alone gives the agent j
+    that sets i's gap (``lead``), along i's direction: a leader walking away lets i close up
+    by beta of its speed; one coming towards i or standing adds nothing."""
+    out = np.zeros_like(u)
+    for i in range(u.shape[0]):
+        speed = math.sqrt(u[i, 0] * u[i, 0] + u[i, 1] * u[i, 1])
+        if speed == 0.0:
+            continue
+        p = 0.0
+        j = lead[i]
+        if j >= 0:
+            p = max(0.0, v[j, 0] * e[i, 0] + v[j, 1] * e[i, 1])
+        w = min(speed, max(0.0, s[i] / time_gap + beta * p))
+        out[i, 0] = w * e[i, 0]
+        out[i, 1] = w * e[i, 1]
+    return out
+
+
 def csm(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float, strength: float,
-        reach: float, lateral: float = 1.0) -> np.ndarray:
+        reach: float, lateral: float = 1.0, fade: float = -1.0,
+        length: float = 1.0, beta: float = 0.0) -> np.ndarray:
     """The wished velocities u (N, 2) m/s under the collision-free speed model's law with time
-    gap T (s), repulsion strength a and range D (m) and lateral fraction k, for centres q
+    gap T (s), repulsion strength a and range D (m), lateral fraction k, its fade k2 and the
+    body length's fraction f (``gaps_ahead``) and the follow weight beta (``follow``; 0: the
+    speed rule alone), for centres q
     (N, 2) m and radii r (N,) m. The pairs are searched (compiled cell lists) within
     max|u| T + 2 max r, and within 2 max r + CUT D when a > 0: no pair farther apart enters
     either rule."""
@@ -138,4 +196,6 @@ def csm(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float, strength: 
     r = np.ascontiguousarray(r, dtype=np.float64)
     u = np.ascontiguousarray(u)
     e = directions(q, r, u, pi, pj, float(strength), float(reach))
-    return speeds(u, e, gaps_ahead(q, r, e, pi, pj, float(lateral)), float(time_gap))
+    s, lead = nearest_ahead(q, r, e, pi, pj, float(lateral), float(fade), float(length))
+    v = speeds(u, e, s, float(time_gap))
+    return v if beta == 0.0 else follow(v, u, e, s, lead, float(time_gap), float(beta))

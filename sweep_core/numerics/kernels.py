@@ -144,6 +144,7 @@ def _exercise() -> None:
     # the headway law's kernels (flows.headway)
     headway.headway(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 1.0)
     csm.csm(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 0.8, 2.0, 0.1)
+    csm.csm(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 0.8, 2.0, 0.1, 0.7, 0.9, 0.9, 0.5)
     exit_choice.assign(far[:8, :2].copy(), np.ones(2))
     # kernels a small jam may not reach (the factored face step's products, the bridge's
     # logarithm of a wall contact), called with the types their callers pass

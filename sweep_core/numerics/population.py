@@ -159,7 +159,7 @@ class Population:
         law = self.flows
         if law.time_gap is not None and law.law == "csm":
             u = csm(q, self.radius[ids], u, law.time_gap, law.repulsion, law.repulsion_range,
-                    law.lateral)
+                    law.lateral, law.fade, law.length, law.follow)
         elif law.time_gap is not None:
             u = headway(q, self.radius[ids], u, law.time_gap, law.margin)
         return u
