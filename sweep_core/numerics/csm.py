@@ -84,7 +84,6 @@ def directions(q: np.ndarray, r: np.ndarray, u: np.ndarray, pi: np.ndarray, pj: 
     return out
 
 
-@numba.njit(cache=True, nogil=True)
 def gaps_ahead(q: np.ndarray, r: np.ndarray, e: np.ndarray, pi: np.ndarray,
                pj: np.ndarray, lateral: float = 1.0, fade: float = -1.0,
                length: float = 1.0) -> np.ndarray:
