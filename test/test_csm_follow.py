@@ -10,28 +10,16 @@ import math
 
 import numpy as np
 import pytest
+from test_csm_lateral import record_headway, stagger_scene
 
 import sweep_core as sc
 from sweep_core.analysis import replay
 from sweep_core.analysis.run import load_run
 from sweep_core.errors import SceneError
-from sweep_core.io import topics
-from sweep_core.io.metadata import run_metadata
-from sweep_core.io.recording import Recorder
 from sweep_core.model.speed_law import DEFAULT_FOLLOW
-from sweep_core.model.yaml_files import dump_yaml
 from sweep_core.numerics.csm import csm
 
 NEW = ("fade", "length", "follow")
-
-
-def _scene(headway: dict) -> dict:
-    """Eight agents in staggered pairs 0.3 m apart sideways (l = 0.4 m), walking along +x."""
-    pts = [[0.5 + 0.45 * k, 1.0 + (0.3 if k % 2 else 0.0)] for k in range(8)]
-    return {"name": "stagger", "agents": {"positions": pts, "radius": 0.2},
-            "walls": [{"kind": "halfplane", "normal": [0, 1], "offset": 0.0}],
-            "drift": {"kind": "uniform", "velocity": [1.2, 0.0]}, "noise": {"sigma": 0.05},
-            "flows": {"headway": headway}}
 
 
 @pytest.mark.parametrize("key, value, words", [
@@ -41,14 +29,14 @@ def _scene(headway: dict) -> dict:
 ])
 def test_options_out_of_range_are_refused_with_field_and_fix(key, value, words):
     with pytest.raises(SceneError) as err:
-        sc.Scene.from_dict(_scene({"lateral": 0.7, key: value}))
+        sc.Scene.from_dict(stagger_scene({"lateral": 0.7, key: value}))
     assert err.value.field == f"flows.headway.{key}"
     assert words in err.value.fix
 
 
 def test_the_options_are_csm_parameters_only():
     with pytest.raises(SceneError) as err:
-        sc.Scene.from_dict(_scene({"law": "lanes", "follow": 0.5}))
+        sc.Scene.from_dict(stagger_scene({"law": "lanes", "follow": 0.5}))
     assert err.value.field == "flows.headway.follow"
 
 
@@ -61,7 +49,7 @@ def test_neutral_values_are_the_law_as_it_was_bit_for_bit():
         plain = csm(q, r, u, 1.1, 2.0, 0.1, k)
         assert np.array_equal(plain, csm(q, r, u, 1.1, 2.0, 0.1, k, k, 1.0, 0.0))
         assert not np.array_equal(plain, csm(q, r, u, 1.1, 2.0, 0.1, k, k, 1.0, 0.5))
-    spec = sc.Scene.from_dict(_scene({"lateral": 0.6})).flows.spec["headway"]
+    spec = sc.Scene.from_dict(stagger_scene({"lateral": 0.6})).flows.spec["headway"]
     assert (spec["fade"], spec["length"], spec["follow"]) == (0.6, 1.0, DEFAULT_FOLLOW)
 
 
@@ -120,29 +108,10 @@ def test_a_fade_divides_the_gap_by_the_cosine_weight_between_k_and_k2(offset):
     assert v == pytest.approx(want, rel=1e-12)
 
 
-def _record(path, headway: dict, drop: tuple[str, ...], steps: int = 40) -> None:
-    """A run recorded as ``sweep run`` records it, its scene's headway without ``drop``."""
-    scene = sc.Scene.from_dict(_scene(headway))
-    sim = sc.Simulator(scene, dt=0.05, seed=5)
-    meta = run_metadata(scene, sim, None, 1)
-    spec = dict(scene.spec)
-    spec["flows"] = {**spec["flows"], "headway": {
-        k: v for k, v in spec["flows"]["headway"].items() if k not in drop}}
-    meta["scene"] = dump_yaml(spec)
-    with Recorder(path, metadata=meta, flush_interval_s=None) as rec:
-        for name, msgtype in topics.TYPES.items():
-            rec.add_channel("/" + name, msgtype)
-        for k in range(steps + 1):
-            if k:
-                sim.step()
-            for name, data in topics.encode_state(sim.state).items():
-                rec.write("/" + name, topics.stamp_ns(sim.t), data)
-
-
 def test_a_recording_made_before_the_options_existed_replays_identically(tmp_path):
     f = tmp_path / "old.mcap"
     # run as the law ran before the options existed (follow 0), recorded without them
-    _record(f, {"time_gap": 0.8, "lateral": 0.7, "follow": 0.0}, NEW)
+    record_headway(f, {"time_gap": 0.8, "lateral": 0.7, "follow": 0.0}, NEW)
     assert not any(key in load_run(f).raw["scene"] for key in NEW)
     law = load_run(f).scene.flows
     assert (law.follow, law.length, law.fade, law.lateral) == (0.0, 1.0, 0.7, 0.7)
@@ -152,7 +121,7 @@ def test_a_recording_made_before_the_options_existed_replays_identically(tmp_pat
 
 def test_a_run_with_the_options_replays_identically(tmp_path):
     f = tmp_path / "new.mcap"
-    _record(f, {"time_gap": 1.6, "lateral": 0.7, "fade": 0.8, "length": 0.9,
+    record_headway(f, {"time_gap": 1.6, "lateral": 0.7, "fade": 0.8, "length": 0.9,
                 "follow": 0.5}, ())
     assert load_run(f).scene.flows.follow == 0.5
     res = replay.replay(f)

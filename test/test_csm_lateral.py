@@ -21,7 +21,7 @@ from sweep_core.numerics.csm import csm
 R = np.full(2, 0.2)
 
 
-def _scene(headway: dict) -> dict:
+def stagger_scene(headway: dict) -> dict:
     """Eight agents in staggered pairs 0.3 m apart sideways (l = 0.4 m), walking along +x."""
     pts = [[0.5 + 0.45 * k, 1.0 + (0.3 if k % 2 else 0.0)] for k in range(8)]
     return {"name": "stagger", "agents": {"positions": pts, "radius": 0.2},
@@ -33,7 +33,7 @@ def _scene(headway: dict) -> dict:
 @pytest.mark.parametrize("value", [0.0, -0.5, 1.5, "half", float("nan")])
 def test_a_lateral_fraction_outside_zero_one_is_refused_with_field_and_fix(value):
     with pytest.raises(SceneError) as err:
-        sc.Scene.from_dict(_scene({"lateral": value}))
+        sc.Scene.from_dict(stagger_scene({"lateral": value}))
     assert err.value.field == "flows.headway.lateral"
     assert "(0, 1]" in err.value.fix
 
@@ -55,21 +55,19 @@ def test_k_one_is_the_published_law_and_the_default_fills_the_spec():
     u = np.tile([1.0, 0.3], (30, 1))
     r = np.full(30, 0.2)
     assert np.array_equal(csm(q, r, u, 0.8, 2.0, 0.1), csm(q, r, u, 0.8, 2.0, 0.1, 1.0))
-    spec = sc.Scene.from_dict(_scene({})).flows.spec["headway"]
+    spec = sc.Scene.from_dict(stagger_scene({})).flows.spec["headway"]
     assert spec["lateral"] == DEFAULT_LATERAL
 
 
-def _record_without_lateral(path, steps: int = 40) -> None:
-    """A recording as one made before ``lateral`` existed: run with the full stripe, the
-    recorded scene's headway without the key."""
-    scene = sc.Scene.from_dict(_scene({"time_gap": 0.8, "lateral": RECORDED_LATERAL,
-                                       "follow": 0.0}))
+def record_headway(path, headway: dict, drop: tuple[str, ...], steps: int = 40) -> None:
+    """A run of ``stagger_scene(headway)`` recorded as ``sweep run`` records it, its recorded
+    scene's headway without the keys ``drop`` (as a recording made before they existed)."""
+    scene = sc.Scene.from_dict(stagger_scene(headway))
     sim = sc.Simulator(scene, dt=0.05, seed=5)
     meta = run_metadata(scene, sim, None, 1)
     spec = dict(scene.spec)
     spec["flows"] = {**spec["flows"], "headway": {
-        k: v for k, v in spec["flows"]["headway"].items()
-        if k not in ("lateral", "fade", "length", "follow")}}
+        k: v for k, v in spec["flows"]["headway"].items() if k not in drop}}
     meta["scene"] = dump_yaml(spec)
     with Recorder(path, metadata=meta, flush_interval_s=None) as rec:
         for name, msgtype in topics.TYPES.items():
@@ -83,7 +81,9 @@ def _record_without_lateral(path, steps: int = 40) -> None:
 
 def test_a_recording_made_before_lateral_existed_replays_identically(tmp_path):
     f = tmp_path / "old.mcap"
-    _record_without_lateral(f)
+    # run with the full stripe, recorded without lateral (and the keys added after it)
+    record_headway(f, {"time_gap": 0.8, "lateral": RECORDED_LATERAL, "follow": 0.0},
+                   ("lateral", "fade", "length", "follow"))
     assert "lateral" not in load_run(f).raw["scene"]
     assert load_run(f).scene.flows.lateral == RECORDED_LATERAL
     res = replay.replay(f)
