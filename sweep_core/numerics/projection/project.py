@@ -104,8 +104,9 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
     skip = (warm.stuck if warm is not None and warm.stuck is not None and len(warm.y) == n
             and held_for + 1 < RETRY else None)
     todo = np.zeros(n, dtype=bool)
+    built: Rows | None = None  # the rows of the wider cutoff, when already built
     while True:
-        rows = linearise(geom, t1, q, r1, cut)
+        rows = built if built is not None else linearise(geom, t1, q, r1, cut)
         rp, rs = rows.residuals(pred)
         lam_p, lam_s = np.zeros(len(rp)), np.zeros(len(rs))
         y = pred.copy()
@@ -134,10 +135,10 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
         margin = bound if np.isfinite(bound) else 0.0
         if 2.0 * (moved + margin) <= cut:
             break
-        wider = 3.0 * (moved + margin)
-        if _holds_wider(geom, t1, q, r1, rows, y, wider, margin):
+        cut = 3.0 * (moved + margin)
+        built = linearise(geom, t1, q, r1, cut)
+        if _new_rows_hold(rows, built, y, margin):
             break
-        cut = wider
     # a row is active when it holds with equality (to the solver tolerance); an interior-point
     # solver leaves tiny positive multipliers on slack rows, so multipliers are not counted
     active = int(np.count_nonzero(rp <= ROW_TOLERANCE) + np.count_nonzero(rs <= ROW_TOLERANCE))
@@ -146,18 +147,17 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
                       sweeps, fallback, stuck, held_for + 1 if skip is not None else 0)
 
 
-def _holds_wider(geom: Geometry, t1: float, q: np.ndarray, r1: np.ndarray, rows: Rows,
-                 y: np.ndarray, wider: float, margin: float) -> bool:
+def _new_rows_hold(rows: Rows, more: Rows, y: np.ndarray, margin: float) -> bool:
     """Whether y (N, 2), the projection onto ``rows`` (within ``margin`` m of it, 0 when
-    uncertified), is also the projection onto C~ (t1, q): the rows unbuilt at the wider cutoff
-    hold at y* by the cutoff test (2 (moved + margin) <= wider), and each row built there but
-    not in ``rows`` is checked at y with room for y*, whose distance to y is at most margin
-    and moves a row's value by at most sqrt(2) margin (|a_k| <= sqrt 2). Then y* lies in C~,
-    a subset of the set it is the projection onto, so it is the projection onto C~ too, and
-    the QP need not be solved again with the wider rows: in a jam at a door, where the crowd
-    pushes some agents further than their prediction, one step in seven did."""
-    more = linearise(geom, t1, q, r1, wider)
-    n = len(q)
+    uncertified), is also the projection onto C~ (t1, q), given ``more``, the rows of a wider
+    cutoff (3 (moved + margin)): the rows unbuilt there hold at y* by the cutoff test
+    (2 (moved + margin) <= cutoff), and each row of ``more`` not in ``rows`` is checked at y
+    with room for y*, whose distance to y is at most margin and moves a row's value by at most
+    sqrt(2) margin (|a_k| <= sqrt 2). Then y* lies in C~, a subset of the set it is the
+    projection onto, so it is the projection onto C~ too, and the QP need not be solved again
+    with the wider rows: in a jam at a door, where the crowd pushes some agents further than
+    their prediction, one step in seven did."""
+    n = len(y)
     old_pairs = rows.pair_i.astype(np.int64) * n + rows.pair_j
     new_pairs = ~np.isin(more.pair_i.astype(np.int64) * n + more.pair_j, old_pairs)
     kinds = int(max(more.single_kind.max(initial=0), rows.single_kind.max(initial=0))) + 1
