@@ -137,38 +137,32 @@ def nearest_ahead(q: np.ndarray, r: np.ndarray, e: np.ndarray, pi: np.ndarray,
 
 
 @numba.njit(cache=True, nogil=True)
-def speeds(u: np.ndarray, e: np.ndarray, s: np.ndarray, time_gap: float) -> np.ndarray:
-    """min(|u_i|, max(0, s_i / T)) e_i (N, 2) m/s."""
+def speeds(u: np.ndarray, e: np.ndarray, s: np.ndarray, time_gap: float, push: np.ndarray
+           ) -> np.ndarray:
+    """min(|u_i|, max(0, s_i / T + push_i)) e_i (N, 2) m/s; push (N,) m/s is 0 for the speed
+    rule alone, the leader's share for ``follow`` (:func:`leader_push`)."""
     out = np.zeros_like(u)
     for i in range(u.shape[0]):
         speed = math.sqrt(u[i, 0] * u[i, 0] + u[i, 1] * u[i, 1])
         if speed == 0.0:
             continue
-        v = min(speed, max(0.0, s[i] / time_gap))
+        v = min(speed, max(0.0, s[i] / time_gap + push[i]))
         out[i, 0] = v * e[i, 0]
         out[i, 1] = v * e[i, 1]
     return out
 
 
 @numba.njit(cache=True, nogil=True)
-def follow(v: np.ndarray, u: np.ndarray, e: np.ndarray, s: np.ndarray, lead: np.ndarray,
-           time_gap: float, beta: float) -> np.ndarray:
-    """The speeds (N, 2) m/s of the follow rule: min(|u_i|, max(0, s_i / T + beta p_i)) e_i,
-    p_i = max(0, <v_j, e_i>) the speed v (N, 2) m/s of the speed rule alone gives the agent j
-    that sets i's gap (``lead``), along i's direction: a leader walking away lets i close up
-    by beta of its speed; one coming towards i or standing adds nothing."""
-    out = np.zeros_like(u)
-    for i in range(u.shape[0]):
-        speed = math.sqrt(u[i, 0] * u[i, 0] + u[i, 1] * u[i, 1])
-        if speed == 0.0:
-            continue
-        p = 0.0
+def leader_push(v: np.ndarray, e: np.ndarray, lead: np.ndarray, beta: float) -> np.ndarray:
+    """The follow rule's push beta p_i (N,) m/s, p_i = max(0, <v_j, e_i>) the speed v (N, 2)
+    m/s of the speed rule alone gives the agent j that sets i's gap (``lead``), along i's
+    direction: a leader walking away lets i close up by beta of its speed; one coming towards
+    i or standing adds nothing."""
+    out = np.zeros(v.shape[0])
+    for i in range(v.shape[0]):
         j = lead[i]
         if j >= 0:
-            p = max(0.0, v[j, 0] * e[i, 0] + v[j, 1] * e[i, 1])
-        w = min(speed, max(0.0, s[i] / time_gap + beta * p))
-        out[i, 0] = w * e[i, 0]
-        out[i, 1] = w * e[i, 1]
+            out[i] = beta * max(0.0, v[j, 0] * e[i, 0] + v[j, 1] * e[i, 1])
     return out
 
 
@@ -177,8 +171,8 @@ def csm(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float, strength: 
         length: float = 1.0, beta: float = 0.0) -> np.ndarray:
     """The wished velocities u (N, 2) m/s under the collision-free speed model's law with time
     gap T (s), repulsion strength a and range D (m), lateral fraction k, its fade k2 and the
-    body length's fraction f (``gaps_ahead``) and the follow weight beta (``follow``; 0: the
-    speed rule alone), for centres q
+    body length's fraction f (``gaps_ahead``) and the follow weight beta (0: the
+    speed rule alone: :func:`leader_push`), for centres q
     (N, 2) m and radii r (N,) m. The pairs are searched (compiled cell lists) within
     max|u| T + 2 max r, and within 2 max r + CUT D when a > 0: no pair farther apart enters
     either rule."""
@@ -196,5 +190,7 @@ def csm(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float, strength: 
     u = np.ascontiguousarray(u)
     e = directions(q, r, u, pi, pj, float(strength), float(reach))
     s, lead = nearest_ahead(q, r, e, pi, pj, float(lateral), float(fade), float(length))
-    v = speeds(u, e, s, float(time_gap))
-    return v if beta == 0.0 else follow(v, u, e, s, lead, float(time_gap), float(beta))
+    v = speeds(u, e, s, float(time_gap), np.zeros(n))
+    if beta == 0.0:
+        return v
+    return speeds(u, e, s, float(time_gap), leader_push(v, e, lead, float(beta)))
