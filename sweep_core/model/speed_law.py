@@ -38,9 +38,9 @@ DEFAULT_FOLLOW = 0.9
 #: existed walked with the full stripe (analysis/run.py)
 RECORDED_LATERAL = 1.0
 #: the csm parameters a recorded scene may lack (made before the key existed) and the values
-#: it walked with (analysis/run.py); ``fade`` missing is the sharp corridor of its ``lateral``
-RECORDED = {"lateral": RECORDED_LATERAL, "fade": RECORDED_LATERAL, "length": 1.0,
-            "follow": 0.0}
+#: it walked with (analysis/run.py); ``fade`` missing is the sharp corridor of its ``lateral``,
+#: filled in by :func:`recorded_headway`
+RECORDED = {"lateral": RECORDED_LATERAL, "length": 1.0, "follow": 0.0}
 #: the ``lanes`` law's time gap T (s) and lateral margin w (m) when the scene gives none
 #: (calibrated against Weidmann alone, scripts/calibrate_headway.py)
 LANES_TIME_GAP = 0.35
@@ -118,15 +118,10 @@ def fraction_from_spec(raw: Any, field: str, what: str) -> float:
 
 
 def lateral_from_spec(raw: Any) -> float:
-    """``flows.headway.lateral`` validated: a number in (0, 1]."""
-    k = checks.number(raw, "flows.headway.lateral", positive=True,
-                      fix="set flows.headway.lateral to a number in (0, 1] (the fraction of "
-                          "the two radii within which a neighbour beside the path is ahead)")
-    if k > 1.0:
-        raise SceneError("flows.headway.lateral", f"must be at most 1, got {show(raw)}",
-                         "set flows.headway.lateral to a number in (0, 1] (1: every neighbour "
-                         "whose disk overlaps the path is ahead)")
-    return k
+    """``flows.headway.lateral`` validated: a number in (0, 1] (1: every neighbour whose disk
+    overlaps the path is ahead)."""
+    return fraction_from_spec(raw, "flows.headway.lateral", "the fraction of the two radii "
+                              "within which a neighbour beside the path is ahead")
 
 
 def recorded_headway(spec: Any) -> dict | None:
@@ -138,9 +133,9 @@ def recorded_headway(spec: Any) -> dict | None:
         return None
     flows = spec["flows"]
     hw = flows.get("headway")
-    if not isinstance(hw, dict) or hw.get("law") != "csm" or all(k in hw for k in RECORDED):
+    if (not isinstance(hw, dict) or hw.get("law") != "csm"
+            or all(k in hw for k in (*RECORDED, "fade"))):
         return None
     filled = {**RECORDED, **hw}
-    if "fade" not in hw:  # the sharp corridor of the recorded k
-        filled["fade"] = filled["lateral"]
+    filled.setdefault("fade", filled["lateral"])  # the sharp corridor of the recorded k
     return {**spec, "flows": {**flows, "headway": filled}}
