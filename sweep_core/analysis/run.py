@@ -17,9 +17,8 @@ from sweep_core.io import cdr
 from sweep_core.io.metadata import describe_status
 from sweep_core.io.recording import ChannelInfo, scan_recording
 from sweep_core.model.maps import replace_map
-from sweep_core.model.scene import Scene
+from sweep_core.model.scene import Scene, scene_data
 from sweep_core.model.speed_law import recorded_headway
-from sweep_core.model.yaml_files import load_yaml
 from sweep_core.numerics.projection import SolverOptions
 
 #: nanoseconds per second
@@ -206,10 +205,9 @@ def load_run(path: str | Path) -> RunMeta:
         try:
             # a recording is data: its scene is rebuilt from what it carries, and a map it
             # names by path is refused, never read from this machine
-            scene = Scene.from_yaml_text(raw["scene"], source="the recorded scene", files=False)
-            older = recorded_headway(load_yaml(raw["scene"]))
-            if older is not None:  # a speed law recorded before some of its keys existed
-                scene = Scene.from_dict(older, files=False)
+            data = scene_data(raw["scene"], source="the recorded scene")
+            older = recorded_headway(data)  # a speed law recorded before some keys existed
+            scene = Scene.from_dict(data if older is None else older, files=False)
         except SweepError as err:
             problems.append(f"the recorded scene does not load: {err}")
     dt = _number(raw, "dt", float, problems)

@@ -361,15 +361,13 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
     law = headway_from_spec(raw.get("headway"))
     if law is not None:
         spec["headway"] = law
+    given = (law or {}).get  # the law's parameter, or its neutral value without a law
     out = Flows(speeds, delays, tuple(sinks), tuple(sources), tuple(journeys),
-                None if law is None else law["time_gap"], law.get("margin", 0.0) if law else 0.0,
-                gspeed, spec, law["law"] if law else DEFAULT_LAW,
-                law.get("repulsion", 0.0) if law else 0.0,
-                law.get("repulsion_range", DEFAULT_REPULSION_RANGE) if law else
-                DEFAULT_REPULSION_RANGE, tuple(choices),
-                law.get("lateral", 1.0) if law else 1.0,
-                law.get("fade", -1.0) if law else -1.0, law.get("length", 1.0) if law else 1.0,
-                law.get("follow", 0.0) if law else 0.0)
+                None if law is None else law["time_gap"], given("margin", 0.0), gspeed, spec,
+                given("law", DEFAULT_LAW), given("repulsion", 0.0),
+                given("repulsion_range", DEFAULT_REPULSION_RANGE), tuple(choices),
+                given("lateral", 1.0), given("fade", -1.0), given("length", 1.0),
+                given("follow", 0.0))
     if out.changes_population:
         _check_changing(out, drift, sigma)
     return out

@@ -171,12 +171,7 @@ class Scene:
         ``source`` names it in errors (a file path, "the recorded scene"); base: the directory
         a relative map path is read from; ``files=False`` (a scene a recording carries) refuses
         a map given as a file path instead of reading it."""
-        try:
-            data = load_yaml(text)
-        except YAMLError as err:
-            raise SceneError("scene", f"{source} is not valid YAML: {yaml_problem(err)}",
-                             yaml_fix(err)) from err
-        return cls.from_dict(data if data is not None else {}, name=name, base=base, files=files)
+        return cls.from_dict(scene_data(text, source), name=name, base=base, files=files)
 
     @classmethod
     def from_dict(cls, data: dict, name: str = "scene", base: Path | None = None,
@@ -185,6 +180,21 @@ class Scene:
         directory relative file names in it (a map) are read from (default: the working
         directory); ``files=False``: no file is read (a map must be in its packed form)."""
         return _build(data, name, base, files)
+
+
+def scene_data(text: str, source: str = "the scene") -> Any:
+    """Parse a scene given as YAML text into plain data (an empty document gives {}), before
+    validation; ``source`` names it in errors.
+
+    Raises:
+        SceneError: the text is not valid YAML, or exceeds a parsing limit.
+    """
+    try:
+        data = load_yaml(text)
+    except YAMLError as err:
+        raise SceneError("scene", f"{source} is not valid YAML: {yaml_problem(err)}",
+                         yaml_fix(err)) from err
+    return data if data is not None else {}
 
 
 def _compact(values: np.ndarray, given: Any) -> float | list:
