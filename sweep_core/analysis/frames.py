@@ -102,10 +102,18 @@ class FrameReader:
                         done = pending.pop(key)
                         if done[0] is not None:
                             yield Frame(key, done[0][0], done[0][1], done[1], done[2], done[3])
+            cut = self._reader.truncated and self.want_agents
             for key in sorted(pending):
                 done = pending[key]
-                if done[0] is not None:
-                    yield Frame(key, done[0][0], done[0][1], done[1], done[2], done[3])
+                if done[0] is None:
+                    continue
+                if cut and done[1] is None and key == max(pending):
+                    # the file ends between this state's /poses and its /agents: the cut
+                    self._bad_lines.append(f"{self.meta.path}: the last /poses (t = "
+                                           f"{key / 1e9:g} s) has no /agents: the file was cut "
+                                           "between them; that state is left out")
+                    continue
+                yield Frame(key, done[0][0], done[0][1], done[1], done[2], done[3])
         finally:
             self._reader.close()
             self.truncated = self._reader.truncated

@@ -71,14 +71,23 @@ def read_trajectories(path: str | os.PathLike[str]) -> Trajectories:
                              "is one run (fix: export a recording without resets)")
     rows: list[tuple[int, np.ndarray, np.ndarray]] = []
     steps: list[int] = []
+    flows = meta.scene is not None and meta.scene.flows is not None and \
+        meta.scene.flows.changes_population
     for fr in FrameReader(meta):
         if meta.dt is None:
             raise RecordingError(f"{path}: its metadata give no time step dt; PedPy needs "
                                  "the frame rate (fix: export a recording of sweep run or "
                                  "the node)")
         step = int(round(fr.stamp_ns / (meta.dt * NS)))
-        ids = (np.arange(len(fr.positions)) if fr.agents is None or "id" not in fr.agents
-               else np.rint(fr.agents["id"]).astype(np.int64))
+        known = fr.agents is not None and "id" in fr.agents and len(fr.agents["id"]) == \
+            len(fr.positions)
+        if not known and flows:
+            raise RecordingError(f"{path}: the state at t = {fr.stamp_ns / NS:g} s has no "
+                                 "readable /agents ids, which a scene whose agents enter and "
+                                 "leave needs (numbering them 0 .. N - 1 would mix agents up) "
+                                 "(fix: record /agents, as sweep run does)")
+        ids = (np.rint(fr.agents["id"]).astype(np.int64) if known and fr.agents is not None
+               else np.arange(len(fr.positions)))
         steps.append(step)
         rows.append((step, ids, fr.positions))
     every = meta.record_every

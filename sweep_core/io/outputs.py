@@ -56,6 +56,7 @@ def check_output(path: str | os.PathLike[str], inputs: Iterable[str | os.PathLik
         if src is not None and _same(p, os.fspath(src)):
             raise OutputError(p, f"is also an input ({os.fspath(src)}); an output never "
                               "overwrites an input", other)
+    refuse_package(p, other)
     try:
         st = os.stat(p)
     except FileNotFoundError:
@@ -65,6 +66,42 @@ def check_output(path: str | os.PathLike[str], inputs: Iterable[str | os.PathLik
     if not stat.S_ISREG(st.st_mode):
         raise OutputError(p, f"exists and is {kind_of(st.st_mode)}; only a regular file is "
                           "overwritten", f"{other}, a file path")
+    return Path(p)
+
+
+#: the installed sweep_core package: its bundled scenes, data and code are inputs of every
+#: command, so no output goes inside it
+PACKAGE = os.path.realpath(Path(__file__).resolve().parents[1])
+
+
+def refuse_package(path: str | os.PathLike[str], other: str) -> None:
+    """OutputError when ``path`` (resolved, symbolic links followed) lies inside
+    :data:`PACKAGE`."""
+    p = os.path.realpath(os.fspath(path))
+    if p == PACKAGE or p.startswith(PACKAGE + os.sep):
+        raise OutputError(os.fspath(path), f"lies inside the installed sweep_core package "
+                          f"({PACKAGE}), whose bundled scenes and data it could overwrite",
+                          f"{other} outside the package")
+
+
+def check_folder(path: str | os.PathLike[str], other: str = "--out OTHERDIR") -> Path:
+    """``path`` as a Path, made (with its parents) when absent, once it is a folder outside
+    the package that can be written into.
+
+    Raises:
+        OutputError: naming the path, what it is and the fix.
+    """
+    p = os.fspath(path)
+    refuse_package(p, other)
+    if os.path.lexists(p) and not os.path.isdir(p):
+        raise OutputError(p, f"exists and is {kind_of(os.lstat(p).st_mode)}, not a folder",
+                          f"{other}, a folder's path")
+    try:
+        os.makedirs(p, exist_ok=True)
+    except OSError as err:
+        raise OutputError(p, f"cannot be made as a folder ({err.strerror})", other) from None
+    if not os.access(p, os.W_OK | os.X_OK):
+        raise OutputError(p, "is a folder this user cannot write into", other)
     return Path(p)
 
 

@@ -66,13 +66,17 @@ def exit_choice_from_spec(value: Any, field: str, group: int, group_name: str | 
                          f"{show(raw)}", f"write {field}.exits as [{{region: {{...}}}}, "
                          "{goal: [x, y]}, ...], one item per exit")
     cap = value.get("capacity", DEFAULT_CAPACITY)
+    fix = (f"give {field}.capacity the flow of each exit (1/s, > 0): one number or one per "
+           f"exit ({len(raw)} exits)")
     if isinstance(cap, list):
-        capacity = checks.per_agent(cap, len(raw), f"{field}.capacity", positive=True)
+        capacity = checks.array(cap, f"{field}.capacity", (len(raw),), "(one per exit)", fix)
+        if np.any(capacity <= 0):
+            k = int(np.argmin(capacity))
+            raise SceneError(f"{field}.capacity[{k}]", f"must be > 0, got {show(capacity[k])}",
+                             fix)
     else:
-        capacity = np.full(len(raw), checks.number(
-            cap, f"{field}.capacity", positive=True,
-            fix=f"give {field}.capacity the flow of each exit (1/s, > 0): one number or one "
-                "per exit"))
+        capacity = np.full(len(raw), checks.number(cap, f"{field}.capacity", positive=True,
+                                                   fix=fix))
     extra = {k: value[k] for k in ("cell", "wall_buffer") if k in value}
     fields, exits = [], []
     for k, e in enumerate(raw):

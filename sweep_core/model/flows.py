@@ -32,11 +32,19 @@ from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.exit_choice import ExitChoice, exit_choice_from_spec
 from sweep_core.model.fields import Field, Groups
+from sweep_core.model.flow_checks import check_sources
 from sweep_core.model.regions import Region, region_from_spec
 from sweep_core.model.speed_law import DEFAULT_LAW, DEFAULT_REPULSION_RANGE, headway_from_spec
 
 #: most agents one source may emit
 MAX_SOURCE_COUNT = 100_000
+#: most sinks and most sources: every step tests each sink and walks each source in Python
+#: (about 15 us per sink and 150 us per source a step, measured with 1e5 sinks and 1e4
+#: sources); 256 of each keep that within about 40 ms a step, far beyond any exit plan
+MAX_SINKS = MAX_SOURCES = 256
+#: most agents of a run, the scene's own and every source's: ids travel as float32 in the
+#: ``id`` field of /agents, exact up to 2^24
+MAX_IDS = 1 << 24
 #: most legs of a journey
 MAX_LEGS = 64
 _DISTRIBUTIONS: dict[str, set[str]] = {"normal": {"mean", "std", "min", "max"},
@@ -83,7 +91,7 @@ def draw_from_spec(value: Any, field: str, n: int | None, *, positive: bool) -> 
         checks.mapping(value, field, required={"distribution"},
                        allowed={"distribution", "mean", "std", "min", "max"})
         dist = value["distribution"]
-        if dist not in _DISTRIBUTIONS:
+        if not isinstance(dist, str) or dist not in _DISTRIBUTIONS:
             raise SceneError(f"{field}.distribution", f"unknown distribution {show(dist)}",
                              f"use one of {sorted(_DISTRIBUTIONS)}")
         need = _DISTRIBUTIONS[dist]
@@ -325,12 +333,19 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
         delays = draw_from_spec(raw["delays"], "flows.delays", n_agents, positive=False)
         spec["delays"] = delays.to_spec()
     sinks = []
-    for k, s in enumerate(_listed(raw, "sinks")):
+    for k, s in enumerate(_listed(raw, "sinks", MAX_SINKS)):
         sinks.append(region_from_spec(s, f"flows.sinks[{k}]"))
     spec["sinks"] = [s.spec for s in sinks]
     sources = [_source(s, f"flows.sources[{k}]", names)
-               for k, s in enumerate(_listed(raw, "sources"))]
+               for k, s in enumerate(_listed(raw, "sources", MAX_SOURCES))]
     spec["sources"] = [s.spec for s in sources]
+    total = n_agents + sum(len(s.times) for s in sources)
+    if total > MAX_IDS:
+        raise SceneError("flows.sources", f"emit {total - n_agents} agents, which with the "
+                         f"scene's {n_agents} make {total}, more than {MAX_IDS} (2^24, the ids "
+                         "/agents carries exactly as float32)",
+                         "lower the sources' counts or their number of times")
+    check_sources(sources, sinks, geometry)
     journeys: list[Journey] = []
     seen: dict[int, int] = {}
     for k, j in enumerate(_listed(raw, "journeys")):
@@ -373,10 +388,15 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
     return out
 
 
-def _listed(raw: dict, key: str) -> list:
-    """flows.KEY, a list (empty when absent)."""
-    return checks.items(raw.get(key), f"flows.{key}",
-                        f"write flows.{key} as a list, one '- ...' per item")
+def _listed(raw: dict, key: str, most: int | None = None) -> list:
+    """flows.KEY, a list (empty when absent) of at most ``most`` items."""
+    out = checks.items(raw.get(key), f"flows.{key}",
+                       f"write flows.{key} as a list, one '- ...' per item")
+    if most is not None and len(out) > most:
+        raise SceneError(f"flows.{key}", f"has {len(out)} items, more than {most}",
+                         f"give at most {most} (a region may be a polygon: join neighbouring "
+                         "ones)")
+    return out
 
 
 def _check_changing(flows: Flows, drift: Field, sigma: np.ndarray) -> None:

@@ -9,6 +9,7 @@ default parameters and the validation of the key. The laws themselves are compil
 """
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from sweep_core import checks
@@ -45,6 +46,15 @@ RECORDED = {"lateral": RECORDED_LATERAL, "length": 1.0, "follow": 0.0}
 #: (calibrated against Weidmann alone, scripts/calibrate_headway.py)
 LANES_TIME_GAP = 0.35
 DEFAULT_MARGIN = 0.3
+#: largest repulsion strength a: Tordeux et al. publish a = 5 (the default here is 2); at
+#: a = 1e3 one neighbour at contact already outweighs the wished direction a thousandfold,
+#: and the direction rule's sum overflows (every agent near another then stops) from about
+#: a = 1e150
+MAX_REPULSION = 1e3
+#: smallest repulsion range D (m): contacts hold to 1e-9 m, so two disks may overlap by up to
+#: 1e-9 m and exp((l - d) / D) stays below e^0.001 for D >= 1e-6 m; at D = 1e-300 it is
+#: inf and the directions NaN
+MIN_REPULSION_RANGE = 1e-6
 
 def headway_from_spec(raw: Any) -> dict | None:
     """``flows.headway`` validated and normalised (None: absent): ``law`` (``csm``, default,
@@ -73,15 +83,27 @@ def headway_from_spec(raw: Any) -> dict | None:
     return {"law": law,
             "time_gap": checks.number(hw.get("time_gap", DEFAULT_TIME_GAP),
                                       "flows.headway.time_gap", positive=True),
-            "repulsion": checks.number(hw.get("repulsion", DEFAULT_REPULSION),
-                                       "flows.headway.repulsion", nonnegative=True),
-            "repulsion_range": checks.length(hw.get("repulsion_range", DEFAULT_REPULSION_RANGE),
-                                             "flows.headway.repulsion_range", positive=True),
+            "repulsion": _within(checks.number(hw.get("repulsion", DEFAULT_REPULSION),
+                                               "flows.headway.repulsion", nonnegative=True),
+                                 "flows.headway.repulsion", 0.0, MAX_REPULSION),
+            "repulsion_range": _within(checks.length(
+                hw.get("repulsion_range", DEFAULT_REPULSION_RANGE),
+                "flows.headway.repulsion_range", positive=True), "flows.headway.repulsion_range",
+                MIN_REPULSION_RANGE, math.inf),
             "lateral": k, "fade": fade_from_spec(hw.get("fade", k), k),
             "length": fraction_from_spec(hw.get("length", DEFAULT_LENGTH), "flows.headway.length",
                                          "the fraction of the two radii the speed rule takes "
                                          "as the body length"),
             "follow": follow_from_spec(hw.get("follow", DEFAULT_FOLLOW))}
+
+
+def _within(x: float, field: str, low: float, high: float) -> float:
+    """x unchanged when low <= x <= high, else SceneError naming the range."""
+    if not low <= x <= high:
+        want = (f"at least {show(low)}" if math.isinf(high)
+                else f"between {show(low)} and {show(high)}")
+        raise SceneError(field, f"must be {want}, got {show(x)}", f"set {field} {want}")
+    return x
 
 
 def follow_from_spec(raw: Any) -> float:

@@ -1,0 +1,99 @@
+"""What a scene's sources can never do, refused when the scene is built: a source whose region
+has no point where its largest disk is clear of the walls and obstacles (that agent, and every
+one due after it, would wait for ever), and a source whose region lies inside a sink (every
+agent it emits would leave at once). :mod:`sweep_core.model.flows` calls :func:`check_sources`.
+
+The room test is a proof, never a guess: the clearance c(q) (m) of a centre q, its distance to
+the nearest wall or obstacle (negative inside a polygon obstacle), is 1-Lipschitz in q. On a
+grid of step h over the region's bounding box every point p lies within delta = h / sqrt(2) of
+a node g, so c(g) >= c(p) - delta and dist(g, region) <= delta. If no node within delta of the
+region has c(g) >= r - delta, no point of the region has c(p) >= r: the source has no room.
+A region too large for a grid of :data:`ROOM_NODES` nodes per axis to give delta < r, a
+scene whose walls or obstacles move, and user constraints are not tested. Entries keep their
+order, so one agent that can never enter stops its source for good: the test takes the
+source's largest radius.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from sweep_core.errors import SceneError, show
+from sweep_core.model.geometry import single_rows
+from sweep_core.model.outlines import points_in_polygon
+from sweep_core.model.regions import Region
+
+#: grid nodes per axis of the room test: at most 128 x 128 = 16384 candidate centres, tested
+#: against the walls through the spatial index (a few milliseconds); a region up to about
+#: 128 r / sqrt(2) across (36 m for r = 0.2 m) is tested
+ROOM_NODES = 128
+#: the grid step the room test aims at, r / FINE (m), where the cap of ROOM_NODES allows:
+#: delta = r / (FINE / sqrt(2)) = r / 8, so a region whose best clearance is short of r by
+#: more than an eighth of r is refused
+FINE = 8 * math.sqrt(2.0)
+#: slack (m) given to the clearance against rounding: the test refuses only when every node
+#: is short of r - delta by more than this
+ROOM_SLACK = 1e-9
+
+
+def has_room(region: Region, r: float, geometry: Any) -> bool | None:
+    """Whether some centre in ``region`` has clearance >= r (m) from the static walls and
+    obstacles of ``geometry``: True (a node shows it), False (proven: none has), or None
+    (untested: moving geometry, user constraints, or a region too large; module
+    docstring)."""
+    if geometry.is_empty:
+        return True
+    if geometry.is_moving or len(geometry.user) or np.any(geometry.halfplane_velocity != 0):
+        return None
+    extent = float(np.max(region.hi - region.lo))
+    per_axis = min(ROOM_NODES, max(2, math.ceil(extent / (r / FINE)) + 1))
+    h = extent / (per_axis - 1)
+    delta = h / math.sqrt(2.0)
+    if delta >= r:
+        return None
+    xs = region.lo[0] + h * np.arange(per_axis)
+    ys = region.lo[1] + h * np.arange(per_axis)
+    nodes = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+    nodes = nodes[region.distance(nodes) <= delta + ROOM_SLACK]
+    if not len(nodes):
+        return None
+    ok = np.ones(len(nodes), dtype=bool)
+    rr = np.full(len(nodes), r - delta - ROOM_SLACK)
+    for a, _, _, _, _ in single_rows(geometry, 0.0, nodes, rr, 0.0):
+        ok[a] = False
+    return bool(ok.any())
+
+
+def inside(region: Region, sink: Region) -> bool:
+    """Whether ``region`` lies inside ``sink`` (m), decided for a rectangular or convex sink
+    (every vertex of the region inside it); False for a concave sink (not decided)."""
+    pts = sink.points
+    if not sink.is_rectangle:
+        e = np.roll(pts, -1, axis=0) - pts
+        turn = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+        if not (np.all(turn >= 0) or np.all(turn <= 0)):
+            return False
+        return bool(np.all(points_in_polygon(region.points, pts)))
+    return bool(np.all(sink.contains(region.points)))
+
+
+def check_sources(sources: Sequence[Any], sinks: Sequence[Region], geometry: Any) -> None:
+    """Refuse a source (``flows.sources[k]``) with no room for its largest disk, or inside a
+    sink (module docstring)."""
+    for k, src in enumerate(sources):
+        field = f"flows.sources[{k}]"
+        for m, sink in enumerate(sinks):
+            if inside(src.region, sink):
+                raise SceneError(f"{field}.region", f"lies inside flows.sinks[{m}]: every agent "
+                                 "the source emits would leave at its first step",
+                                 f"move {field}.region out of flows.sinks[{m}]")
+        if has_room(src.region, src.r_high, geometry) is False:
+            big = "radius" if src.r_high == src.r_low else "largest radius"
+            raise SceneError(f"{field}.region", f"has no point {show(src.r_high)} m (the "
+                             f"source's {big}) clear of the walls and obstacles: an agent of "
+                             "that radius could never enter there, nor any after it",
+                             f"move {field}.region into the free space, make it larger, or "
+                             f"make {field}.radius smaller")

@@ -1,0 +1,302 @@
+"""Careless or hostile input to the flow features, refused in one line or read correctly.
+
+Scenes with ``flows`` (distributions, sources, sinks, exit choices, the csm speed law), ``sweep
+verify``'s options, outputs inside the package, and recordings with entering and leaving
+agents cut short: each case fails on the code before its fix (a traceback, a source that
+waits for ever, agents that stop or get NaN velocities, ids renumbered, a bundled file
+overwritten, a report written only after every run).
+"""
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from mcap.writer import CompressionType, Writer
+
+from sweep_core import Scene, SceneError, Simulator
+from sweep_core.analysis.frames import FrameReader
+from sweep_core.analysis.pedpy_export import read_trajectories
+from sweep_core.analysis.run import load_run
+from sweep_core.cli import main
+from sweep_core.errors import OutputError, RecordingError
+from sweep_core.io.outputs import PACKAGE, check_folder, check_output
+from sweep_core.io.recording import read_recording
+from sweep_core.model import flow_checks, flows, speed_law
+from sweep_core.model.geometry import single_values
+from sweep_core.model.neighbours import pairs_within
+from sweep_core.model.regions import region_from_spec
+from sweep_core.model.yaml_files import dump_yaml
+from sweep_core.numerics.csm import csm, directions
+
+ROOM = [{"kind": "polyline", "points": [[0, 0], [10, 0], [10, 4], [0, 4]], "closed": True}]
+SOURCE = {"region": {"kind": "rectangle", "min": [0.3, 0.3], "max": [1.5, 3.7]},
+          "rate": 4.0, "count": 8}
+SINK = {"kind": "rectangle", "min": [8.5, 0.0], "max": [10.0, 4.0]}
+
+
+def corridor(flow: dict, **more) -> dict:
+    """A 10 m x 4 m room, three agents walking east, and ``flow`` as its flows key."""
+    return {"name": "corridor",
+            "agents": {"positions": [[1.0, 1.0], [1.0, 2.0], [2.0, 1.5]], "radius": 0.2},
+            "walls": copy.deepcopy(ROOM), "drift": {"kind": "goal", "goal": [9.5, 2.0],
+                                                     "speed": 1.3},
+            "flows": flow, **more}
+
+
+def refused(data: dict) -> SceneError:
+    with pytest.raises(SceneError) as err:
+        Scene.from_dict(data)
+    assert err.value.problem and err.value.fix
+    return err.value
+
+
+# -- values of the wrong kind and size ------------------------------------------------------
+
+
+@pytest.mark.parametrize("dist", [["normal"], {"kind": "normal"}])
+def test_a_distribution_that_is_no_name_is_refused(dist):
+    """Before: TypeError (unhashable) from the dict lookup."""
+    err = refused(corridor({"speeds": {"distribution": dist, "min": 1.0, "max": 2.0}}))
+    assert err.field == "flows.speeds.distribution"
+
+
+def test_exit_capacities_are_counted_as_exits():
+    """Before: 'one per agent, 2 agents' for a list of capacities of 2 exits."""
+    exits = [{"goal": [9.5, 1.0]}, {"goal": [9.5, 3.0]}]
+    err = refused(corridor({"exit_choice": [{"exits": exits, "capacity": [1.0]}]}))
+    assert err.field == "flows.exit_choice[0].capacity"
+    assert "agent" not in str(err) and "one per exit" in str(err) and "2 exits" in str(err)
+    err = refused(corridor({"exit_choice": [{"exits": exits, "capacity": [1.0, -2.0]}]}))
+    assert err.field == "flows.exit_choice[0].capacity[1]"
+
+
+@pytest.mark.parametrize("key, value", [("repulsion", 1e160), ("repulsion", 1e300),
+                                        ("repulsion_range", 1e-300), ("repulsion_range", 1e-9)])
+def test_repulsion_beyond_its_bounds_is_refused(key, value):
+    """Before: accepted; a = 1e160 stopped every agent near another, D = 1e-300 gave NaN."""
+    err = refused(corridor({"headway": {key: value}}))
+    assert err.field == f"flows.headway.{key}"
+
+
+def test_the_direction_rule_stays_finite_at_the_bounds():
+    """At the largest repulsion and the smallest range, with two disks overlapping by the
+    1e-9 m the rows allow and a crowd pressing on one agent, every direction is a unit vector
+    (the agents keep moving): the sum cannot overflow."""
+    ring = 0.4 * np.stack([np.cos(np.arange(6) * np.pi / 3), np.sin(np.arange(6) * np.pi / 3)],
+                          axis=1)
+    q = np.concatenate([[[0.0, 0.0]], ring * (1 - 2.5e-9)])  # each neighbour 1e-9 m inside
+    r = np.full(len(q), 0.2)
+    u = np.tile([1.0, 0.3], (len(q), 1))
+    v = csm(q, r, u, 2.1, speed_law.MAX_REPULSION, speed_law.MIN_REPULSION_RANGE, 1.0)
+    assert np.all(np.isfinite(v))
+    pi, pj = pairs_within(q, 1.0)
+    e = directions(q, r, u, pi, pj, speed_law.MAX_REPULSION, speed_law.MIN_REPULSION_RANGE)
+    assert np.allclose(np.hypot(e[:, 0], e[:, 1]), 1.0)
+
+
+def test_too_many_sinks_sources_or_ids_are_refused():
+    """Before: 1e5 sinks took 1.4 s a step, 1e4 sources more than 1.5 s a step, and counts
+    past 2^24 ids (exact in /agents' float32) were accepted."""
+    many = flows.MAX_SINKS + 1
+    assert refused(corridor({"sinks": [SINK] * many})).field == "flows.sinks"
+    assert refused(corridor({"sources": [SOURCE] * many})).field == "flows.sources"
+    count = flows.MAX_SOURCE_COUNT
+    n = flows.MAX_IDS // count + 1  # each source within its own bound, the sum beyond 2^24
+    assert n <= flows.MAX_SOURCES
+    err = refused(corridor({"sources": [dict(SOURCE, count=count)] * n}))
+    assert err.field == "flows.sources" and str(flows.MAX_IDS) in str(err)
+
+
+# -- sources that could never emit, or whose agents would leave at once ----------------------
+
+
+@pytest.mark.parametrize("source, obstacles", [
+    ({"region": {"kind": "rectangle", "min": [4, 1], "max": [5, 2]}},   # inside a circle
+     [{"kind": "circle", "center": [4.5, 1.5], "radius": 1.5}]),
+    ({"region": {"kind": "rectangle", "min": [-0.1, 1], "max": [0.1, 2]}}, []),  # on the wall
+    ({"region": {"kind": "rectangle", "min": [0.1, 0.1], "max": [0.15, 0.15]}}, []),  # corner
+    ({"radius": 3.0}, []),                    # wider than the 4 m room
+    ({"radius": [0.1, 1e4]}, []),             # the largest draws never fit
+])
+def test_a_source_without_room_is_refused(source, obstacles):
+    """Before: the scene ran and every due agent waited for ever (``waiting`` grew)."""
+    err = refused(corridor({"sources": [{**SOURCE, **source}], "sinks": [SINK]},
+                           obstacles=obstacles))
+    assert err.field == "flows.sources[0].region"
+
+
+def test_a_source_with_room_is_kept_and_emits():
+    """The room test never refuses a source that can emit: a 1.9 m disk in the 4 m room."""
+    scene = Scene.from_dict(corridor({"sources": [{
+        "region": {"kind": "rectangle", "min": [3, 1], "max": [6, 3]}, "times": [0.0],
+        "radius": 1.9}]}, agents={"positions": [[9.0, 0.5]], "radius": 0.2}))
+    sim = Simulator(scene, dt=0.05, seed=0)
+    sim.run(0.1)
+    assert sim.flows is not None and sim.flows.entered == 1
+
+
+def test_the_room_test_is_sound_on_random_regions():
+    """Whenever has_room says False, no point of a fine sample of the region has the
+    clearance r (its proof, on 300 seeded regions near walls and a circle)."""
+    scene = Scene.from_dict(corridor({}, obstacles=[{"kind": "circle", "center": [5.0, 2.0],
+                                                     "radius": 1.0}]))
+    rng = np.random.default_rng(7)
+    refusals = 0
+    for _ in range(300):
+        lo = rng.uniform([-0.5, -0.5], [10.0, 4.0])
+        hi = lo + rng.uniform(0.01, 1.5, 2)
+        r = float(rng.uniform(0.05, 1.5))
+        region = region_from_spec({"kind": "rectangle", "min": lo.tolist(), "max": hi.tolist()},
+                                  "region")
+        if flow_checks.has_room(region, r, scene.geometry) is not False:
+            continue
+        refusals += 1
+        g = np.stack(np.meshgrid(np.linspace(lo[0], hi[0], 60), np.linspace(lo[1], hi[1], 60)),
+                     axis=-1).reshape(-1, 2)
+        clearance = np.min(np.concatenate(
+            [v.reshape(len(g), -1) for v, _, _ in single_values(scene.geometry, 0.0, g,
+                                                                np.zeros(len(g)))], axis=1),
+            axis=1)
+        assert clearance.max() < r
+    assert refusals > 20  # the test refused enough regions to mean something
+
+
+def test_a_source_inside_a_sink_is_refused():
+    """Before: its agents entered and left at once (entered 3, left 5 in a second)."""
+    cover = {"kind": "rectangle", "min": [0, 0], "max": [3, 4]}
+    err = refused(corridor({"sources": [SOURCE], "sinks": [SINK, cover]}))
+    assert err.field == "flows.sources[0].region" and "flows.sinks[1]" in str(err)
+    poly = {"kind": "polygon", "points": [[0, 0], [3, 0], [3, 4], [0, 4]]}
+    assert refused(corridor({"sources": [SOURCE], "sinks": [poly]})).field == \
+        "flows.sources[0].region"
+    half = {"kind": "rectangle", "min": [1, 0], "max": [3, 4]}  # overlapping is allowed
+    Scene.from_dict(corridor({"sources": [SOURCE], "sinks": [half]}))
+
+
+# -- sweep verify's options and outputs ------------------------------------------------------
+
+
+def _cli(args: list[str], capsys) -> tuple[int, str]:
+    capsys.readouterr()
+    code = main(args)
+    return code, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--seeds", "1000000000"], "--seeds: 1000000000"),
+    (["--seed", "-1", "--seeds", "1"], "--seed: -1"),
+])
+def test_verify_refuses_bad_seeds_before_running(args, words, capsys, tmp_path):
+    """Before: --seeds 1e9 built a list of 1e9 seeds; --seed -1 ran and failed every run
+    (exit status 1)."""
+    code, err = _cli(["verify", "--quick", "--tests", "rimea1", "--out", str(tmp_path / "v"),
+                      *args], capsys)
+    assert code == 2 and words in err and "fix:" in err and "runs done" not in err, err
+
+
+def test_verify_refuses_an_output_that_is_no_folder_before_running(tmp_path, capsys):
+    """Before: every run first, then a FileExistsError traceback (exit status 1)."""
+    existing = tmp_path / "report.txt"
+    existing.write_text("keep me\n")
+    for out in (existing, existing / "sub"):
+        code, err = _cli(["verify", "--quick", "--tests", "rimea1", "--seeds", "1", "--out",
+                          str(out)], capsys)
+        assert code == 2 and str(out) in err and "runs done" not in err, err
+    assert existing.read_text() == "keep me\n"
+
+
+def test_no_output_goes_inside_the_package(tmp_path, capsys):
+    """Before: `sweep run S --out sweep_core/scenes/gallery.yaml` replaced the bundled
+    index with an MCAP recording, and verify wrote its report among the bundled scenes."""
+    index = Path(PACKAGE) / "scenes" / "gallery.yaml"
+    before = index.read_bytes()
+    scene = tmp_path / "s.yaml"
+    scene.write_text("agents: {positions: [[0, 0]], radius: 0.2}\n")
+    code, err = _cli(["run", str(scene), "--t-end", "0.05", "--out", str(index), "--quiet"],
+                     capsys)
+    assert code == 2 and "inside the installed sweep_core package" in err, err
+    assert index.read_bytes() == before
+    with pytest.raises(OutputError):
+        check_output(Path(PACKAGE) / "scenes" / "x.mcap")
+    with pytest.raises(OutputError):
+        check_folder(Path(PACKAGE) / "scenes" / "rimea")
+    assert check_folder(tmp_path / "a" / "b").is_dir()
+
+
+# -- recordings with agents entering and leaving, cut short -----------------------------------
+
+
+@pytest.fixture(scope="module")
+def flows_run(tmp_path_factory) -> Path:
+    """A 1 s recording (21 states) with a source and a sink: agents enter and leave."""
+    folder = tmp_path_factory.mktemp("flows")
+    scene = folder / "flows.yaml"
+    data = corridor({"sources": [SOURCE], "sinks": [{"kind": "rectangle", "min": [1.5, 0.0],
+                                                     "max": [1.9, 4.0]}]})
+    data["agents"]["positions"] = [[1.8, 1.0], [1.7, 2.0], [2.0, 3.0]]  # two leave at once
+    scene.write_text(dump_yaml(data))
+    out = folder / "flows.mcap"
+    assert main(["run", str(scene), "--t-end", "1.0", "--dt", "0.05", "--out", str(out),
+                 "--quiet"]) == 0
+    return out
+
+
+def _copy(src: Path, dst: Path, keep=lambda topic, i: True) -> list[tuple[str, int]]:
+    """The recording ``src`` written again with one message per chunk, its metadata first (a
+    cut file keeps them, as sweep run's own files do), the messages kept by keep(topic, k);
+    returns (topic, byte offset of its chunk) of each message written."""
+    with open(src, "rb") as f, open(dst, "wb") as o:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        w = Writer(o, chunk_size=1, compression=CompressionType.NONE)
+        w.start(profile="ros2", library="test cut")
+        sids = {k: w.register_schema(s.name, s.encoding, s.data)
+                for k, s in summary.schemas.items()}
+        cids = {k: w.register_channel(c.topic, c.message_encoding, sids[c.schema_id],
+                                      dict(c.metadata)) for k, c in summary.channels.items()}
+        for md in reader.iter_metadata():
+            if md.name != "sweep_status":
+                w.add_metadata(md.name, dict(md.metadata))
+        count: dict[str, int] = {}
+        for _, ch, m in reader.iter_messages(log_time_order=False):
+            k = count.get(ch.topic, 0)
+            count[ch.topic] = k + 1
+            if keep(ch.topic, k):
+                w.add_message(cids[ch.id], m.log_time, m.data, m.publish_time, m.sequence)
+        w.finish()
+    return [(m.topic, m.offset) for m in read_recording(str(dst), ["/poses", "/agents"])]
+
+
+def test_a_recording_cut_between_poses_and_agents_is_read_to_the_cut(flows_run, tmp_path,
+                                                                      capsys):
+    """Cut before the /agents of a state whose /poses is in the file: analyze (before: refused
+    the whole recording) and export (before: numbered that state's agents 0 .. N - 1, other
+    agents' ids) read every whole state and leave the cut one out."""
+    whole = tmp_path / "whole.mcap"
+    messages = _copy(flows_run, whole)
+    full = read_trajectories(whole)
+    agents_at = [off for topic, off in messages if topic == "/agents"]
+    for k in (5, len(agents_at) // 2, len(agents_at) - 1):
+        cut = tmp_path / f"cut{k}.mcap"
+        cut.write_bytes(whole.read_bytes()[:agents_at[k]])
+        meta = load_run(cut)
+        frames = list(FrameReader(meta))
+        assert len(frames) == k and all(fr.agents is not None for fr in frames)
+        traj = read_trajectories(cut)
+        sel = full.frames < k
+        assert np.array_equal(traj.ids, full.ids[sel]) and np.array_equal(traj.xy, full.xy[sel])
+    code, err = _cli(["analyze", str(cut), "--no-plots", "--quiet"], capsys)
+    assert code == 0 and "that state is left out" in err, err
+
+
+def test_export_refuses_a_state_without_ids_when_agents_come_and_go(flows_run, tmp_path):
+    """Before: the state whose /agents message is missing got ids 0 .. N - 1, silently."""
+    holed = tmp_path / "holed.mcap"
+    _copy(flows_run, holed, keep=lambda topic, k: not (topic == "/agents" and k == 10))
+    with pytest.raises(RecordingError, match="no readable /agents ids"):
+        read_trajectories(holed)
+    assert math.isfinite(load_run(holed).dt or math.nan)
