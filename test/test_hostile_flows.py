@@ -298,3 +298,24 @@ def test_export_refuses_a_state_without_ids_when_agents_come_and_go(flows_run, t
     with pytest.raises(RecordingError, match="no readable /agents ids"):
         read_trajectories(holed)
     assert math.isfinite(load_run(holed).dt or math.nan)
+
+
+# -- sweep render's options ------------------------------------------------------------------
+
+
+def test_render_refuses_rates_and_names_it_cannot_honour(flows_run, tmp_path, capsys):
+    """Before: --fps 1e-9 reached ffmpeg as rate 0 and failed with its many-line output (and
+    the fix 'free disk space'); a GIF at --fps 1000 was written with 1 ms frames, which
+    viewers show for 100 ms; --out x.avi held an MP4."""
+    from sweep_core.analysis.animation import has_encoder
+
+    cases = [(["--out", str(tmp_path / "fast.gif"), "--fps", "1000"], "--fps 1000"),
+             (["--out", str(tmp_path / "x.avi")], "--out")]
+    if has_encoder():
+        cases.append((["--out", str(tmp_path / "slow.mp4"), "--fps", "1e-9"], "--fps 1e-09"))
+    for args, words in cases:
+        code, err = _cli(["render", str(flows_run), "--to", "0.1", "--size", "160", "--quiet",
+                          *args], capsys)
+        errors = [ln for ln in err.splitlines() if ln.strip()]
+        assert code == 2 and len(errors) == 1 and words in errors[0] and "fix:" in errors[0], err
+        assert not Path(args[1]).exists()

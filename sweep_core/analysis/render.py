@@ -56,6 +56,12 @@ DPI = 100
 LEFT, RIGHT, TOP, BOTTOM, BAR = 56, 12, 30, 78, 72
 #: the smallest width and height (px)
 MIN_SIZE = 160
+#: the lowest frame rate (1/s), a frame every 100 s: ffmpeg takes the rate as a fraction of
+#: denominator at most 1e6, so a rate below 5e-7 reached it as 0 and the encoder failed
+MIN_FPS = 0.01
+#: the highest frame rate of a GIF (1/s): it holds each frame a whole number of 10 ms, and a
+#: frame shorter than that is shown for 100 ms by browsers
+GIF_MAX_FPS = 100.0
 #: the most memory (bytes) the frames of a GIF may take while it is assembled
 GIF_BYTES = 1_000_000_000
 
@@ -80,6 +86,10 @@ class RenderOptions:
             if not (math.isfinite(value) and value > 0):
                 raise SweepError(f"{name} {value:g} is not a positive number (fix: give e.g. "
                                  f"{name} 10)")
+        if self.fps < MIN_FPS:
+            raise SweepError(f"--fps {self.fps:g} is below {MIN_FPS:g}, a frame every "
+                             f"{1 / MIN_FPS:g} s (fix: give --fps {MIN_FPS:g} or more, and "
+                             "--speed to show more recorded time per frame)")
         if not math.isfinite(self.start) or self.start < 0:
             raise SweepError(f"--from {self.start:g} s is not a time >= 0 (fix: give seconds "
                              "since the first recorded state)")
@@ -309,6 +319,9 @@ def output_path(recording: str, out: str | None, encoder: bool) -> tuple[str, st
         fmt = "mp4" if encoder else "gif"
         return os.path.splitext(recording)[0] + "." + fmt, fmt
     fmt = "gif" if out.lower().endswith(".gif") else "mp4"
+    if fmt == "mp4" and not out.lower().endswith(".mp4"):
+        raise SweepError(f"--out {out}: names neither an MP4 nor a GIF, and the file would "
+                         "hold an MP4 (fix: end the name in .mp4 or .gif)")
     if fmt == "mp4" and not encoder:
         raise SweepError(f"--out {out}: no MP4 encoder is available (imageio-ffmpeg and its "
                          "ffmpeg binary) (fix: pip install imageio-ffmpeg==0.8.1, or name the "
@@ -338,6 +351,10 @@ def render(recording: str, out: str | None = None, opts: RenderOptions | None = 
         raise SweepError(f"{path}: {len(times)} GIF frames of {size[0]} x {size[1]} px need "
                          f"{need / 1e9:.1f} GB of memory (fix: write an MP4, or fewer frames "
                          "with --fps, --from/--to, or a smaller --size)")
+    if fmt == "gif" and opts.fps > GIF_MAX_FPS:
+        raise SweepError(f"--fps {opts.fps:g} is above {GIF_MAX_FPS:g} for a GIF, which holds "
+                         "each frame a whole number of 10 ms (fix: give --fps 100 or less, or "
+                         "write an MP4)")
     painter = Painter(meta, sv, opts, size)
     try:
         with open_writer(path, fmt, size, opts.fps, [meta.path]) as writer:
