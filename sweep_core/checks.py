@@ -105,8 +105,8 @@ def within_bound(arr: np.ndarray, field: str, what: str = "coordinate",
                  else "positions hold to 2.2e-10 m")
         raise SceneError(f"{field}{where}", f"{what} {show(arr[bad])} m is beyond the bound "
                          f"{bound:g} m within which float64 {holds}",
-                         f"use {what}s within +-{bound:g} m (shift the scene's origin near "
-                         "its centre)")
+                         f"use {what[:-2] + 'i' if what.endswith('us') else what + 's'} "
+                         f"within +-{bound:g} m (shift the scene's origin near its centre)")
     return arr
 
 

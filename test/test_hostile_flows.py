@@ -17,7 +17,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
-from sweep_core import Scene, SceneError, Simulator
+from sweep_core import Scene, SceneError, Simulator, checks
 from sweep_core.analysis.frames import FrameReader
 from sweep_core.analysis.pedpy_export import read_trajectories
 from sweep_core.analysis.run import load_run
@@ -72,6 +72,25 @@ def test_exit_capacities_are_counted_as_exits():
     assert "agent" not in str(err) and "one per exit" in str(err) and "2 exits" in str(err)
     err = refused(corridor({"exit_choice": [{"exits": exits, "capacity": [1.0, -2.0]}]}))
     assert err.field == "flows.exit_choice[0].capacity[1]"
+
+
+@pytest.mark.parametrize("flow, field", [
+    ({"speeds": 1e300}, "flows.speeds"),
+    ({"speeds": [1.0, 2e4, 1.0]}, "flows.speeds[1]"),
+    ({"speeds": {"distribution": "uniform", "min": 1.0, "max": 1e300}}, "flows.speeds.max"),
+    ({"sources": [{**SOURCE, "speeds": 1e300}]}, "flows.sources[0].speeds"),
+])
+def test_a_preferred_speed_beyond_the_bound_is_refused(flow, field):
+    """Before: accepted; at 1e300 m/s the first step stopped with 'agents cannot be placed
+    without overlap' (fix: smaller radii), the projection's rows having overflowed."""
+    err = refused(corridor(flow))
+    assert err.field == field and str(int(flows.MAX_SPEED)) in str(err)
+
+
+def test_a_radius_beyond_the_bound_is_named_in_the_plural_correctly():
+    """Before: 'use radiuss within +-10000 m' (a robot's radius of 1e5 m)."""
+    with pytest.raises(SceneError, match="use radii within"):
+        checks.length(1e5, "robots[0].radius", positive=True, what="radius")
 
 
 @pytest.mark.parametrize("key, value", [("repulsion", 1e160), ("repulsion", 1e300),

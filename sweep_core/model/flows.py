@@ -48,6 +48,10 @@ MAX_SINKS = 256
 MAX_SOURCES = 64
 #: most legs of a journey
 MAX_LEGS = 64
+#: the largest preferred speed (m/s): one step of the longest time step, 1 s (io/limits.py),
+#: moves an agent at most the coordinate bound, 1e4 m, within which distances hold to 1e-11 m;
+#: at 1e300 m/s the projection's rows overflowed and the run stopped as "infeasible"
+MAX_SPEED = checks.COORDINATE_BOUND / 1.0
 _DISTRIBUTIONS: dict[str, set[str]] = {"normal": {"mean", "std", "min", "max"},
                                         "uniform": {"min", "max"}}
 
@@ -85,7 +89,20 @@ def draw(d: Draw, rng: np.random.Generator, n: int) -> np.ndarray:
 
 def draw_from_spec(value: Any, field: str, n: int | None, *, positive: bool) -> Draw:
     """A speeds or delays value: a number, a list of n numbers (n None: a list is refused),
-    or a distribution; positive: values > 0 (speeds), else >= 0 (delays)."""
+    or a distribution; positive: values > 0 and at most MAX_SPEED (speeds), else >= 0
+    (delays)."""
+    d = _draw_from_spec(value, field, n, positive=positive)
+    top = float(np.max(d.values)) if d.values is not None else d.high
+    if positive and top > MAX_SPEED:
+        where = (f"{field}.max" if d.values is None else
+                 f"{field}[{int(np.argmax(d.values))}]" if d.values.ndim else field)
+        raise SceneError(where, f"{show(top)} m/s is above {MAX_SPEED:g} m/s, where a step of "
+                         "1 s would leave the scene's coordinate bound",
+                         f"give preferred speeds of at most {MAX_SPEED:g} m/s")
+    return d
+
+
+def _draw_from_spec(value: Any, field: str, n: int | None, *, positive: bool) -> Draw:
     bound = "> 0" if positive else ">= 0"
     unit = "m/s" if positive else "s"
     if isinstance(value, dict):
