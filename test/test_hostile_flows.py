@@ -22,6 +22,7 @@ from sweep_core.analysis.frames import FrameReader
 from sweep_core.analysis.pedpy_export import read_trajectories
 from sweep_core.analysis.run import load_run
 from sweep_core.cli import main
+from sweep_core.ensemble.cluster import check_workers
 from sweep_core.errors import OutputError, RecordingError
 from sweep_core.io.outputs import PACKAGE, check_folder, check_output
 from sweep_core.io.recording import read_recording
@@ -213,6 +214,14 @@ def test_verify_refuses_bad_seeds_before_running(args, words, capsys, tmp_path):
     code, err = _cli(["verify", "--quick", "--tests", "rimea1", "--out", str(tmp_path / "v"),
                       *args], capsys)
     assert code == 2 and words in err and "fix:" in err and "runs done" not in err, err
+
+
+def test_verify_refuses_a_worker_count_beyond_the_machine(capsys, tmp_path):
+    """Before: --workers 100000 started a LocalCluster of 100000 processes (2.4 TB)."""
+    code, err = _cli(["verify", "--quick", "--tests", "rimea1", "--workers", "100000",
+                      "--out", str(tmp_path / "v")], capsys)
+    assert code == 2 and "--workers: 100000" in err and "fix:" in err, err
+    assert check_workers(None) >= 1 and check_workers(8) == 8
 
 
 def test_verify_refuses_an_output_that_is_no_folder_before_running(tmp_path, capsys):

@@ -39,12 +39,25 @@ def dashboard(client: Any) -> str | None:
     return client.dashboard_link if "dashboard" in services else None
 
 
+#: most local worker processes per core this process may use: each worker is a process of
+#: about 240 MB once the engine is loaded and its kernels warmed up (measured), and workers
+#: beyond the cores only wait their turn; 10000 workers would have asked for 2.4 TB
+WORKERS_PER_CORE = 4
+
+
 def check_workers(workers: int | None) -> int:
-    """The worker count of a local cluster (None: the cores)."""
+    """The worker count of a local cluster (None: the cores), at most WORKERS_PER_CORE per
+    core (at least 8)."""
     n = default_workers() if workers is None else workers
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise SweepError(f"--workers: {n!r} is not a positive number of worker processes "
                          "(fix: e.g. --workers 2)")
+    most = max(8, WORKERS_PER_CORE * default_workers())
+    if n > most:
+        raise SweepError(f"--workers: {n} is more than {most} worker processes, "
+                         f"{WORKERS_PER_CORE} per core of the {default_workers()} this process "
+                         f"may use (each about 240 MB) (fix: --workers {default_workers()}, or "
+                         "--scheduler for a cluster of several machines)")
     return n
 
 
