@@ -195,6 +195,19 @@ def test_a_source_inside_a_sink_is_refused():
     Scene.from_dict(corridor({"sources": [SOURCE], "sinks": [half]}))
 
 
+@pytest.mark.parametrize("legs, field", [
+    ([{"goal": [20.0, 2.0]}], "flows.journeys[0].legs[0]"),               # outside the room
+    ([{"region": {"kind": "rectangle", "min": [20, 20], "max": [21, 21]}}],
+     "flows.journeys[0].legs[0]"),
+    ([{"goal": [5.0, 2.0]}, {"goal": [20.0, 2.0]}], "flows.journeys[0].legs[1]"),
+])
+def test_a_journey_its_agents_cannot_walk_is_refused(legs, field):
+    """Before: accepted; the agents stood still for ever before the unreachable target."""
+    err = refused(corridor({"journeys": [{"legs": legs}]}))
+    assert err.field == field and "has no way to the goal" in err.problem
+    Scene.from_dict(corridor({"journeys": [{"legs": [{"goal": [5.0, 2.0]}, {"goal": [8, 2]}]}]}))
+
+
 # -- sweep verify's options and outputs ------------------------------------------------------
 
 

@@ -1,8 +1,10 @@
 """Video files from RGB frames: MP4 (H.264, yuv420p) through imageio-ffmpeg's ffmpeg, GIF
-through Pillow (:func:`open_writer`). Both write to the temporary file of
+through Pillow (:func:`open_writer`), and the output's path and format (:func:`output_path`:
+a name ending in .mp4 or .gif). Both write to the temporary file of
 :func:`sweep_core.io.outputs.replacing`, renamed over the output once every frame is in."""
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -11,6 +13,10 @@ import numpy as np
 
 from sweep_core.errors import SweepError
 from sweep_core.io.outputs import replacing
+
+#: the highest frame rate of a GIF (1/s): it holds each frame a whole number of 10 ms, and a
+#: frame shorter than that is shown for 100 ms by browsers
+GIF_MAX_FPS = 100.0
 
 
 def has_encoder() -> bool:
@@ -67,6 +73,10 @@ class GifWriter(FrameWriter):
     """An animated GIF, looping, each frame shown 1 / fps s (GIF counts in 10 ms units)."""
 
     def __init__(self, path: str, size: tuple[int, int], fps: float) -> None:
+        if fps > GIF_MAX_FPS:
+            raise SweepError(f"--fps {fps:g} is above {GIF_MAX_FPS:g} for a GIF, which holds "
+                             "each frame a whole number of 10 ms (fix: give --fps 100 or less, "
+                             "or write an MP4)")
         super().__init__(size)
         self.path, self.fps = path, fps
         self._frames: list[Any] = []
@@ -101,3 +111,20 @@ def open_writer(path: str, fmt: str, size: tuple[int, int], fps: float, inputs: 
                     pass
             raise
         writer.finish()
+
+
+def output_path(recording: str, out: str | None, encoder: bool) -> tuple[str, str]:
+    """The output path and format ("mp4" or "gif"): ``out``, else RUN.mp4 beside the recording
+    (RUN.gif without an encoder)."""
+    if out is None:
+        fmt = "mp4" if encoder else "gif"
+        return os.path.splitext(recording)[0] + "." + fmt, fmt
+    fmt = "gif" if out.lower().endswith(".gif") else "mp4"
+    if fmt == "mp4" and not out.lower().endswith(".mp4"):
+        raise SweepError(f"--out {out}: names neither an MP4 nor a GIF, and the file would "
+                         "hold an MP4 (fix: end the name in .mp4 or .gif)")
+    if fmt == "mp4" and not encoder:
+        raise SweepError(f"--out {out}: no MP4 encoder is available (imageio-ffmpeg and its "
+                         "ffmpeg binary) (fix: pip install imageio-ffmpeg==0.8.1, or name the "
+                         "output NAME.gif)")
+    return out, fmt

@@ -18,7 +18,6 @@ temporary file and renamed)."""
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -59,9 +58,6 @@ MIN_SIZE = 160
 #: the lowest frame rate (1/s), a frame every 100 s: ffmpeg takes the rate as a fraction of
 #: denominator at most 1e6, so a rate below 5e-7 reached it as 0 and the encoder failed
 MIN_FPS = 0.01
-#: the highest frame rate of a GIF (1/s): it holds each frame a whole number of 10 ms, and a
-#: frame shorter than that is shown for 100 ms by browsers
-GIF_MAX_FPS = 100.0
 #: the most memory (bytes) the frames of a GIF may take while it is assembled
 GIF_BYTES = 1_000_000_000
 
@@ -312,28 +308,11 @@ def _events(meta: RunMeta) -> list[tuple[int, str]]:
     return sorted(out)
 
 
-def output_path(recording: str, out: str | None, encoder: bool) -> tuple[str, str]:
-    """The output path and format ("mp4" or "gif"): ``out``, else RUN.mp4 beside the recording
-    (RUN.gif without an encoder)."""
-    if out is None:
-        fmt = "mp4" if encoder else "gif"
-        return os.path.splitext(recording)[0] + "." + fmt, fmt
-    fmt = "gif" if out.lower().endswith(".gif") else "mp4"
-    if fmt == "mp4" and not out.lower().endswith(".mp4"):
-        raise SweepError(f"--out {out}: names neither an MP4 nor a GIF, and the file would "
-                         "hold an MP4 (fix: end the name in .mp4 or .gif)")
-    if fmt == "mp4" and not encoder:
-        raise SweepError(f"--out {out}: no MP4 encoder is available (imageio-ffmpeg and its "
-                         "ffmpeg binary) (fix: pip install imageio-ffmpeg==0.8.1, or name the "
-                         "output NAME.gif)")
-    return out, fmt
-
-
 def render(recording: str, out: str | None = None, opts: RenderOptions | None = None,
            progress: bool = True, encoder: bool | None = None) -> tuple[str, int]:
     """Writes the animation of ``recording``; returns its path and its number of frames.
     encoder: whether MP4 can be written (None: look for imageio-ffmpeg's ffmpeg)."""
-    from sweep_core.analysis.animation import has_encoder
+    from sweep_core.analysis.animation import has_encoder, output_path
     opts = opts or RenderOptions()
     opts.check()
     meta = load_run(recording)
@@ -351,10 +330,6 @@ def render(recording: str, out: str | None = None, opts: RenderOptions | None = 
         raise SweepError(f"{path}: {len(times)} GIF frames of {size[0]} x {size[1]} px need "
                          f"{need / 1e9:.1f} GB of memory (fix: write an MP4, or fewer frames "
                          "with --fps, --from/--to, or a smaller --size)")
-    if fmt == "gif" and opts.fps > GIF_MAX_FPS:
-        raise SweepError(f"--fps {opts.fps:g} is above {GIF_MAX_FPS:g} for a GIF, which holds "
-                         "each frame a whole number of 10 ms (fix: give --fps 100 or less, or "
-                         "write an MP4)")
     painter = Painter(meta, sv, opts, size)
     try:
         with open_writer(path, fmt, size, opts.fps, [meta.path]) as writer:

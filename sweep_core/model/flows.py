@@ -33,6 +33,7 @@ from sweep_core.errors import SceneError, show
 from sweep_core.model.exit_choice import ExitChoice, exit_choice_from_spec
 from sweep_core.model.fields import Field, Groups
 from sweep_core.model.flow_checks import check_sources
+from sweep_core.model.journeys import Journey, journey_from_spec, members
 from sweep_core.model.regions import Region, region_from_spec
 from sweep_core.model.speed_law import DEFAULT_LAW, DEFAULT_REPULSION_RANGE, headway_from_spec
 
@@ -46,8 +47,6 @@ MAX_SINKS = 256
 #: 64 keep that near 20 ms. With MAX_SOURCE_COUNT each, the entering agents' ids stay below
 #: 2^24, exact in the float32 ``id`` field of /agents
 MAX_SOURCES = 64
-#: most legs of a journey
-MAX_LEGS = 64
 #: the largest preferred speed (m/s): one step of the longest time step, 1 s (io/limits.py),
 #: moves an agent at most the coordinate bound, 1e4 m, within which distances hold to 1e-11 m;
 #: at 1e300 m/s the projection's rows overflowed and the run stopped as "infeasible"
@@ -160,28 +159,6 @@ class Source:
 
 
 @dataclass(frozen=True, eq=False)
-class Journey:
-    """A group's legs (-1: the agents in no group): ``fields[k]`` leads to ``targets[k]`` (a
-    Region or a goal point (2,)), reached when the centre is within ``arrive_radius`` m of it
-    (inside a region counts as 0 m; a geodesic field slows to a halt at a region's edge, so
-    the radius is needed for regions too)."""
-
-    group: int
-    fields: tuple[Field, ...]
-    targets: tuple[Region | np.ndarray, ...]
-    arrive_radius: float
-    spec: dict
-
-    def reached(self, leg: int, q: np.ndarray) -> np.ndarray:
-        """(M,) bool: centres q (M, 2) reached target ``leg``."""
-        tg = self.targets[leg]
-        if isinstance(tg, Region):  # the field slows to a halt at the region's edge
-            return tg.distance(q) <= self.arrive_radius
-        d = q - tg
-        return np.hypot(d[:, 0], d[:, 1]) <= self.arrive_radius
-
-
-@dataclass(frozen=True, eq=False)
 class Flows:
     """The validated ``flows`` key (module docstring); ``spec`` its normalised dict.
     ``group_speed[k]`` (k = -1: agents in no group, last entry) the speed s_k (m/s) the
@@ -289,50 +266,13 @@ def _source(value: Any, field: str, names: tuple[str, ...]) -> Source:
     return Source(region, times, lo, hi, group, speeds, delays, spec)
 
 
-def _journey(value: Any, field: str, names: tuple[str, ...], speed: float, geometry: Any,
-             grid: Any) -> Journey:
-    from sweep_core.model.geodesic import navigation_from_spec  # built on fields
-
-    checks.mapping(value, field, required={"legs"},
-                   allowed={"group", "legs", "arrive_radius", "cell", "wall_buffer"})
-    group = _group(value.get("group"), f"{field}.group", names)
-    legs = value["legs"]
-    if not isinstance(legs, list) or not legs or len(legs) > MAX_LEGS:
-        raise SceneError(f"{field}.legs", f"must be a non-empty list of at most {MAX_LEGS} "
-                         f"targets, got {show(legs)}",
-                         f"write {field}.legs as [{{goal: [x, y]}}, {{region: {{...}}}}, ...]")
-    arrive = checks.length(value.get("arrive_radius", 0.5), f"{field}.arrive_radius",
-                           positive=True)
-    extra = {k: value[k] for k in ("cell", "wall_buffer") if k in value}
-    fields, targets, legs_spec = [], [], []
-    for k, leg in enumerate(legs):
-        lf = f"{field}.legs[{k}]"
-        checks.mapping(leg, lf, allowed={"goal", "region"})
-        if ("goal" in leg) == ("region" in leg):
-            raise SceneError(lf, f"gives {'both' if 'goal' in leg else 'neither'} goal and "
-                             "region", f"give {lf}.goal: [x, y] or {lf}.region: {{kind: "
-                             "rectangle, min: [x, y], max: [x, y]}")
-        if "goal" in leg:
-            goal = checks.point(leg["goal"], f"{lf}.goal")
-            tg: Region | np.ndarray = goal
-            one = {"goal": goal.tolist()}
-        else:
-            tg = region_from_spec(leg["region"], f"{lf}.region")
-            one = {"region": tg.spec}
-        legs_spec.append(one)
-        targets.append(tg)
-        fields.append(navigation_from_spec({"kind": "geodesic", **one, "speed": speed, **extra},
-                                           lf, geometry, grid, np.empty((0, 2))))
-    spec = {**({"group": names[group]} if group >= 0 else {}), "legs": legs_spec,
-            "arrive_radius": arrive, **extra}
-    return Journey(group, tuple(fields), tuple(targets), arrive, spec)
-
-
 def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: np.ndarray,
-                    geometry: Any, grid: Any) -> Flows | None:
+                    geometry: Any, grid: Any, positions: np.ndarray | None = None
+                    ) -> Flows | None:
     """Validate the ``flows`` key (None: absent) of a scene of ``n_agents`` initial agents with
     its drift (a Groups field gives the group names and speeds), agents.speed (m/s) and noise
-    intensities sigma (N,)."""
+    intensities sigma (N,); ``positions`` (N, 2) m, when given, are checked to have a way to
+    their journey's first target."""
     if raw is None:
         return None
     checks.mapping(raw, "flows", allowed={"speeds", "delays", "sinks", "sources", "journeys",
@@ -368,8 +308,8 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
                              f" a second journey (journeys[{seen[g]}] is its first)",
                              "give each group one journey")
         seen[g] = k
-        journeys.append(_journey(j, f"flows.journeys[{k}]", names, float(gspeed[g]), geometry,
-                                 grid))
+        journeys.append(journey_from_spec(j, f"flows.journeys[{k}]", g, names, float(gspeed[g]),
+                                          geometry, grid, members(drift, g, n_agents, positions)))
     spec["journeys"] = [j.spec for j in journeys]
     choices: list[ExitChoice] = []
     for k, c in enumerate(_listed(raw, "exit_choice")):

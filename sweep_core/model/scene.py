@@ -262,7 +262,8 @@ def _build(data: Any, default_name: str, base: Path | None = None, files: bool =
     sigma = checks.per_agent(noise.get("sigma", 0.0), n, "noise.sigma", nonnegative=True)
     spec["noise"] = {"sigma": _compact(sigma, noise.get("sigma", 0.0))}
 
-    flows = flows_from_spec(data.get("flows"), n, drift, speed, sigma, geometry, grid)
+    flows = flows_from_spec(data.get("flows"), n, drift, speed, sigma, geometry, grid,
+                            positions)
     if flows is not None:
         spec["flows"] = flows.spec
     scene = Scene(name=spec["name"], positions=positions, radius=radius, radius_law=law,
