@@ -360,3 +360,26 @@ def test_render_refuses_rates_and_names_it_cannot_honour(flows_run, tmp_path, ca
         errors = [ln for ln in err.splitlines() if ln.strip()]
         assert code == 2 and len(errors) == 1 and words in errors[0] and "fix:" in errors[0], err
         assert not Path(args[1]).exists()
+
+
+def test_recordings_of_scenes_refused_now_still_load_and_replay(tmp_path, monkeypatch, capsys):
+    """A run recorded before these refusals existed (a source inside a sink, a repulsion of
+    5000) still analyses and replays bit for bit: a recording's scene is held to the checks it
+    was made under (the refusals are for new scenes). Before (with the refusals applied to
+    recorded scenes too): replay and analyze refused the recording."""
+    data = corridor({"sources": [SOURCE], "sinks": [{"kind": "rectangle", "min": [0, 0],
+                                                     "max": [3, 4]}],
+                     "headway": {"repulsion": 5000.0}})
+    assert refused(copy.deepcopy(data)).field == "flows.sources[0].region"
+    scene, run = tmp_path / "old.yaml", tmp_path / "old.mcap"
+    scene.write_text(dump_yaml(data))
+    with monkeypatch.context() as m:  # the code before the refusals
+        m.setattr(flows, "check_sources", lambda *a: None)
+        m.setattr(speed_law, "MAX_REPULSION", math.inf)
+        assert main(["run", str(scene), "--t-end", "0.5", "--dt", "0.05", "--out", str(run),
+                     "--quiet"]) == 0
+    code, _ = _cli(["analyze", str(run), "--no-plots", "--quiet"], capsys)
+    assert code == 0
+    capsys.readouterr()
+    assert main(["replay", str(run)]) == 0
+    assert "IDENTICAL" in capsys.readouterr().out

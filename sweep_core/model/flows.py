@@ -86,13 +86,14 @@ def draw(d: Draw, rng: np.random.Generator, n: int) -> np.ndarray:
     return np.clip(d.mean + d.std * rng.standard_normal(n), d.low, d.high)
 
 
-def draw_from_spec(value: Any, field: str, n: int | None, *, positive: bool) -> Draw:
+def draw_from_spec(value: Any, field: str, n: int | None, *, positive: bool,
+                   bounded: bool = True) -> Draw:
     """A speeds or delays value: a number, a list of n numbers (n None: a list is refused),
-    or a distribution; positive: values > 0 and at most MAX_SPEED (speeds), else >= 0
-    (delays)."""
+    or a distribution; positive: values > 0 and, when ``bounded``, at most MAX_SPEED
+    (speeds), else >= 0 (delays)."""
     d = _draw_from_spec(value, field, n, positive=positive)
     top = float(np.max(d.values)) if d.values is not None else d.high
-    if positive and top > MAX_SPEED:
+    if positive and bounded and top > MAX_SPEED:
         where = (f"{field}.max" if d.values is None else
                  f"{field}[{int(np.argmax(d.values))}]" if d.values.ndim else field)
         raise SceneError(where, f"{show(top)} m/s is above {MAX_SPEED:g} m/s, where a step of "
@@ -202,7 +203,7 @@ def _group(value: Any, field: str, names: tuple[str, ...]) -> int:
     return names.index(value)
 
 
-def _source(value: Any, field: str, names: tuple[str, ...]) -> Source:
+def _source(value: Any, field: str, names: tuple[str, ...], recorded: bool) -> Source:
     checks.mapping(value, field, required={"region"},
                    allowed={"region", "rate", "times", "start", "count", "radius", "group",
                             "speeds", "delays"})
@@ -256,7 +257,8 @@ def _source(value: Any, field: str, names: tuple[str, ...]) -> Source:
     group = _group(value.get("group"), f"{field}.group", names)
     if group >= 0:
         spec["group"] = names[group]
-    speeds = (draw_from_spec(value["speeds"], f"{field}.speeds", None, positive=True)
+    speeds = (draw_from_spec(value["speeds"], f"{field}.speeds", None, positive=True,
+                             bounded=not recorded)
               if value.get("speeds") is not None else None)
     delays = (draw_from_spec(value["delays"], f"{field}.delays", None, positive=False)
               if value.get("delays") is not None else None)
@@ -267,12 +269,14 @@ def _source(value: Any, field: str, names: tuple[str, ...]) -> Source:
 
 
 def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: np.ndarray,
-                    geometry: Any, grid: Any, positions: np.ndarray | None = None
-                    ) -> Flows | None:
+                    geometry: Any, grid: Any, positions: np.ndarray | None = None,
+                    recorded: bool = False) -> Flows | None:
     """Validate the ``flows`` key (None: absent) of a scene of ``n_agents`` initial agents with
     its drift (a Groups field gives the group names and speeds), agents.speed (m/s) and noise
     intensities sigma (N,); ``positions`` (N, 2) m, when given, are checked to have a way to
-    their journey's first target."""
+    their journey's first target. ``recorded``: the scene of a recording, which ran, checked
+    as it was when recorded: the bounds on counts, speeds and the speed law's repulsion, the
+    sources' room and sinks and the journeys' ways (added since) are not applied to it."""
     if raw is None:
         return None
     checks.mapping(raw, "flows", allowed={"speeds", "delays", "sinks", "sources", "journeys",
@@ -285,19 +289,21 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
     spec: dict = {}
     speeds = delays = None
     if raw.get("speeds") is not None:
-        speeds = draw_from_spec(raw["speeds"], "flows.speeds", n_agents, positive=True)
+        speeds = draw_from_spec(raw["speeds"], "flows.speeds", n_agents, positive=True,
+                                bounded=not recorded)
         spec["speeds"] = speeds.to_spec()
     if raw.get("delays") is not None:
         delays = draw_from_spec(raw["delays"], "flows.delays", n_agents, positive=False)
         spec["delays"] = delays.to_spec()
     sinks = []
-    for k, s in enumerate(_listed(raw, "sinks", MAX_SINKS)):
+    for k, s in enumerate(_listed(raw, "sinks", None if recorded else MAX_SINKS)):
         sinks.append(region_from_spec(s, f"flows.sinks[{k}]"))
     spec["sinks"] = [s.spec for s in sinks]
-    sources = [_source(s, f"flows.sources[{k}]", names)
-               for k, s in enumerate(_listed(raw, "sources", MAX_SOURCES))]
+    sources = [_source(s, f"flows.sources[{k}]", names, recorded)
+               for k, s in enumerate(_listed(raw, "sources", None if recorded else MAX_SOURCES))]
     spec["sources"] = [s.spec for s in sources]
-    check_sources(sources, sinks, geometry)
+    if not recorded:
+        check_sources(sources, sinks, geometry)
     journeys: list[Journey] = []
     seen: dict[int, int] = {}
     for k, j in enumerate(_listed(raw, "journeys")):
@@ -308,8 +314,9 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
                              f" a second journey (journeys[{seen[g]}] is its first)",
                              "give each group one journey")
         seen[g] = k
+        first = members(drift, g, n_agents, None if recorded else positions)
         journeys.append(journey_from_spec(j, f"flows.journeys[{k}]", g, names, float(gspeed[g]),
-                                          geometry, grid, members(drift, g, n_agents, positions)))
+                                          geometry, grid, first))
     spec["journeys"] = [j.spec for j in journeys]
     choices: list[ExitChoice] = []
     for k, c in enumerate(_listed(raw, "exit_choice")):
@@ -325,7 +332,7 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
                                              float(gspeed[g]), geometry, grid))
     if choices:
         spec["exit_choice"] = [c.spec for c in choices]
-    law = headway_from_spec(raw.get("headway"))
+    law = headway_from_spec(raw.get("headway"), bounded=not recorded)
     if law is not None:
         spec["headway"] = law
     given = (law or {}).get  # the law's parameter, or its neutral value without a law

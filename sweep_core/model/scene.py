@@ -263,7 +263,7 @@ def _build(data: Any, default_name: str, base: Path | None = None, files: bool =
     spec["noise"] = {"sigma": _compact(sigma, noise.get("sigma", 0.0))}
 
     flows = flows_from_spec(data.get("flows"), n, drift, speed, sigma, geometry, grid,
-                            positions)
+                            positions, recorded=not files)
     if flows is not None:
         spec["flows"] = flows.spec
     scene = Scene(name=spec["name"], positions=positions, radius=radius, radius_law=law,

@@ -56,10 +56,11 @@ MAX_REPULSION = 1e3
 #: inf and the directions NaN
 MIN_REPULSION_RANGE = 1e-6
 
-def headway_from_spec(raw: Any) -> dict | None:
+def headway_from_spec(raw: Any, bounded: bool = True) -> dict | None:
     """``flows.headway`` validated and normalised (None: absent): ``law`` (``csm``, default,
     or ``lanes``; a ``margin`` without a ``law`` is the ``lanes`` law, whose parameter it is)
-    with its parameters, defaults filled in."""
+    with its parameters, defaults filled in; ``bounded``: repulsion and its range within
+    MAX_REPULSION and MIN_REPULSION_RANGE (a recording's scene is not held to them)."""
     if raw is None:
         return None
     hw = checks.mapping(raw, "flows.headway", allowed={"law", "time_gap", "margin", "repulsion",
@@ -85,11 +86,12 @@ def headway_from_spec(raw: Any) -> dict | None:
                                       "flows.headway.time_gap", positive=True),
             "repulsion": _within(checks.number(hw.get("repulsion", DEFAULT_REPULSION),
                                                "flows.headway.repulsion", nonnegative=True),
-                                 "flows.headway.repulsion", 0.0, MAX_REPULSION),
+                                 "flows.headway.repulsion", 0.0,
+                                 MAX_REPULSION if bounded else math.inf),
             "repulsion_range": _within(checks.length(
                 hw.get("repulsion_range", DEFAULT_REPULSION_RANGE),
                 "flows.headway.repulsion_range", positive=True), "flows.headway.repulsion_range",
-                MIN_REPULSION_RANGE, math.inf),
+                MIN_REPULSION_RANGE if bounded else 0.0, math.inf),
             "lateral": k, "fade": fade_from_spec(hw.get("fade", k), k),
             "length": fraction_from_spec(hw.get("length", DEFAULT_LENGTH), "flows.headway.length",
                                          "the fraction of the two radii the speed rule takes "
