@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -246,6 +247,18 @@ def test_verify_refuses_an_output_that_is_no_folder_before_running(tmp_path, cap
                           str(out)], capsys)
         assert code == 2 and str(out) in err and "runs done" not in err, err
     assert existing.read_text() == "keep me\n"
+
+
+def test_verify_refuses_a_replacement_scene_that_is_no_file(tmp_path, capsys):
+    """Before: a FIFO or a folder named as a bundled scene in --scenes was passed over and the
+    bundled scene ran instead, silently."""
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    os.mkfifo(folder / "rimea01_corridor.yaml")
+    code, err = _cli(["verify", "--quick", "--tests", "rimea1", "--seeds", "1", "--scenes",
+                      str(folder), "--out", str(tmp_path / "v")], capsys)
+    assert code == 2 and "rimea01_corridor.yaml" in err and "FIFO" in err, err
+    assert "runs done" not in err
 
 
 def test_no_output_goes_inside_the_package(tmp_path, capsys):

@@ -64,7 +64,7 @@ def verify(tests: Sequence[Test], seeds: Sequence[int], quick: bool, out: Path |
     if folder is not None:  # a replaced scene is checked here, its error said in one line
         for name in sorted({case.scene for case, _ in tasks if case.inline is None}):
             path = Path(folder) / f"{name}.yaml"
-            if path.is_file():
+            if path.exists() or path.is_symlink():  # a FIFO or folder of that name: refused
                 Scene.from_yaml(path)
     traces = run_traces(tasks, folder, client, progress)
     by_test: dict[str, dict[str, list[Trace]]] = {}
