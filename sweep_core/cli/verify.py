@@ -85,9 +85,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    "process (no Dask) unless --workers or --scheduler is given")
     p.add_argument("--tests", nargs="+", metavar="NAME", help="tests to run (default: all)")
     p.add_argument("--seeds", type=int, default=None,
-                   help=f"seeds per test (default {SEEDS}, {QUICK_SEEDS} with --quick)")
-    p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
-    p.add_argument("--out", default="verify_out", help="report folder (default verify_out)")
+                   help=f"seeds per test, 1 to {MAX_SEEDS} (default {SEEDS}, {QUICK_SEEDS} with "
+                   "--quick)")
+    p.add_argument("--seed", type=int, default=0, help="first seed, >= 0 (default 0)")
+    p.add_argument("--out", default="verify_out", help="report folder, made when absent and "
+                   "checked before any run (default verify_out)")
     p.add_argument("--no-report", action="store_true", help="print the lines only")
     p.add_argument("--scenes", metavar="DIR", default=None,
                    help="a folder of scene files that replace the bundled ones of the same "
