@@ -209,6 +209,15 @@ def test_a_journey_its_agents_cannot_walk_is_refused(legs, field):
     Scene.from_dict(corridor({"journeys": [{"legs": [{"goal": [5.0, 2.0]}, {"goal": [8, 2]}]}]}))
 
 
+def test_an_exit_choice_with_no_exit_its_agents_can_reach_is_refused():
+    """Before: accepted; with both exits outside the room the agents walked 2.5 m in 2 s
+    towards neither. One unreachable exit among reachable ones is allowed."""
+    out = [{"goal": [20.0, 1.0]}, {"goal": [20.0, 3.0]}]
+    err = refused(corridor({"exit_choice": [{"exits": out}]}))
+    assert err.field == "flows.exit_choice[0].exits" and "any of the exits" in err.problem
+    Scene.from_dict(corridor({"exit_choice": [{"exits": [out[0], {"goal": [9.5, 3.0]}]}]}))
+
+
 # -- sweep verify's options and outputs ------------------------------------------------------
 
 

@@ -33,6 +33,7 @@ from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.fields import Field
 from sweep_core.model.regions import Region, region_from_spec
+from sweep_core.model.travel import reaches
 
 #: most exits of one choice
 MAX_EXITS = 16
@@ -53,9 +54,11 @@ class ExitChoice:
 
 
 def exit_choice_from_spec(value: Any, field: str, group: int, group_name: str | None,
-                          speed: float, geometry: Any, grid: Any) -> ExitChoice:
+                          speed: float, geometry: Any, grid: Any,
+                          first: np.ndarray | None = None) -> ExitChoice:
     """One entry of ``flows.exit_choice`` (``field`` names it) for the group ``group``
-    (already checked), whose drift moves at ``speed`` m/s."""
+    (already checked), whose drift moves at ``speed`` m/s; ``first`` (M, 2) m: the group's
+    initial agents, each of which must have a way to some exit."""
     from sweep_core.model.geodesic import navigation_from_spec  # built on fields
 
     checks.mapping(value, field, required={"exits"},
@@ -94,6 +97,16 @@ def exit_choice_from_spec(value: Any, field: str, group: int, group_name: str | 
         exits.append(one)
         fields.append(navigation_from_spec({"kind": "geodesic", **one, "speed": speed, **extra},
                                            ef, geometry, grid, np.empty((0, 2))))
+    if first is not None and len(first):
+        ok = np.zeros(len(first), dtype=bool)
+        for f in fields:
+            ok |= reaches(first, f.x, f.y, f.free, f.travel)
+        if not np.all(ok):
+            a = int(np.flatnonzero(~ok)[0])
+            raise SceneError(f"{field}.exits", f"the group's agent {a} at {show(first[a])} has "
+                             "no way to any of the exits round the walls",
+                             f"open a passage, lower {field}.wall_buffer, or add an exit it can "
+                             "reach")
     spec = {**({"group": group_name} if group_name is not None else {}), "exits": exits,
             "capacity": capacity.tolist(), **extra}
     return ExitChoice(group, tuple(fields), np.asarray(capacity, dtype=np.float64), spec)

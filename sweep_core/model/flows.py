@@ -329,7 +329,9 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
             raise SceneError(f"{field}.group", f"gives group {show(c.get('group'))} a second "
                              "exit choice", "give each group one exit choice")
         choices.append(exit_choice_from_spec(c, field, g, names[g] if g >= 0 else None,
-                                             float(gspeed[g]), geometry, grid))
+                                             float(gspeed[g]), geometry, grid,
+                                             members(drift, g, n_agents,
+                                                     None if recorded else positions)))
     if choices:
         spec["exit_choice"] = [c.spec for c in choices]
     law = headway_from_spec(raw.get("headway"), bounded=not recorded)

@@ -20,6 +20,7 @@ from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.fields import Field, Groups
 from sweep_core.model.regions import Region, region_from_spec
+from sweep_core.model.travel import reaches
 
 #: most legs of a journey
 MAX_LEGS = 64
@@ -99,9 +100,17 @@ def journey_from_spec(value: Any, field: str, group: int, names: tuple[str, ...]
             one = {"region": tg.spec}
         legs_spec.append(one)
         targets.append(tg)
-        fields.append(navigation_from_spec({"kind": "geodesic", **one, "speed": speed, **extra},
-                                           lf, geometry, grid, first if k == 0 else
-                                           leg_start(targets[k - 1])))
+        f = navigation_from_spec({"kind": "geodesic", **one, "speed": speed, **extra}, lf,
+                                 geometry, grid, np.empty((0, 2)))
+        start = first if k == 0 else leg_start(targets[k - 1])
+        ok = reaches(start, f.x, f.y, f.free, f.travel)
+        if not np.all(ok):
+            a = int(np.flatnonzero(~ok)[0])
+            who = (f"the group's agent {a} at" if k == 0 else "the previous leg's goal")
+            raise SceneError(lf, f"{who} {show(start[a])} has no way to the goal round the "
+                             f"walls (keeping {field}.wall_buffer from them)",
+                             f"open a passage, lower {field}.wall_buffer, or move the target")
+        fields.append(f)
     spec = {**({"group": names[group]} if group >= 0 else {}), "legs": legs_spec,
             "arrive_radius": arrive, **extra}
     return Journey(group, tuple(fields), tuple(targets), arrive, spec)

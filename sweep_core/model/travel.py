@@ -254,6 +254,27 @@ def _descent(travel: np.ndarray, cell: float) -> np.ndarray:
     return out
 
 
+def nearest_free(positions: np.ndarray, x: np.ndarray, y: np.ndarray, free: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The row and column indices (M,) of the free node nearest each position (M, 2) m (some
+    node must be free)."""
+    cell = float(x[1] - x[0])
+    ix = np.clip(np.rint((positions[:, 0] - x[0]) / cell).astype(np.int64), 0, len(x) - 1)
+    iy = np.clip(np.rint((positions[:, 1] - y[0]) / cell).astype(np.int64), 0, len(y) - 1)
+    _, (ny, nx) = ndimage.distance_transform_edt(~free, return_indices=True)
+    return ny[iy, ix], nx[iy, ix]
+
+
+def reaches(positions: np.ndarray, x: np.ndarray, y: np.ndarray, free: np.ndarray,
+            travel: np.ndarray) -> np.ndarray:
+    """(M,) bool: the free node nearest each position (M, 2) m has a free path to the goal
+    (False everywhere when no node is free)."""
+    if len(positions) == 0 or not np.any(free):
+        return np.zeros(len(positions), dtype=bool)
+    ny, nx = nearest_free(positions, x, y, free)
+    return np.isfinite(travel[ny, nx])
+
+
 def check_agents(positions: np.ndarray, x: np.ndarray, y: np.ndarray, free: np.ndarray,
                   travel: np.ndarray, field: str, buffer: float) -> None:
     """Refuse when an agent's nearest free node has no free path to the goal."""
@@ -263,11 +284,7 @@ def check_agents(positions: np.ndarray, x: np.ndarray, y: np.ndarray, free: np.n
         raise SceneError(f"{field}.wall_buffer", f"{buffer:g} m leaves no free grid node: "
                          "everything is within it of a wall",
                          f"lower {field}.wall_buffer (and {field}.cell with it)")
-    cell = float(x[1] - x[0])
-    ix = np.clip(np.rint((positions[:, 0] - x[0]) / cell).astype(np.int64), 0, len(x) - 1)
-    iy = np.clip(np.rint((positions[:, 1] - y[0]) / cell).astype(np.int64), 0, len(y) - 1)
-    _, (ny, nx) = ndimage.distance_transform_edt(~free, return_indices=True)
-    ny, nx = ny[iy, ix], nx[iy, ix]
+    ny, nx = nearest_free(positions, x, y, free)
     bad = np.flatnonzero(~np.isfinite(travel[ny, nx]))
     if len(bad):
         a = int(bad[0])
