@@ -119,4 +119,6 @@ def gap(target: np.ndarray, c: sp.csr_matrix, h: np.ndarray, x: np.ndarray, lam:
     if not np.all(s >= 0.0):
         return math.inf
     r = x - target - c.T @ lam
-    return 0.5 * float(r @ r) + float(lam @ s)
+    # correctly rounded sums (not BLAS's dot, whose order depends on the CPU), so that the
+    # same candidate is chosen on every CPU
+    return 0.5 * math.fsum(r * r) + math.fsum(lam * s)
