@@ -85,3 +85,52 @@ def test_without_the_refinement_the_same_steps_miss_tol(monkeypatch):
     monkeypatch.setattr(project_module.refine, "refine", lambda *args: None)
     bounds = [proj.bound for proj, _ in lattice_steps(3)]
     assert max(bounds) > 1e-6
+
+
+class _Scripted:
+    """Stands in for PIQP's module in :func:`refine.refine`: its solver answers each
+    magnification D (read from the Hessian I / D it is given) with a scripted status and the
+    point and multipliers of ``answers[D]``, expressed as PIQP would (v = D (x - x^))."""
+    PIQP_SOLVED, PIQP_MAX_ITER_REACHED = "solved", "max_iter"
+
+    def __init__(self, start: np.ndarray, answers: dict, near: np.ndarray) -> None:
+        self.start, self.answers, self.near, self.setups = start, answers, near, []
+
+    def SparseSolver(self):  # noqa: N802 (PIQP's name)
+        outer = self
+
+        class Solver:
+            settings = type("Settings", (), {})()
+
+            def setup(self, p, *args) -> None:
+                self.scale = round(1.0 / p.diagonal()[0])
+                outer.setups.append(self.scale)
+
+            def solve(self):
+                status, x, lam = outer.answers[self.scale]
+                self.result = type("Result", (), {
+                    "x": self.scale * (x - outer.start), "z_u": lam[outer.near]})()
+                return status
+
+        return Solver()
+
+
+def test_the_closest_answer_is_kept_when_a_magnification_is_cut_short(monkeypatch):
+    """PIQP can stop at its iteration cap at one magnification with an answer closer than the
+    one it reports solved at the next: refine returns the answer of the smallest duality gap
+    among those it tried, not the last one, and stops at the first one solved."""
+    target, c, h = pressed_lattice(np.random.default_rng(1).uniform(0.2, 0.245, 100).tolist())
+    x, lam, _ = backends.solve_backend(target, c, h, replace(sc.SolverOptions(), eps_abs=1e-12))
+    near = np.flatnonzero(c @ x - h < refine.NEAR)
+    want, _, _ = exact.ldp(target, c.toarray(), h)
+    good, good_lam = refine.refine(target, x, c, h)  # a refined answer and its multipliers
+    assert refine.gap(target, c.tocsr(), h, good, good_lam) < refine.gap(target, c.tocsr(), h,
+                                                                        x, lam)
+    fake = _Scripted(x, {10**10: (_Scripted.PIQP_MAX_ITER_REACHED, good, good_lam),
+                         10**9: (_Scripted.PIQP_SOLVED, x, lam),
+                         10**8: (_Scripted.PIQP_SOLVED, want, lam)}, near)
+    monkeypatch.setattr(refine.pivot, "baseline", lambda: fake)
+    monkeypatch.setattr(refine, "SCALES", (1e10, 1e9, 1e8))
+    xr, lr = refine.refine(target, x, c, h)
+    assert np.allclose(xr, good, rtol=0, atol=1e-15) and np.array_equal(lr[near], good_lam[near])
+    assert fake.setups == [10**10, 10**9]

@@ -92,13 +92,14 @@ def test_the_direction_rule_turns_two_agents_apart_symmetrically():
     q = np.array([[0.0, -0.25], [0.0, 0.25]])
     u = np.array([[1.0, 0.0], [1.0, 0.0]])
     pi, pj = np.array([0]), np.array([1])
-    e = directions(q, R, u, pi, pj, 5.0, 0.1)
+    none = np.zeros((0, 2))  # no wall terms
+    e = directions(q, R, u, pi, pj, 5.0, 0.1, none)
     push = 5.0 * np.exp((0.4 - 0.5) / 0.1)
     want = np.array([1.0, push]) / np.hypot(1.0, push)
     assert e[1] == pytest.approx(want, abs=1e-12)
     assert e[0] == pytest.approx(want * [1.0, -1.0], abs=1e-12)
     # no repulsion, or a lone agent: the wished direction
-    assert np.array_equal(directions(q, R, u, pi, pj, 0.0, 0.1), u)
+    assert np.array_equal(directions(q, R, u, pi, pj, 0.0, 0.1, none), u)
     lone = csm(q[:1], R[:1], u[:1], 1.0, 5.0, 0.1)
     assert np.array_equal(lone, u[:1])
 

@@ -13,7 +13,7 @@ user's page; the run-time state (who is present, who left) is
                   cell, wall_buffer}, ...]
       exit_choice: [{group, exits: [{region} | {goal}, ...], capacity}, ...]   (exit_choice.py)
       headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D, lateral: k,
-                 fade: k2, length: f, follow: beta}
+                 fade: k2, length: f, follow: beta, wall_repulsion: a_w, wall_range: D_w}
                                                                     s, -, m, -  (speed_law.py)
               | {law: lanes, time_gap: T, margin: w}                      s, m
 
@@ -35,7 +35,12 @@ from sweep_core.model.fields import Field, Groups
 from sweep_core.model.flow_checks import check_sources
 from sweep_core.model.journeys import Journey, journey_from_spec, members
 from sweep_core.model.regions import Region, region_from_spec
-from sweep_core.model.speed_law import DEFAULT_LAW, DEFAULT_REPULSION_RANGE, headway_from_spec
+from sweep_core.model.speed_law import (
+    DEFAULT_LAW,
+    DEFAULT_REPULSION_RANGE,
+    DEFAULT_WALL_RANGE,
+    headway_from_spec,
+)
 
 #: most agents one source may emit
 MAX_SOURCE_COUNT = 100_000
@@ -182,6 +187,8 @@ class Flows:
     fade: float = -1.0
     length: float = 1.0
     follow: float = 0.0
+    wall_repulsion: float = 0.0
+    wall_range: float = DEFAULT_WALL_RANGE
 
     @property
     def changes_population(self) -> bool:
@@ -343,7 +350,8 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
                 given("law", DEFAULT_LAW), given("repulsion", 0.0),
                 given("repulsion_range", DEFAULT_REPULSION_RANGE), tuple(choices),
                 given("lateral", 1.0), given("fade", -1.0), given("length", 1.0),
-                given("follow", 0.0))
+                given("follow", 0.0), given("wall_repulsion", 0.0),
+                given("wall_range", DEFAULT_WALL_RANGE))
     if out.changes_population:
         _check_changing(out, drift, sigma)
     return out

@@ -4,7 +4,8 @@ default parameters and the validation of the key. The laws themselves are compil
 (``lanes``).
 
     headway:  {law: csm, time_gap: T, repulsion: a, repulsion_range: D, lateral: k,
-               fade: k2, length: f, follow: beta}                 s, -, m, -, -, -, -
+               fade: k2, length: f, follow: beta,                 s, -, m, -, -, -, -
+               wall_repulsion: a_w, wall_range: D_w}              -, m
             | {law: lanes, time_gap: T, margin: w}                      s, m
 """
 from __future__ import annotations
@@ -35,6 +36,10 @@ DEFAULT_LENGTH = 1.0
 #: the share beta of the leader's speed added to s / T (numerics/csm.py, ``follow``); 0 is the
 #: published law (with T = 2.1 s a uniform queue moves as the published law with T = 1.1 s)
 DEFAULT_FOLLOW = 0.9
+#: the walls' term of the direction rule (numerics/csm.py): strength a_w (0: walls do not
+#: enter the rule) and range D_w (m), JuPedSim's default for its collision-free speed model
+DEFAULT_WALL_REPULSION = 0.0
+DEFAULT_WALL_RANGE = 0.02
 #: ``lateral`` of a recorded scene that does not name it: recordings made before the key
 #: existed walked with the full stripe (analysis/run.py)
 RECORDED_LATERAL = 1.0
@@ -65,12 +70,14 @@ def headway_from_spec(raw: Any, bounded: bool = True) -> dict | None:
         return None
     hw = checks.mapping(raw, "flows.headway", allowed={"law", "time_gap", "margin", "repulsion",
                                                        "repulsion_range", "lateral", "fade",
-                                                       "length", "follow"})
+                                                       "length", "follow", "wall_repulsion",
+                                                       "wall_range"})
     law = hw.get("law", "lanes" if "margin" in hw else DEFAULT_LAW)
     if law not in LAWS:
         raise SceneError("flows.headway.law", f"unknown law {show(law)}",
                          f"use one of {', '.join(LAWS)} (or omit it for {DEFAULT_LAW})")
-    own = {"csm": {"repulsion", "repulsion_range", "lateral", "fade", "length", "follow"},
+    own = {"csm": {"repulsion", "repulsion_range", "lateral", "fade", "length", "follow",
+                   "wall_repulsion", "wall_range"},
            "lanes": {"margin"}}[law]
     for key in sorted(set(hw) - own - {"law", "time_gap"}):
         raise SceneError(f"flows.headway.{key}", f"is not a parameter of the {law} law",
@@ -96,7 +103,13 @@ def headway_from_spec(raw: Any, bounded: bool = True) -> dict | None:
             "length": fraction_from_spec(hw.get("length", DEFAULT_LENGTH), "flows.headway.length",
                                          "the fraction of the two radii the speed rule takes "
                                          "as the body length"),
-            "follow": follow_from_spec(hw.get("follow", DEFAULT_FOLLOW))}
+            "follow": follow_from_spec(hw.get("follow", DEFAULT_FOLLOW)),
+            "wall_repulsion": checks.number(hw.get("wall_repulsion", DEFAULT_WALL_REPULSION),
+                                            "flows.headway.wall_repulsion", nonnegative=True,
+                                            fix="set flows.headway.wall_repulsion to a number "
+                                            ">= 0 (0: walls do not turn the direction)"),
+            "wall_range": checks.length(hw.get("wall_range", DEFAULT_WALL_RANGE),
+                                        "flows.headway.wall_range", positive=True)}
 
 
 def _within(x: float, field: str, low: float, high: float) -> float:

@@ -22,8 +22,9 @@ law: every neighbour whose disk overlaps i's path is ahead). With k < 1 a neighb
 sideways by more than k l_ij does not slow i: the two pass each other staggered, as people
 do in the overlapping lanes of a bottleneck (the zipper effect, Hoogendoorn and Daamen 2005:
 lanes about 0.45 m apart for a body about 0.55 m wide), and the projection keeps their
-contact exact if they touch. Walls do not enter either rule: the projection keeps every contact
-(agents and walls) exact, so the law only changes the prediction. Agents with U_i = 0 are
+contact exact if they touch. Walls enter the direction rule only with the option
+``wall_repulsion`` a_w > 0 (below) and never the speed rule: the projection keeps every
+contact (agents and walls) exact, so the law only changes the prediction. Agents with U_i = 0 are
 left alone. With a = 0 the direction is e0_i and only the speed falls.
 
 Options (docs/flows.md), each neutral at its default: ``follow`` beta in [0, 1) adds beta
@@ -31,7 +32,10 @@ times the speed the rule gives i's leader j (the agent setting s_i), along e_i w
 to s_i / T (min(|U_i|, max(0, s_i / T + beta p_i)); a uniform single file then moves as with
 the time gap T / (1 + beta)); ``length`` f in (0, 1] takes d_ij - f l_ij as the gap;
 ``fade`` k2 in [k, 1] lets a neighbour between k l_ij and k2 l_ij count with its gap divided
-by a cosine weight falling from 1 to 0.
+by a cosine weight falling from 1 to 0; ``wall_repulsion`` a_w >= 0 with ``wall_range``
+D_w (m) adds the published model's wall term to the direction rule's sum,
+sum_w a_w exp(-g_iw / D_w) n_iw over the walls and obstacles w (g_iw the gap from i's disk
+to w, n_iw the unit normal pointing away from w; :func:`wall_terms`).
 """
 from __future__ import annotations
 
@@ -48,10 +52,12 @@ CUT = 9.2
 
 @numba.njit(cache=True, nogil=True)
 def directions(q: np.ndarray, r: np.ndarray, u: np.ndarray, pi: np.ndarray, pj: np.ndarray,
-               strength: float, reach: float) -> np.ndarray:
+               strength: float, reach: float, walls: np.ndarray) -> np.ndarray:
     """Unit directions e_i (N, 2) of the direction rule (module docstring) for centres q
     (N, 2) m, radii r (N,) m, wished velocities u (N, 2) m/s over the candidate pairs
-    (pi, pj); rows of zeros where u_i = 0 or the sum vanishes."""
+    (pi, pj), with the walls' terms ``walls`` (N, 2) added to the sum of each moving agent
+    (:func:`wall_terms`; an empty (0, 2) array: none); rows of zeros where u_i = 0 or the sum
+    vanishes."""
     n = q.shape[0]
     out = np.zeros((n, 2))
     moving = np.zeros(n, dtype=np.bool_)
@@ -61,8 +67,8 @@ def directions(q: np.ndarray, r: np.ndarray, u: np.ndarray, pi: np.ndarray, pj: 
             moving[i] = True
             out[i, 0] = u[i, 0] / speed
             out[i, 1] = u[i, 1] / speed
-    if strength > 0.0:
-        for k in range(pi.shape[0]):
+    if strength > 0.0 or walls.shape[0] > 0:
+        for k in range(pi.shape[0] if strength > 0.0 else 0):
             i, j = pi[k], pj[k]
             dx, dy = q[i, 0] - q[j, 0], q[i, 1] - q[j, 1]
             d = math.sqrt(dx * dx + dy * dy)
@@ -76,11 +82,29 @@ def directions(q: np.ndarray, r: np.ndarray, u: np.ndarray, pi: np.ndarray, pj: 
             if moving[j]:
                 out[j, 0] -= f * dx
                 out[j, 1] -= f * dy
+        for i in range(walls.shape[0]):
+            if moving[i]:
+                out[i, 0] += walls[i, 0]
+                out[i, 1] += walls[i, 1]
         for i in range(n):
             m = math.sqrt(out[i, 0] * out[i, 0] + out[i, 1] * out[i, 1])
             if m > 0.0:
                 out[i, 0] /= m
                 out[i, 1] /= m
+    return out
+
+
+def wall_terms(rows: list, n: int, strength: float, reach: float) -> np.ndarray:
+    """The walls' terms of the direction rule, sum_w a_w exp(-g_iw / D_w) n_iw (N, 2), over
+    the (agent, item, g, n, foot) rows of :func:`sweep_core.model.geometry.single_rows`
+    (g_iw the gap m from agent i's disk to wall or obstacle w, n_iw the unit normal pointing
+    away from it) with strength a_w and range D_w (m); rows with g_iw > CUT D_w add less
+    than a_w e^-CUT and are left out (ask single_rows for the reach CUT D_w)."""
+    out = np.zeros((n, 2))
+    for a, _, g, nrm, _ in rows:
+        if len(a):
+            w = strength * np.exp(-np.asarray(g) / reach)
+            np.add.at(out, a, w[:, None] * nrm)
     return out
 
 
@@ -168,16 +192,18 @@ def leader_push(v: np.ndarray, e: np.ndarray, lead: np.ndarray, beta: float) -> 
 
 def csm(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float, strength: float,
         reach: float, lateral: float = 1.0, fade: float = -1.0,
-        length: float = 1.0, beta: float = 0.0) -> np.ndarray:
+        length: float = 1.0, beta: float = 0.0, walls: np.ndarray | None = None
+        ) -> np.ndarray:
     """The wished velocities u (N, 2) m/s under the collision-free speed model's law with time
     gap T (s), repulsion strength a and range D (m), lateral fraction k, its fade k2 and the
     body length's fraction f (``gaps_ahead``) and the follow weight beta (0: the
     speed rule alone: :func:`leader_push`), for centres q
-    (N, 2) m and radii r (N,) m. The pairs are searched (compiled cell lists) within
+    (N, 2) m and radii r (N,) m; ``walls`` (N, 2) the walls' terms of the direction rule
+    (:func:`wall_terms`; None: none). The pairs are searched (compiled cell lists) within
     max|u| T + 2 max r, and within 2 max r + CUT D when a > 0: no pair farther apart enters
     either rule."""
     n = len(q)
-    if n < 2:
+    if n == 0 or (n < 2 and walls is None):
         return u.copy()
     top = float(np.sqrt(np.max(np.einsum("ij,ij->i", u, u))))
     if top == 0.0:
@@ -188,7 +214,8 @@ def csm(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float, strength: 
     q = np.ascontiguousarray(q)
     r = np.ascontiguousarray(r, dtype=np.float64)
     u = np.ascontiguousarray(u)
-    e = directions(q, r, u, pi, pj, float(strength), float(reach))
+    w = np.zeros((0, 2)) if walls is None else np.ascontiguousarray(walls, dtype=np.float64)
+    e = directions(q, r, u, pi, pj, float(strength), float(reach), w)
     s, lead = nearest_ahead(q, r, e, pi, pj, float(lateral), float(fade), float(length))
     v = speeds(u, e, s, float(time_gap), np.zeros(n))
     if beta == 0.0:

@@ -29,7 +29,7 @@ from sweep_core.model.flows import Flows, Source, draw
 from sweep_core.model.geometry import single_rows
 from sweep_core.model.maps import OccupancyMap, map_from_spec
 from sweep_core.model.scene import Scene
-from sweep_core.numerics.csm import csm
+from sweep_core.numerics.csm import CUT, csm, wall_terms
 from sweep_core.numerics.exit_choice import towards
 from sweep_core.numerics.headway import headway
 
@@ -90,6 +90,7 @@ class Population:
         self._view: Scene | None = None
         self._grid: OccupancyMap | None = None  # the scene's map, read when a source needs it
         self._base: Scene | None = None
+        self.geometry = scene.geometry  # the walls the csm law's wall term sees
         self._journey = {j.group: j for j in flows.journeys}
         self._exits = {c.group: c for c in flows.exit_choices}
 
@@ -111,6 +112,7 @@ class Population:
                      else scene.sigma[ids])
             self._view = replace(scene, positions=q, radius=self.radius[ids], sigma=sigma)
             self._base = scene
+            self.geometry = scene.geometry
         return self._view
 
     def sigma(self, sigma: np.ndarray) -> np.ndarray:
@@ -158,8 +160,13 @@ class Population:
             u[t < self.start[ids]] = 0.0
         law = self.flows
         if law.time_gap is not None and law.law == "csm":
-            u = csm(q, self.radius[ids], u, law.time_gap, law.repulsion, law.repulsion_range,
-                    law.lateral, law.fade, law.length, law.follow)
+            r = self.radius[ids]
+            walls = None
+            if law.wall_repulsion > 0.0 and len(q):
+                rows = single_rows(self.geometry, t, q, r, CUT * law.wall_range)
+                walls = wall_terms(rows, len(q), law.wall_repulsion, law.wall_range)
+            u = csm(q, r, u, law.time_gap, law.repulsion, law.repulsion_range,
+                    law.lateral, law.fade, law.length, law.follow, walls)
         elif law.time_gap is not None:
             u = headway(q, self.radius[ids], u, law.time_gap, law.margin)
         return u
