@@ -32,7 +32,7 @@ from sweep_core.model.geometry import single_values
 from sweep_core.model.neighbours import pairs_within
 from sweep_core.model.regions import region_from_spec
 from sweep_core.model.yaml_files import dump_yaml
-from sweep_core.numerics.csm import csm, directions
+from sweep_core.numerics.csm import csm, directions, wall_terms
 
 ROOM = [{"kind": "polyline", "points": [[0, 0], [10, 0], [10, 4], [0, 4]], "closed": True}]
 SOURCE = {"region": {"kind": "rectangle", "min": [0.3, 0.3], "max": [1.5, 3.7]},
@@ -96,9 +96,11 @@ def test_a_radius_beyond_the_bound_is_named_in_the_plural_correctly():
 
 
 @pytest.mark.parametrize("key, value", [("repulsion", 1e160), ("repulsion", 1e300),
-                                        ("repulsion_range", 1e-300), ("repulsion_range", 1e-9)])
+                                        ("repulsion_range", 1e-300), ("repulsion_range", 1e-9),
+                                        ("wall_repulsion", 1e300), ("wall_range", 1e-300)])
 def test_repulsion_beyond_its_bounds_is_refused(key, value):
-    """Before: accepted; a = 1e160 stopped every agent near another, D = 1e-300 gave NaN."""
+    """Before: accepted; a = 1e160 stopped every agent near another (a_w = 1e300 every agent
+    at a wall), D = 1e-300 gave NaN."""
     err = refused(corridor({"headway": {key: value}}))
     assert err.field == f"flows.headway.{key}"
 
@@ -115,7 +117,14 @@ def test_the_direction_rule_stays_finite_at_the_bounds():
     v = csm(q, r, u, 2.1, speed_law.MAX_REPULSION, speed_law.MIN_REPULSION_RANGE, 1.0)
     assert np.all(np.isfinite(v))
     pi, pj = pairs_within(q, 1.0)
-    e = directions(q, r, u, pi, pj, speed_law.MAX_REPULSION, speed_law.MIN_REPULSION_RANGE)
+    # the walls' terms at the bounds: gaps down to -1e-9 m, normals from every side
+    g = np.full(len(q), -1e-9)
+    normal = np.stack([np.cos(np.arange(len(q))), np.sin(np.arange(len(q)))], axis=1)
+    walls = wall_terms([(np.arange(len(q)), None, g, normal, None)] * 3, len(q),
+                       speed_law.MAX_REPULSION, speed_law.MIN_REPULSION_RANGE)
+    assert np.all(np.isfinite(walls))
+    e = directions(q, r, u, pi, pj, speed_law.MAX_REPULSION, speed_law.MIN_REPULSION_RANGE,
+                   walls)
     assert np.allclose(np.hypot(e[:, 0], e[:, 1]), 1.0)
 
 

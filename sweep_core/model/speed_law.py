@@ -51,21 +51,23 @@ RECORDED = {"lateral": RECORDED_LATERAL, "length": 1.0, "follow": 0.0}
 #: (calibrated against Weidmann alone, scripts/calibrate_headway.py)
 LANES_TIME_GAP = 0.35
 DEFAULT_MARGIN = 0.3
-#: largest repulsion strength a: Tordeux et al. publish a = 5 (the default here is 2); at
-#: a = 1e3 one neighbour at contact already outweighs the wished direction a thousandfold,
-#: and the direction rule's sum overflows (every agent near another then stops) from about
-#: a = 1e150
+#: largest repulsion strength a (and wall_repulsion a_w): Tordeux et al. publish a = 5 (the
+#: default here is 2); at a = 1e3 one neighbour at contact already outweighs the wished
+#: direction a thousandfold, and the direction rule's sum overflows (every agent near another
+#: or near a wall then stops) from about a = 1e150
 MAX_REPULSION = 1e3
-#: smallest repulsion range D (m): contacts hold to 1e-9 m, so two disks may overlap by up to
-#: 1e-9 m and exp((l - d) / D) stays below e^0.001 for D >= 1e-6 m; at D = 1e-300 it is
-#: inf and the directions NaN
+#: smallest repulsion range D (and wall_range D_w, m): contacts hold to 1e-9 m, so a disk may
+#: overlap another or a wall by up to 1e-9 m and the exponential stays below e^0.001 for
+#: D >= 1e-6 m; at D = 1e-300 it is inf and the directions NaN
 MIN_REPULSION_RANGE = 1e-6
+
 
 def headway_from_spec(raw: Any, bounded: bool = True) -> dict | None:
     """``flows.headway`` validated and normalised (None: absent): ``law`` (``csm``, default,
     or ``lanes``; a ``margin`` without a ``law`` is the ``lanes`` law, whose parameter it is)
-    with its parameters, defaults filled in; ``bounded``: repulsion and its range within
-    MAX_REPULSION and MIN_REPULSION_RANGE (a recording's scene is not held to them)."""
+    with its parameters, defaults filled in; ``bounded``: the repulsions (of agents and of
+    walls) and their ranges within MAX_REPULSION and MIN_REPULSION_RANGE (a recording's scene
+    is not held to them)."""
     if raw is None:
         return None
     hw = checks.mapping(raw, "flows.headway", allowed={"law", "time_gap", "margin", "repulsion",
@@ -104,12 +106,15 @@ def headway_from_spec(raw: Any, bounded: bool = True) -> dict | None:
                                          "the fraction of the two radii the speed rule takes "
                                          "as the body length"),
             "follow": follow_from_spec(hw.get("follow", DEFAULT_FOLLOW)),
-            "wall_repulsion": checks.number(hw.get("wall_repulsion", DEFAULT_WALL_REPULSION),
-                                            "flows.headway.wall_repulsion", nonnegative=True,
-                                            fix="set flows.headway.wall_repulsion to a number "
-                                            ">= 0 (0: walls do not turn the direction)"),
-            "wall_range": checks.length(hw.get("wall_range", DEFAULT_WALL_RANGE),
-                                        "flows.headway.wall_range", positive=True)}
+            "wall_repulsion": _within(checks.number(
+                hw.get("wall_repulsion", DEFAULT_WALL_REPULSION), "flows.headway.wall_repulsion",
+                nonnegative=True, fix="set flows.headway.wall_repulsion to a number >= 0 (0: "
+                "walls do not turn the direction)"), "flows.headway.wall_repulsion", 0.0,
+                MAX_REPULSION if bounded else math.inf),
+            "wall_range": _within(checks.length(hw.get("wall_range", DEFAULT_WALL_RANGE),
+                                                "flows.headway.wall_range", positive=True),
+                                  "flows.headway.wall_range",
+                                  MIN_REPULSION_RANGE if bounded else 0.0, math.inf)}
 
 
 def _within(x: float, field: str, low: float, high: float) -> float:
