@@ -152,6 +152,25 @@ def test_more_aliases_than_the_limit_are_refused():
         load_yaml(text)
 
 
+def test_a_document_of_more_nodes_than_the_limit_is_refused_before_it_is_composed(
+        monkeypatch):
+    """Every scalar, key, list and mapping counts (the document's top mapping, its key, the
+    list and its items): one node over MAX_NODES is refused with its line, at the limit the
+    text loads. The limit is lowered here; its value bounds the memory of composing."""
+    monkeypatch.setattr(yaml_files, "MAX_NODES", 1000)
+    at_limit = "x: [" + ", ".join(["0"] * (1000 - 3)) + "]\n"
+    assert len(load_yaml(at_limit)["x"]) == 997
+    with pytest.raises(sc.SceneError) as err:
+        sc.Scene.from_yaml_text("x: [" + ", ".join(["0"] * (1000 - 2)) + "]\n",
+                                source="long.yaml")
+    msg = str(err.value)
+    assert msg.startswith("scene: long.yaml is not valid YAML: line 1 column ")
+    assert "more than 1000 values, keys, lists and mappings in one document (the limit " \
+        "MAX_NODES)" in msg and "(fix: give long per-agent lists by a rule" in msg
+    # aliases count once each here (their expansion has its own limit)
+    assert load_yaml("a: &a 1\nb: [" + ", ".join(["*a"] * 990) + "]\n") is not None
+
+
 @pytest.mark.parametrize("depth", [yaml_files.MAX_DEPTH + 1, 1000])
 def test_deep_nesting_is_refused_with_its_line(depth):
     text = "agents: {positions: [[0, 0]], radius: 0.2}\ndescription: " + "[" * depth + \

@@ -10,7 +10,8 @@ Before a document is composed, its event stream (which both parsers produce with
 is checked against limits that keep hostile or careless text from exhausting the stack or the
 memory (:func:`check_yaml`): nesting deeper than :data:`MAX_DEPTH`, more than
 :data:`MAX_ALIASES` aliases, aliases that would repeat more than :data:`MAX_ALIAS_NODES` nodes
-in all (a few hundred bytes of nested aliases can stand for billions of nodes), and a key
+in all (a few hundred bytes of nested aliases can stand for billions of nodes), more than
+:data:`MAX_NODES` nodes (the memory composing them takes), and a key
 given twice in one mapping (YAML loaders otherwise keep the last silently) are refused with
 their line and column.
 """
@@ -36,6 +37,11 @@ MAX_ALIASES = 1000
 #: nodes that aliases may repeat in one document, counted as composed (an alias of a list of
 #: 3 numbers repeats 4 nodes)
 MAX_ALIAS_NODES = 100_000
+#: nodes (scalars, keys and collections) in one document. Composing a node costs about 450 B
+#: (a list of 2e6 numbers, 6 MB of text, took 974 MB), so a file within the scene's size limit
+#: could otherwise take tens of GB; this bounds it near 2 GB. A scene listing the positions,
+#: radii and speeds of 1e5 agents has about 5e5 nodes
+MAX_NODES = 1 << 22
 
 
 class YAMLLimitError(yaml.MarkedYAMLError):
@@ -63,13 +69,14 @@ def check_yaml(text: str | bytes) -> None:
 
     Raises:
         YAMLLimitError: nesting deeper than MAX_DEPTH, more than MAX_ALIASES aliases, aliases
-            repeating more than MAX_ALIAS_NODES nodes, or a mapping key given twice.
+            repeating more than MAX_ALIAS_NODES nodes, more than MAX_NODES nodes, or a
+            mapping key given twice.
         yaml.YAMLError: the text is not valid YAML.
     """
     # one frame per open collection: [nodes inside so far, anchor, children, keys seen or None]
     stack: list[list[Any]] = []
     sizes: dict[str, int] = {}  # anchor -> composed node count of what it names
-    aliases = repeated = 0
+    aliases = repeated = nodes = 0
 
     def done(size: int, anchor: str | None, event: Any) -> None:
         if anchor is not None:
@@ -90,7 +97,15 @@ def check_yaml(text: str | bytes) -> None:
         top[2] += 1
 
     scalar = yaml.ScalarEvent
+    node_events = {scalar, yaml.SequenceStartEvent, yaml.MappingStartEvent, yaml.AliasEvent}
     for event in yaml.parse(text, Loader=SAFE_LOADER):
+        if type(event) in node_events:
+            nodes += 1
+            if nodes > MAX_NODES:
+                raise _refuse(f"more than {MAX_NODES} values, keys, lists and mappings in "
+                              "one document (the limit MAX_NODES)", event.start_mark,
+                              "give long per-agent lists by a rule instead (a spawn region, "
+                              "a speed distribution)")
         if type(event) is scalar and event.anchor is None and stack and stack[-1][3] is None:
             top = stack[-1]  # the common case, an item of a list: counted and nothing else
             top[0] += 1
@@ -122,7 +137,7 @@ def check_yaml(text: str | bytes) -> None:
             done(size, None, event)
         elif isinstance(event, yaml.DocumentStartEvent):
             sizes.clear()
-            aliases = repeated = 0
+            aliases = repeated = nodes = 0
 
 
 def load_yaml(text: str | bytes) -> Any:
