@@ -105,6 +105,25 @@ def test_repulsion_beyond_its_bounds_is_refused(key, value):
     assert err.field == f"flows.headway.{key}"
 
 
+@pytest.mark.parametrize("law, key, value", [("csm", "time_gap", 1e6), ("csm", "time_gap", 10.5),
+                                              ("lanes", "time_gap", 1e6),
+                                              ("lanes", "margin", 1e3)])
+def test_a_time_gap_or_margin_that_makes_every_pair_a_neighbour_is_refused(law, key, value):
+    """Before: accepted; the laws search the pairs within max|u| T + 2 max r (+ w), so
+    T = 1e6 s or w = 1e3 m made every pair of the crowd a candidate (memory N^2 / 2)."""
+    err = refused(corridor({"headway": {"law": law, key: value}}))
+    assert err.field == f"flows.headway.{key}"
+    assert "at most" in err.problem or "between" in err.problem
+
+
+def test_the_largest_time_gap_and_margin_are_accepted():
+    scene = Scene.from_dict(corridor({"headway": {"time_gap": speed_law.MAX_TIME_GAP}}))
+    assert scene.spec["flows"]["headway"]["time_gap"] == speed_law.MAX_TIME_GAP
+    scene = Scene.from_dict(corridor({"headway": {"law": "lanes",
+                                                  "margin": speed_law.MAX_MARGIN}}))
+    assert scene.spec["flows"]["headway"]["margin"] == speed_law.MAX_MARGIN
+
+
 def test_the_direction_rule_stays_finite_at_the_bounds():
     """At the largest repulsion and the smallest range, with two disks overlapping by the
     1e-9 m the rows allow and a crowd pressing on one agent, every direction is a unit vector

@@ -60,14 +60,20 @@ MAX_REPULSION = 1e3
 #: overlap another or a wall by up to 1e-9 m and the exponential stays below e^0.001 for
 #: D >= 1e-6 m; at D = 1e-300 it is inf and the directions NaN
 MIN_REPULSION_RANGE = 1e-6
+#: largest time gap T (s) and lanes margin w (m): the laws search the pairs within
+#: max|u| T + 2 max r (+ w), so their number, and the memory, grow with T^2 and w^2 (at
+#: T = 1e6 s every pair of the crowd, N^2 / 2); published calibrations have T of 0.3-2 s, the
+#: default here is 2.1 s, and a margin beyond a few body widths counts people who are not ahead
+MAX_TIME_GAP = 10.0
+MAX_MARGIN = 2.0
 
 
 def headway_from_spec(raw: Any, bounded: bool = True) -> dict | None:
     """``flows.headway`` validated and normalised (None: absent): ``law`` (``csm``, default,
     or ``lanes``; a ``margin`` without a ``law`` is the ``lanes`` law, whose parameter it is)
     with its parameters, defaults filled in; ``bounded``: the repulsions (of agents and of
-    walls) and their ranges within MAX_REPULSION and MIN_REPULSION_RANGE (a recording's scene
-    is not held to them)."""
+    walls) and their ranges within MAX_REPULSION and MIN_REPULSION_RANGE, the time gap and the
+    margin within MAX_TIME_GAP and MAX_MARGIN (a recording's scene is not held to them)."""
     if raw is None:
         return None
     hw = checks.mapping(raw, "flows.headway", allowed={"law", "time_gap", "margin", "repulsion",
@@ -85,14 +91,14 @@ def headway_from_spec(raw: Any, bounded: bool = True) -> dict | None:
         raise SceneError(f"flows.headway.{key}", f"is not a parameter of the {law} law",
                          "remove it, or set flows.headway.law to the law it belongs to")
     if law == "lanes":
-        return {"law": law, "time_gap": checks.number(hw.get("time_gap", LANES_TIME_GAP),
-                                                      "flows.headway.time_gap", positive=True),
-                "margin": checks.length(hw.get("margin", DEFAULT_MARGIN), "flows.headway.margin",
-                                        nonnegative=True)}
+        return {"law": law, "time_gap": _time_gap(hw.get("time_gap", LANES_TIME_GAP), bounded),
+                "margin": _within(checks.length(hw.get("margin", DEFAULT_MARGIN),
+                                                "flows.headway.margin", nonnegative=True),
+                                  "flows.headway.margin", 0.0,
+                                  MAX_MARGIN if bounded else math.inf)}
     k = lateral_from_spec(hw.get("lateral", DEFAULT_LATERAL))
     return {"law": law,
-            "time_gap": checks.number(hw.get("time_gap", DEFAULT_TIME_GAP),
-                                      "flows.headway.time_gap", positive=True),
+            "time_gap": _time_gap(hw.get("time_gap", DEFAULT_TIME_GAP), bounded),
             "repulsion": _within(checks.number(hw.get("repulsion", DEFAULT_REPULSION),
                                                "flows.headway.repulsion", nonnegative=True),
                                  "flows.headway.repulsion", 0.0,
@@ -115,6 +121,17 @@ def headway_from_spec(raw: Any, bounded: bool = True) -> dict | None:
                                                 "flows.headway.wall_range", positive=True),
                                   "flows.headway.wall_range",
                                   MIN_REPULSION_RANGE if bounded else 0.0, math.inf)}
+
+
+def _time_gap(raw: Any, bounded: bool) -> float:
+    """flows.headway.time_gap (s): > 0, and at most MAX_TIME_GAP when ``bounded``."""
+    field = "flows.headway.time_gap"
+    t = checks.number(raw, field, positive=True)
+    if bounded and t > MAX_TIME_GAP:
+        raise SceneError(field, f"must be at most {show(MAX_TIME_GAP)} s, got {show(t)}",
+                         f"set {field} between 0 and {show(MAX_TIME_GAP)} (people keep gaps "
+                         "of 0.3-2 s)")
+    return t
 
 
 def _within(x: float, field: str, low: float, high: float) -> float:
