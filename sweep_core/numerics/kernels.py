@@ -24,7 +24,7 @@ from numba.core.registry import CPUDispatcher
 
 from sweep_core.model import neighbours
 from sweep_core.model.scene import Scene
-from sweep_core.numerics import csm, exit_choice, headway, schemes
+from sweep_core.numerics import csm, entry, exit_choice, headway, schemes
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clusters import solve_active
 from sweep_core.numerics.robots import scan as robot_scan
@@ -146,6 +146,9 @@ def _exercise() -> None:
     csm.csm(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 0.8, 2.0, 0.1)
     csm.csm(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 0.8, 2.0, 0.1, 0.7, 0.9, 0.9, 0.5)
     exit_choice.assign(far[:8, :2].copy(), np.ones(2))
+    # a source's room check (its grid over the disks present)
+    entry.EntryGrid(np.zeros(2), np.ones(2), 0.5, far[:4] * 0.01, np.full(4, 0.2)).clear(
+        far[:2] * 0.001, 0.2)
     # kernels a small jam may not reach (the factored face step's products, the bridge's
     # logarithm of a wall contact), called with the types their callers pass
     v = np.ones(3)

@@ -13,7 +13,8 @@ the run, and the Brownian increments are drawn as without flows.
 Entry: a source's agent is due at its time; at the end of each step the due agents of each
 source (in order) are placed at uniform random points of its region where the disk (its radius
 at that time) is clear of every wall, obstacle, blocked map cell and present agent
-(:data:`TRIES` candidates per agent and step, vectorised); an agent that finds no room waits,
+(:data:`TRIES` candidates per agent and step, checked against cell lists of the disks near
+the source, :mod:`sweep_core.numerics.entry`); an agent that finds no room waits,
 with the ones behind it, for the next step (``waiting``). Departure: an agent whose centre is
 inside a sink at the end of a step leaves (``left_at[id]`` = that time). Conservation:
 N0 + entered = present + left.
@@ -30,6 +31,7 @@ from sweep_core.model.geometry import single_rows
 from sweep_core.model.maps import OccupancyMap, map_from_spec
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.csm import CUT, csm, wall_terms
+from sweep_core.numerics.entry import EntryGrid
 from sweep_core.numerics.exit_choice import towards
 from sweep_core.numerics.headway import headway
 
@@ -89,6 +91,8 @@ class Population:
         self.waiting = 0
         self._view: Scene | None = None
         self._grid: OccupancyMap | None = None  # the scene's map, read when a source needs it
+        # per-id values of the agents entering in this step: (radius, group, speed, start, t)
+        self._entering: list[tuple[float, int, float, float, float]] = []
         self._base: Scene | None = None
         self.geometry = scene.geometry  # the walls the csm law's wall term sees
         self._journey = {j.group: j for j in flows.journeys}
@@ -217,46 +221,68 @@ class Population:
         r_present = self.radius[self.ids] + grow
         if self._grid is None and scene.spec.get("map") is not None:
             self._grid = map_from_spec(scene.spec["map"], "map", None)
-        for s_index, src in enumerate(self.flows.sources):
+        sources = self.flows.sources
+        # the largest radius a disk filed in a source's grid can have (present or entering)
+        r_top = max(float(r_present.max(initial=0.0)),
+                    max((src.r_high for src in sources), default=0.0) + grow)
+        pending: list[tuple[Source, float]] = []
+        for s_index, src in enumerate(sources):
             due = int(np.searchsorted(src.times, t1 + 1e-9, side="right"))
+            if self.next[s_index] >= due:
+                continue
+            lo, hi = src.region.lo, src.region.hi
+            others = np.concatenate([q] + placed) if placed else q
+            radii = (np.concatenate([r_present, np.array([r for _, r in pending]) + grow])
+                     if placed else r_present)
+            clear = EntryGrid(np.asarray(lo), np.asarray(hi), src.r_high + grow + r_top,
+                              others, radii)
             while self.next[s_index] < due:
                 r = (src.r_low if src.r_high == src.r_low
                      else src.r_low + self.rng.random() * (src.r_high - src.r_low))
-                cand = src.region.lo + self.rng.random((TRIES, 2)) * (src.region.hi - src.region.lo)
+                cand = lo + self.rng.random((TRIES, 2)) * (hi - lo)
                 ok = src.region.contains(cand)
                 if self._grid is not None:
                     ok &= ~self._grid.is_blocked(cand)
-                rr = np.full(TRIES, r + grow)
                 if not scene.geometry.is_empty:
+                    rr = np.full(TRIES, r + grow)
                     for a, _, _, _, _ in single_rows(scene.geometry, t1, cand, rr, 0.0):
                         ok[a] = False
-                allq = np.concatenate([q] + placed) if placed else q
-                allr = (np.concatenate([r_present, self.radius[len(self.radius) - len(placed):]
-                                        + grow]) if placed else r_present)
-                if len(allq):
-                    d = cand[:, None, :] - allq[None]
-                    dist2 = np.einsum("mnc,mnc->mn", d, d)
-                    ok &= np.all(dist2 >= (r + grow + allr[None]) ** 2, axis=1)
+                ok &= clear.clear(cand, r + grow)
                 hit = np.flatnonzero(ok)
                 if len(hit) == 0:
                     break  # no room now: this source's due agents wait for the next step
                 placed.append(cand[hit[0]][None])
-                self._append(src, r, t1)
+                clear.add(cand[hit[0]], r + grow)
+                pending.append((src, r))
+                self._draw_entering(src, r, t1)
                 self.next[s_index] += 1
+        self._append_entered()
         self.waiting = sum(int(np.searchsorted(src.times, t1 + 1e-9, side="right")) - k
-                           for src, k in zip(self.flows.sources, self.next))
+                           for src, k in zip(sources, self.next))
         return np.concatenate(placed) if placed else np.empty((0, 2))
 
-    def _append(self, src: Source, r: float, t1: float) -> None:
-        new_id = len(self.radius)
+    def _draw_entering(self, src: Source, r: float, t1: float) -> None:
+        """Draws an entering agent's speed and delay (in this order, after its position and
+        radius) and holds its per-id values until :meth:`_append_entered`."""
         speed = (draw(src.speeds, self.rng, 1)[0] if src.speeds is not None
                  else float(self.flows.group_speed[src.group]))
         delay = draw(src.delays, self.rng, 1)[0] if src.delays is not None else 0.0
-        self.radius = np.append(self.radius, r)
-        self.group = np.append(self.group, src.group)
-        self.speed = np.append(self.speed, speed)
-        self.start = np.append(self.start, t1 + delay)
-        self.leg = np.append(self.leg, 0)
-        self.entered_at = np.append(self.entered_at, t1)
-        self.ids = np.append(self.ids, new_id)
-        self.entered += 1
+        self._entering.append((r, src.group, speed, t1 + delay, t1))
+
+    def _append_entered(self) -> None:
+        """Appends the per-id values of the agents entered this step, in one copy each."""
+        if not self._entering:
+            return
+        r, group, speed, start, at = (list(v) for v in zip(*self._entering))
+        first = len(self.radius)
+        m = len(r)
+        self.radius = np.concatenate([self.radius, np.asarray(r, dtype=self.radius.dtype)])
+        self.group = np.concatenate([self.group, np.asarray(group, dtype=self.group.dtype)])
+        self.speed = np.concatenate([self.speed, np.asarray(speed, dtype=self.speed.dtype)])
+        self.start = np.concatenate([self.start, np.asarray(start, dtype=self.start.dtype)])
+        self.leg = np.concatenate([self.leg, np.zeros(m, dtype=self.leg.dtype)])
+        self.entered_at = np.concatenate([self.entered_at,
+                                          np.asarray(at, dtype=self.entered_at.dtype)])
+        self.ids = np.concatenate([self.ids, np.arange(first, first + m, dtype=self.ids.dtype)])
+        self.entered += m
+        self._entering = []
