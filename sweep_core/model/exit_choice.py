@@ -32,7 +32,7 @@ import numpy as np
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.fields import Field
-from sweep_core.model.regions import Region, region_from_spec
+from sweep_core.model.regions import target_from_spec
 from sweep_core.model.travel import reaches
 
 #: most exits of one choice
@@ -84,16 +84,7 @@ def exit_choice_from_spec(value: Any, field: str, group: int, group_name: str | 
     fields, exits = [], []
     for k, e in enumerate(raw):
         ef = f"{field}.exits[{k}]"
-        checks.mapping(e, ef, allowed={"goal", "region"})
-        if ("goal" in e) == ("region" in e):
-            raise SceneError(ef, f"gives {'both' if 'goal' in e else 'neither'} goal and "
-                             "region", f"give {ef}.goal: [x, y] or {ef}.region: {{kind: "
-                             "rectangle, min: [x, y], max: [x, y]}")
-        if "goal" in e:
-            one: dict = {"goal": checks.point(e["goal"], f"{ef}.goal").tolist()}
-        else:
-            region: Region = region_from_spec(e["region"], f"{ef}.region")
-            one = {"region": region.spec}
+        _, one = target_from_spec(e, ef)
         exits.append(one)
         fields.append(navigation_from_spec({"kind": "geodesic", **one, "speed": speed, **extra},
                                            ef, geometry, grid, np.empty((0, 2))))

@@ -19,7 +19,7 @@ import numpy as np
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.fields import Field, Groups
-from sweep_core.model.regions import Region, region_from_spec
+from sweep_core.model.regions import Region, target_from_spec
 from sweep_core.model.travel import reaches
 
 #: most legs of a journey
@@ -86,18 +86,7 @@ def journey_from_spec(value: Any, field: str, group: int, names: tuple[str, ...]
     fields, targets, legs_spec = [], [], []
     for k, leg in enumerate(legs):
         lf = f"{field}.legs[{k}]"
-        checks.mapping(leg, lf, allowed={"goal", "region"})
-        if ("goal" in leg) == ("region" in leg):
-            raise SceneError(lf, f"gives {'both' if 'goal' in leg else 'neither'} goal and "
-                             "region", f"give {lf}.goal: [x, y] or {lf}.region: {{kind: "
-                             "rectangle, min: [x, y], max: [x, y]}")
-        if "goal" in leg:
-            goal = checks.point(leg["goal"], f"{lf}.goal")
-            tg: Region | np.ndarray = goal
-            one = {"goal": goal.tolist()}
-        else:
-            tg = region_from_spec(leg["region"], f"{lf}.region")
-            one = {"region": tg.spec}
+        tg, one = target_from_spec(leg, lf)
         legs_spec.append(one)
         targets.append(tg)
         f = navigation_from_spec({"kind": "geodesic", **one, "speed": speed, **extra}, lf,

@@ -72,3 +72,18 @@ def region_from_spec(value: Any, field: str) -> Region:
     pts = chain_points(value["points"], f"{field}.points", True, 3)
     return Region(pts, pts.min(axis=0), pts.max(axis=0),
                   {"kind": "polygon", "points": pts.tolist()}, False)
+
+
+def target_from_spec(value: Any, field: str) -> tuple[Region | np.ndarray, dict]:
+    """A walking target given as ``{goal: [x, y]}`` or ``{region: {...}}`` (a journey's leg, an
+    exit): the point (2,) m or the region, and its normalised spec."""
+    checks.mapping(value, field, allowed={"goal", "region"})
+    if ("goal" in value) == ("region" in value):
+        raise SceneError(field, f"gives {'both' if 'goal' in value else 'neither'} goal and "
+                         "region", f"give {field}.goal: [x, y] or {field}.region: {{kind: "
+                         "rectangle, min: [x, y], max: [x, y]}")
+    if "goal" in value:
+        goal = checks.point(value["goal"], f"{field}.goal")
+        return goal, {"goal": goal.tolist()}
+    region = region_from_spec(value["region"], f"{field}.region")
+    return region, {"region": region.spec}
