@@ -49,7 +49,7 @@ setup(
         "console_scripts": [
             "sweep = sweep_core.cli:main",
             "sweep_node = sweep_ros.main:main",
-            "sweep_client = sweep_ros.client:main",
+            "sweep_client = sweep_ros.client:cli",
             "sweep_robot_controller = sweep_ros.controller:main",
         ],
     },

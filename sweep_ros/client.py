@@ -400,5 +400,17 @@ def main(argv: list[str] | None = None) -> int:
         rclpy.try_shutdown()
 
 
+def cli() -> None:
+    """Console entry point (``sweep_client``, ``python -m sweep_ros.client``): :func:`main`,
+    then the process ends at once with its status, after flushing its output. The DDS
+    library's threads can still be running while the interpreter tears down (measured: one
+    command in a test run under load printed its answer, then died by SIGSEGV), so nothing is
+    left to tear down after rclpy's shutdown."""
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    cli()
