@@ -35,6 +35,7 @@ import numpy as np
 from sweep_core.model.ring import weidmann
 from sweep_core.verify.base import Case, Trace, simulate
 from sweep_core.verify.diagrams import (
+    TARGET_DENSITIES,
     WIDTHS,
     bottleneck_scene,
     ring_case,
@@ -42,8 +43,6 @@ from sweep_core.verify.diagrams import (
     seyfried,
     steady_flow,
 )
-
-DENSITIES = (0.5, 1.0, 2.0, 3.0)
 
 
 def first_crossings(tr: Trace, x0: float) -> np.ndarray:
@@ -95,7 +94,7 @@ def main() -> None:
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     rows = []
     for seed in seeds:
-        for x in DENSITIES if args.ring else WIDTHS:
+        for x in TARGET_DENSITIES if args.ring else WIDTHS:
             if args.ring:
                 v = ring_measure(simulate(ring_case(x, law), seed))[1]
                 row = {"density": x, "seed": seed, "10-90": v / float(weidmann(x)) - 1.0}
@@ -107,7 +106,7 @@ def main() -> None:
                 fh.write(json.dumps(row) + "\n")
             print(json.dumps(row), flush=True)
     key = "density" if args.ring else "width"
-    xs = DENSITIES if args.ring else WIDTHS
+    xs = TARGET_DENSITIES if args.ring else WIDTHS
     for how in ["10-90"] if args.ring else ["10-90", "all end", "all entrance",
                                              "rolling middle"]:
         err = np.array([[next(r[how] for r in rows if r["seed"] == s and r[key] == x)

@@ -32,6 +32,7 @@ from concurrent.futures import ProcessPoolExecutor
 from sweep_core.model.ring import weidmann
 from sweep_core.verify.base import Case, simulate
 from sweep_core.verify.diagrams import (
+    TARGET_DENSITIES,
     WIDTHS,
     bottleneck_scene,
     ring_case,
@@ -40,7 +41,6 @@ from sweep_core.verify.diagrams import (
     steady_flow,
 )
 
-DENSITIES = (0.5, 1.0, 2.0, 3.0)
 HEADER = ["time_gap_s", "lateral", "repulsion", "repulsion_range_m", "fade", "length", "follow",
           "seed", "measure", "density_per_m2_or_width_m", "value", "reference",
           "relative_error"]
@@ -98,7 +98,7 @@ def main() -> None:
             for k2 in args.fade for f in args.length for b in args.follow]
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     jobs = [(law, seed, what, x) for law in laws for seed in seeds
-            for what, x in [("ring", d) for d in DENSITIES] + [("bottleneck", w)
+            for what, x in [("ring", d) for d in TARGET_DENSITIES] + [("bottleneck", w)
                                                               for w in WIDTHS]]
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(one, jobs))

@@ -81,7 +81,6 @@ class EntryGrid:
         cy = np.clip(np.floor((p[:, 1] - self.y0) / self.h), 0, self.ny - 1).astype(np.int64)
         return cx * self.ny + cy
 
-
     def add(self, p: np.ndarray, r: float) -> None:
         """Files a disk of centre p (2,) m and radius r m."""
         if self.count == len(self.xs):

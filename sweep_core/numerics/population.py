@@ -225,15 +225,14 @@ class Population:
         # the largest radius a disk filed in a source's grid can have (present or entering)
         r_top = max(float(r_present.max(initial=0.0)),
                     max((src.r_high for src in sources), default=0.0) + grow)
-        pending: list[tuple[Source, float]] = []
         for s_index, src in enumerate(sources):
             due = int(np.searchsorted(src.times, t1 + 1e-9, side="right"))
             if self.next[s_index] >= due:
                 continue
             lo, hi = src.region.lo, src.region.hi
             others = np.concatenate([q] + placed) if placed else q
-            radii = (np.concatenate([r_present, np.array([r for _, r in pending]) + grow])
-                     if placed else r_present)
+            entered = np.array([e[0] for e in self._entering])  # placed this step, base radii
+            radii = np.concatenate([r_present, entered + grow]) if placed else r_present
             clear = EntryGrid(np.asarray(lo), np.asarray(hi), src.r_high + grow + r_top,
                               others, radii)
             while self.next[s_index] < due:
@@ -253,7 +252,6 @@ class Population:
                     break  # no room now: this source's due agents wait for the next step
                 placed.append(cand[hit[0]][None])
                 clear.add(cand[hit[0]], r + grow)
-                pending.append((src, r))
                 self._draw_entering(src, r, t1)
                 self.next[s_index] += 1
         self._append_entered()

@@ -41,6 +41,8 @@ DENSITIES = (0.5, 1.0, 2.0, 3.0, 3.5)
 QUICK_DENSITIES = (0.5, 2.0)
 #: the densities the target covers (1/m^2)
 TARGET_MAX_DENSITY = 3.0
+#: the densities of DENSITIES the target judges (the speed law's calibration runs these)
+TARGET_DENSITIES = tuple(rho for rho in DENSITIES if rho <= TARGET_MAX_DENSITY)
 #: measurement area in the ring (m) and the ring's walkable area
 AREA = rectangle((-1.0, 3.3), (1.0, 4.8))
 SIDES = 96

@@ -84,7 +84,7 @@ def refine(target: np.ndarray, x: np.ndarray, c: sp.spmatrix, h: np.ndarray
         return None
     n = len(x)
     piqp = pivot.baseline()
-    found, smallest = None, math.inf
+    answers: list[tuple[np.ndarray, np.ndarray]] = []
     for scale in SCALES:
         solver = piqp.SparseSolver()
         for key, value in SETTINGS.items():
@@ -100,13 +100,12 @@ def refine(target: np.ndarray, x: np.ndarray, c: sp.spmatrix, h: np.ndarray
         if np.all(np.isfinite(v)) and np.all(np.isfinite(lam_near)):
             lam = np.zeros(len(h))
             lam[near] = lam_near
-            answer = (x + v / scale, lam)
-            duality_gap = gap(target, cr, h, *answer)
-            if found is None or duality_gap < smallest:
-                found, smallest = answer, duality_gap
+            answers.append((x + v / scale, lam))
             if status == piqp.PIQP_SOLVED:
                 break
-    return found
+    if len(answers) <= 1:  # the usual case, solved at the first magnification: no choice
+        return answers[0] if answers else None
+    return min(answers, key=lambda a: gap(target, cr, h, *a))
 
 
 def gap(target: np.ndarray, c: sp.csr_matrix, h: np.ndarray, x: np.ndarray, lam: np.ndarray
