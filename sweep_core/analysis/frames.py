@@ -104,9 +104,7 @@ class FrameReader:
                             yield Frame(key, done[0][0], done[0][1], done[1], done[2], done[3])
             # without sources or sinks the ids are 0 .. N - 1 in every state, so a last state
             # cut from its /agents is still whole; where agents come and go it is not
-            scene = self.meta.scene
-            cut = (self._reader.truncated and self.want_agents and scene is not None
-                   and scene.flows is not None and scene.flows.changes_population)
+            cut = self._reader.truncated and self.want_agents and self.meta.changes_population
             for key in sorted(pending):
                 done = pending[key]
                 if done[0] is None:

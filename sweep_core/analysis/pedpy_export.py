@@ -71,8 +71,7 @@ def read_trajectories(path: str | os.PathLike[str]) -> Trajectories:
                              "is one run (fix: export a recording without resets)")
     rows: list[tuple[int, np.ndarray, np.ndarray]] = []
     steps: list[int] = []
-    flows = meta.scene is not None and meta.scene.flows is not None and \
-        meta.scene.flows.changes_population
+    flows = meta.changes_population
     for fr in FrameReader(meta):
         if meta.dt is None:
             raise RecordingError(f"{path}: its metadata give no time step dt; PedPy needs "

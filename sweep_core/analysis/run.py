@@ -110,6 +110,13 @@ class RunMeta:
     def dt_ns(self) -> int | None:
         return None if self.dt is None else int(round(self.dt * NS))
 
+    @property
+    def changes_population(self) -> bool:
+        """Whether agents enter or leave in the recorded scene (sources or sinks): then a
+        state's ids are only known from its /agents, not numbered 0 .. N - 1."""
+        return (self.scene is not None and self.scene.flows is not None
+                and self.scene.flows.changes_population)
+
     def segment_of(self, log_ns: int) -> int:
         """0 before the first reset, k after the k-th."""
         return bisect.bisect_right(self.resets, log_ns)
