@@ -433,3 +433,18 @@ def test_recordings_of_scenes_refused_now_still_load_and_replay(tmp_path, monkey
     capsys.readouterr()
     assert main(["replay", str(run)]) == 0
     assert "IDENTICAL" in capsys.readouterr().out
+
+
+def test_an_ensemble_folder_inside_the_package_is_refused():
+    """The ensemble's folder is checked as verify's is (it was only checked for being a
+    folder): nothing is made inside the installed package."""
+    from pathlib import Path
+
+    from sweep_core.ensemble import store
+    from sweep_core.errors import OutputError
+    from sweep_core.io import outputs
+
+    inside = Path(outputs.PACKAGE) / "scenes" / "ensemble_out"
+    with pytest.raises(OutputError, match="inside the installed sweep_core package"):
+        store.lock(inside)
+    assert not inside.exists()

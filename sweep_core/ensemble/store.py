@@ -26,9 +26,8 @@ from typing import Any
 
 import pandas as pd
 
-from sweep_core import checks
-from sweep_core.errors import OutputError, SweepError
-from sweep_core.io.outputs import open_locked, replacing, write_text
+from sweep_core.errors import SweepError
+from sweep_core.io.outputs import check_folder, open_locked, replacing, write_text
 
 CONFIG = "ensemble.json"
 #: statuses that count as done on resume
@@ -50,12 +49,10 @@ def lock(out: Path) -> int:
     DIR/.lock, locked until closed; a second ensemble writing DIR at the same time is refused.
 
     Raises:
-        OutputError: DIR exists and is not a folder, or another ensemble is writing it.
+        OutputError: DIR exists and is not a folder, lies inside the installed package, cannot
+            be written into, or another ensemble is writing it.
     """
-    if out.exists() and not out.is_dir():
-        raise OutputError(str(out), f"exists and is {checks.file_kind(out.stat().st_mode)}, "
-                          "not a folder", "--out NEWDIR")
-    out.mkdir(parents=True, exist_ok=True)
+    check_folder(out, other="--out NEWDIR")
     return open_locked(out / ".lock", other="--out OTHERDIR")
 
 
