@@ -4,7 +4,9 @@ its scene, its measurement, the walls"): the scene as ``sweep verify`` builds it
 validation of the same experiments placed them (``--room``: 200 people over the whole
 10 m x 8 m room), with the speed law ``--headway`` (a JSON ``flows.headway``; {} the
 defaults), one run after the other in this process. Per run it measures the flow at each
-width four ways, each against Seyfried et al.'s (relative error):
+width four ways, each against Seyfried et al.'s (relative error), and the first of them
+against the experiments' line as ``sweep verify`` judges it (``10-90 line``:
+sweep_core.verify.diagrams.line_flow_at):
 
 - ``10-90``: as ``sweep verify`` (PedPy's crossings where the bottleneck ends, 10 %-90 %);
 - ``all end`` and ``all entrance``: (N - 1) / (t_N - t_1) over every crossing of the
@@ -38,6 +40,7 @@ from sweep_core.verify.diagrams import (
     TARGET_DENSITIES,
     WIDTHS,
     bottleneck_scene,
+    line_flow_at,
     ring_case,
     ring_measure,
     seyfried,
@@ -78,7 +81,8 @@ def bottleneck(width: float, law: dict, seed: int, room: bool) -> dict:
              "all entrance": whole_run(first_crossings(tr, 10.0)),
              "rolling middle": rolling(first_crossings(tr, 11.0))}
     return {"width": width, "seed": seed, "error": tr.error,
-            **{k: v / ref - 1.0 for k, v in flows.items()}, "flow": flows["10-90"]}
+            **{k: v / ref - 1.0 for k, v in flows.items()},
+            "10-90 line": flows["10-90"] / line_flow_at(width) - 1.0, "flow": flows["10-90"]}
 
 
 def main() -> None:
@@ -108,7 +112,7 @@ def main() -> None:
     key = "density" if args.ring else "width"
     xs = TARGET_DENSITIES if args.ring else WIDTHS
     for how in ["10-90"] if args.ring else ["10-90", "all end", "all entrance",
-                                             "rolling middle"]:
+                                             "rolling middle", "10-90 line"]:
         err = np.array([[next(r[how] for r in rows if r["seed"] == s and r[key] == x)
                          for x in xs] for s in seeds])
         worst = np.max(np.abs(err), axis=1)

@@ -39,7 +39,11 @@ def number(value: Any, field: str, *, positive: bool = False, nonnegative: bool 
 def integer(value: Any, field: str, *, low: int = 0, fix: str = "") -> int:
     """An int (numpy integers too, never a bool) >= low."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise SceneError(field, f"must be an integer >= {low}, got {show(value)}",
+        got = show(value)
+        if isinstance(value, (float, np.floating)) and math.isfinite(value):
+            # 2e1 or 20.0 reads as a float: say so, since it prints as 20
+            got = f"{float(value)!r}, written with a decimal point or an exponent"
+        raise SceneError(field, f"must be an integer >= {low}, got {got}",
                          fix or f"set {field} to a whole number >= {low}")
     return int(value)
 

@@ -151,3 +151,41 @@ def test_exit_choice_test_fails_when_nobody_chooses(tmp_path, capsys):
     assert rc == 1
     assert line.split()[1] == "FAIL", line
     assert "exit 2 used by 0-0 people" in line
+
+
+def test_experimental_line_is_the_least_squares_line_of_both_experiments():
+    from sweep_core.verify.diagrams import WIDTHS, experimental_line, experiments
+    pts = [(s, w, j) for s, w, j in experiments() if WIDTHS[0] <= w <= WIDTHS[-1]]
+    assert {s for s, _, _ in pts} == {"seyfried2009", "kretz2006"}
+    a, b = experimental_line()
+    res = np.array([j - (a + b * w) for _, w, j in pts])
+    ws = np.array([w for _, w, _ in pts])
+    # the normal equations of the fit: residuals orthogonal to 1 and to w
+    assert abs(res.sum()) < 1e-12 and abs((res * ws).sum()) < 1e-12
+    # and no other line fits better: moving a or b raises the squared residuals
+    base = (res ** 2).sum()
+    for da, db in ((1e-3, 0.0), (-1e-3, 0.0), (0.0, 1e-3), (0.0, -1e-3)):
+        moved = np.array([j - (a + da + (b + db) * w) for _, w, j in pts])
+        assert (moved ** 2).sum() > base
+
+
+def test_bottleneck_verdict_judges_each_seed_against_the_line():
+    from sweep_core.verify.diagrams import WIDTHS, judge_flows, line_flow_at, seyfried
+    line = {w: line_flow_at(w) for w in WIDTHS}
+    # seed 0 just inside at both ends, seed 1 16 % over at 1.0 m, seed 2 a failed run, seed 3
+    # exactly Seyfried's points
+    factors = [{0.8: 1.14, 1.0: 1.0, 1.2: 0.86}, {0.8: 1.0, 1.0: 1.16, 1.2: 1.0}]
+    headway = {w: [line[w] * f[w] for f in factors] + [float("nan"), seyfried(w)]
+               for w in WIDTHS}
+    pure = {w: [3.0 * line[w]] * 4 for w in WIDTHS}
+    verdict = judge_flows({"headway": headway, "pure": pure})
+    assert verdict.passed[:3] == [True, False, False]
+    assert verdict.values[0] == pytest.approx(0.14) and verdict.values[1] == pytest.approx(0.16)
+    assert verdict.status == "FAIL"
+    # Seyfried's own points are judged against the line, and their own departure is reported
+    assert verdict.values[3] == pytest.approx(max(abs(seyfried(w) / line[w] - 1)
+                                                  for w in WIDTHS))
+    assert "from Seyfried 2009 alone" in verdict.notes and "0.0-" in verdict.notes
+    ok = judge_flows({"headway": {w: [line[w]] for w in WIDTHS},
+                      "pure": {w: [line[w]] for w in WIDTHS}})
+    assert ok.status == "PASS" and ok.values == [pytest.approx(0.0)]

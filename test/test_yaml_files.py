@@ -10,7 +10,7 @@ import yaml
 
 import sweep_core as sc
 from sweep_core.model import yaml_files
-from sweep_core.model.scene import default_scene_path
+from sweep_core.model.scene import Scene, default_scene_path
 from sweep_core.model.yaml_files import load_yaml, yaml_problem
 
 HAS_LIBYAML = bool(getattr(yaml, "__with_libyaml__", False)) and hasattr(yaml, "CSafeLoader")
@@ -50,7 +50,39 @@ def test_the_c_loader_and_dumper_are_used_when_available():
 @pytest.mark.parametrize("text", [MIXED, default_scene_path().read_text()],
                          ids=["mixed", "room_door"])
 def test_load_equals_the_pure_python_loader(text):
-    assert same(load_yaml(text), yaml.load(text, Loader=yaml.SafeLoader))
+    class Pure(yaml.SafeLoader):
+        pass
+
+    Pure.add_implicit_resolver("tag:yaml.org,2002:float", yaml_files.EXPONENT_FLOAT,
+                               list("-+0123456789."))
+    assert same(load_yaml(text), yaml.load(text, Loader=Pure))
+
+
+def test_exponent_notation_is_a_number():
+    text = "a: 1e5\nb: 5e-2\nc: -2E+3\nd: .5e1\ne: 1.5e-3\nf: [1e-3, 2]\ng: '1e5'\nh: 1e\ni: e5\n"
+    assert load_yaml(text) == {"a": 1e5, "b": 0.05, "c": -2000.0, "d": 5.0, "e": 1.5e-3,
+                               "f": [1e-3, 2], "g": "1e5", "h": "1e", "i": "e5"}
+    # YAML 1.1 (PyYAML's own loaders, left unchanged) reads most of them as text
+    assert yaml.load(text, Loader=yaml.SafeLoader)["b"] == "5e-2"
+
+
+def test_exponent_in_a_scene_is_the_number():
+    base = default_scene_path().read_text()
+    assert "sigma: 0.05" in base
+    a = Scene.from_yaml_text(base)
+    b = Scene.from_yaml_text(base.replace("sigma: 0.05", "sigma: 5e-2"))
+    assert np.all(b.sigma == a.sigma) and np.all(a.sigma == 0.05)
+
+
+def test_a_whole_number_written_as_a_float_is_named_so():
+    text = default_scene_path().read_text()
+    spawn = ("name: s\nagents:\n  spawn: {region: {kind: rectangle, min: [0, 0], max: [5, 5]}, "
+             "count: 2e1, radius: 0.2, seed: 0}\n")
+    with pytest.raises(sc.SceneError) as err:
+        Scene.from_yaml_text(spawn)
+    assert "agents.spawn.count" in str(err.value) and "20.0" in str(err.value)
+    assert "exponent" in str(err.value)
+    assert text  # the bundled scene itself is unchanged
 
 
 def test_dump_loads_back_as_the_pure_python_dumper_writes():

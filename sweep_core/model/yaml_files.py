@@ -17,12 +17,27 @@ their line and column.
 """
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import yaml
 
 #: the loader class used: libyaml's safe loader when available, else PyYAML's pure-Python one
 SAFE_LOADER: type = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+#: a number in exponent notation as YAML 1.2 writes it (``1e5``, ``5e-2``, ``1.5E+3``, ``.5e1``)
+#: but YAML 1.1, which PyYAML follows, reads as text unless it has a dot and a signed exponent
+EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
+
+
+class SceneLoader(SAFE_LOADER):  # type: ignore[misc, valid-type]
+    """:data:`SAFE_LOADER` that also reads numbers in exponent notation (:data:`EXPONENT_FLOAT`)
+    as floats, so that ``sigma: 5e-2`` is the number 0.05, as a scientist means it and as
+    YAML 1.2, JSON and rcl's parameter parser read it."""
+
+
+SceneLoader.add_implicit_resolver("tag:yaml.org,2002:float", EXPONENT_FLOAT,
+                                  list("-+0123456789."))
 
 #: the dumper class used: libyaml's safe dumper when available, else PyYAML's pure-Python one
 SAFE_DUMPER: type = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
@@ -141,22 +156,22 @@ def check_yaml(text: str | bytes) -> None:
 
 
 def load_yaml(text: str | bytes) -> Any:
-    """Parse one YAML document with :data:`SAFE_LOADER` (plain data only: no Python tags),
-    after :func:`check_yaml`.
+    """Parse one YAML document with :class:`SceneLoader` (plain data only: no Python tags;
+    ``1e5`` is a number), after :func:`check_yaml`.
 
     Raises:
         yaml.YAMLError: the text is not valid YAML, or exceeds a limit (YAMLLimitError);
             :func:`yaml_problem` describes it.
     """
     check_yaml(text)
-    return yaml.load(text, Loader=SAFE_LOADER)
+    return yaml.load(text, Loader=SceneLoader)
 
 
 def compose_yaml(text: str | bytes) -> Any:
     """The node tree (``yaml.Node``, with line marks) of one document, after
     :func:`check_yaml`; raises as :func:`load_yaml`."""
     check_yaml(text)
-    return yaml.compose(text, Loader=SAFE_LOADER)
+    return yaml.compose(text, Loader=SceneLoader)
 
 
 def dump_yaml(data: Any) -> str:
