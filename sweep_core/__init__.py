@@ -16,7 +16,7 @@ from sweep_core.numerics.schemes import SCHEMES, Scheme
 from sweep_core.numerics.simulator import Simulator, State
 from sweep_core.numerics.skorokhod import skorokhod
 
-__version__ = "0.2.1"
+__version__ = "0.2.2"
 
 __all__ = [
     "FIELD_KINDS", "Field", "InfeasibleError", "RecordingError", "SCHEMES", "Scene",

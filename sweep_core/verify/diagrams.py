@@ -286,27 +286,35 @@ def judge_flows(flows: dict[str, dict[float, list[float]]]) -> Verdict:
 
 
 def _plot_b(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> list[Path]:
+    """Two panels: the speed law against the experiments and their line with the target's
+    band (left), and the pure model on its own scale (right); mean and spread over seeds."""
     fig, ax = figure()
-    for source, marker in (("seyfried2009", "^"), ("kretz2006", "v")):
-        pts = [(w, j / w) for s, w, j in experiments() if s == source]
-        ax.scatter([p[0] for p in pts], [p[1] for p in pts], marker=marker, color="gray",
-                   label={"seyfried2009": "Seyfried et al. 2009",
-                          "kretz2006": "Kretz et al. 2006"}[source])
+    fig.set_size_inches(11.0, 4.4)
+    ax2 = fig.add_subplot(1, 2, 2)
+    ax.set_position((0.07, 0.12, 0.40, 0.78))
+    ax2.set_position((0.57, 0.12, 0.40, 0.78))
     w = np.linspace(WIDTHS[0], WIDTHS[-1], 41)
     line = np.array([line_flow_at(x) for x in w]) / w
-    ax.plot(w, line, color="black", label="experiments' line (least squares, 0.8-1.2 m)")
-    ax.fill_between(w, (1 - TARGET) * line, (1 + TARGET) * line, color="black", alpha=0.08,
-                    label=f"target: within {TARGET:.0%}")
-    for law in LAWS:
+    for panel, law in ((ax, "headway"), (ax2, "pure")):
+        for source, marker in (("seyfried2009", "^"), ("kretz2006", "v")):
+            pts = [(x, j / x) for s, x, j in experiments() if s == source]
+            panel.scatter([p[0] for p in pts], [p[1] for p in pts], marker=marker,
+                          color="gray", label={"seyfried2009": "Seyfried et al. 2009",
+                                               "kretz2006": "Kretz et al. 2006"}[source])
+        panel.plot(w, line, color="black", label="experiments' line (least squares, 0.8-1.2 m)")
+        if law == "headway":
+            panel.fill_between(w, (1 - TARGET) * line, (1 + TARGET) * line, color="black",
+                               alpha=0.08, label=f"target: within {TARGET:.0%}")
         ws = sorted(verdict.figures[law])
-        js = [np.asarray(verdict.figures[law][w]) / w for w in ws]
-        ax.errorbar(ws, [np.nanmean(j) for j in js], yerr=[np.nanstd(j) for j in js],
-                    marker="o", capsize=3,
-                    label="speed law (csm, defaults)" if law == "headway" else "pure model")
-    ax.set_xlabel("bottleneck width w (m)")
-    ax.set_ylabel("specific flow J / w (1/(m s))")
-    ax.set_title("Bottleneck: specific flow against width")
-    ax.legend(fontsize=8)
+        js = [np.asarray(verdict.figures[law][x]) / x for x in ws]
+        panel.errorbar(ws, [np.nanmean(j) for j in js], yerr=[np.nanstd(j) for j in js],
+                       marker="o", capsize=3, color="C0" if law == "headway" else "C1",
+                       label="speed law (csm, defaults)" if law == "headway" else "pure model")
+        panel.set_xlabel("bottleneck width w (m)")
+        panel.set_ylabel("specific flow J / w (1/(m s))")
+        panel.legend(fontsize=8)
+    ax.set_title("Bottleneck: specific flow, speed law")
+    ax2.set_title("... and the pure model (no speed law)")
     return [save(fig, folder / "bottleneck_specific_flow.png")]
 
 
