@@ -30,7 +30,7 @@ SAFE_LOADER: type = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
 
 
-class SceneLoader(SAFE_LOADER):  # type: ignore[misc, valid-type]
+class SceneLoader(SAFE_LOADER):
     """:data:`SAFE_LOADER` that also reads numbers in exponent notation (:data:`EXPONENT_FLOAT`)
     as floats, so that ``sigma: 5e-2`` is the number 0.05, as a scientist means it and as
     YAML 1.2, JSON and rcl's parameter parser read it."""
