@@ -40,7 +40,7 @@ def integer(value: Any, field: str, *, low: int = 0, fix: str = "") -> int:
     """An int (numpy integers too, never a bool) >= low."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
         got = show(value)
-        if isinstance(value, (float, np.floating)) and math.isfinite(value):
+        if isinstance(value, (float, np.floating)) and float(value).is_integer():
             # 2e1 or 20.0 reads as a float: say so, since it prints as 20
             got = f"{float(value)!r}, written with a decimal point or an exponent"
         raise SceneError(field, f"must be an integer >= {low}, got {got}",
