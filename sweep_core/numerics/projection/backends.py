@@ -3,8 +3,9 @@
 The cluster QP min 1/2 |x - t|^2 s.t. C x >= b + eps_abs is posed to qpsolvers as
 P = I, q = -t, G = -C, h = -(b + eps_abs) (sparse); its multipliers z of G x <= h are the
 cluster's lam (x = t + C^T z). Each solver gets the tight tolerances of ``SETTINGS`` (qpsolvers
-passes them to the solver as they are): 1e-12 where the solver's own criterion allows it, so
-that the answer is certified by the duality gap rather than taken on trust.
+passes them to the solver as they are): 1e-12 where the solver's own criterion allows it
+(PIQP 1e-11, its answer then refined), so that the answer is certified by the duality gap
+rather than taken on trust.
 
 Clarabel and PIQP keep their own modules (:mod:`.interior`; :mod:`.pivot`, which loads PIQP's
 baseline build so that the answer does not depend on the CPU); proxsuite is qpsolvers'
