@@ -96,6 +96,22 @@ COORDINATE_BOUND = 1e4
 #: (rows of agents spread along a wall, 40 m apart, reach 1e5 m).
 POSITION_BOUND = 1e6
 
+#: the largest speed (m/s) a scene gives (drift speeds, agents' and groups' preferred
+#: speeds): one step of the longest time step, 1 s (io/limits.py), moves an agent at most the
+#: coordinate bound; at 1e20 m/s a goal drift's first step was refused as "infeasible" (rows
+#: broken by 1e18 m), which named the radii and not the speed
+MAX_SPEED = COORDINATE_BOUND / 1.0
+
+
+def speed(value: Any, field: str, *, positive: bool = False, fix: str = "") -> float:
+    """A speed (m/s): a finite number >= 0 (> 0 when ``positive``), at most MAX_SPEED."""
+    v = number(value, field, positive=positive, nonnegative=not positive, fix=fix)
+    if v > MAX_SPEED:
+        raise SceneError(field, f"{show(v)} m/s is above {MAX_SPEED:g} m/s, where a step of 1 s "
+                         "would leave the scene's coordinate bound",
+                         fix or f"set {field} to at most {MAX_SPEED:g} m/s (walking: about 1.3)")
+    return v
+
 
 def within_bound(arr: np.ndarray, field: str, what: str = "coordinate",
                  bound: float = COORDINATE_BOUND) -> np.ndarray:

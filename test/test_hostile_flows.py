@@ -89,6 +89,29 @@ def test_a_preferred_speed_beyond_the_bound_is_refused(flow, field):
     assert err.field == field and str(int(flows.MAX_SPEED)) in str(err)
 
 
+@pytest.mark.parametrize("edit, field", [
+    (lambda d: d["drift"].update(speed=1e20), "drift.speed"),
+    (lambda d: d["agents"].update(speed=1e20), "agents.speed"),
+    (lambda d: d.update(drift={"kind": "geodesic", "goal": [9.5, 2.0], "speed": 2e4}),
+     "drift.speed"),
+    (lambda d: d.update(drift={"kind": "groups", "groups": [
+        {"name": "a", "agents": [0, 1, 2], "speed": 1e20,
+         "drift": {"kind": "goal", "goal": [9.5, 2.0]}}]}), "drift.groups[0].speed"),
+])
+def test_a_drift_speed_beyond_the_bound_is_refused(edit, field):
+    """Before: accepted; a goal drift at 1e20 m/s stopped at its first step with 'agents
+    cannot be placed without overlap' (fix: smaller radii), naming the radii, not the speed."""
+    data = corridor({})
+    del data["flows"]
+    edit(data)
+    err = refused(data)
+    assert err.field == field and str(int(checks.MAX_SPEED)) in str(err)
+    edit_ok = corridor({})
+    del edit_ok["flows"]
+    edit_ok["drift"]["speed"] = checks.MAX_SPEED  # the bound itself is accepted
+    Scene.from_dict(edit_ok)
+
+
 def test_a_radius_beyond_the_bound_is_named_in_the_plural_correctly():
     """Before: 'use radiuss within +-10000 m' (a robot's radius of 1e5 m)."""
     with pytest.raises(SceneError, match="use radii within"):

@@ -286,7 +286,7 @@ def plain_field_from_spec(spec: dict, kind: str, n_agents: int, field: str = "dr
         return Uniform(velocity=checks.vec2(spec["velocity"], f"{field}.velocity"))
     if kind == "goal":
         return Goal(goal=checks.point(spec["goal"], f"{field}.goal"),
-                    speed=checks.number(spec["speed"], f"{field}.speed", nonnegative=True),
+                    speed=checks.speed(spec["speed"], f"{field}.speed"),
                     slow_radius=checks.number(spec.get("slow_radius", 0.5), f"{field}.slow_radius",
                                               positive=True))
     if kind == "linear":

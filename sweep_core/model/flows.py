@@ -55,7 +55,7 @@ MAX_SOURCES = 64
 #: the largest preferred speed (m/s): one step of the longest time step, 1 s (io/limits.py),
 #: moves an agent at most the coordinate bound, 1e4 m, within which distances hold to 1e-11 m;
 #: at 1e300 m/s the projection's rows overflowed and the run stopped as "infeasible"
-MAX_SPEED = checks.COORDINATE_BOUND / 1.0
+MAX_SPEED = checks.MAX_SPEED
 _DISTRIBUTIONS: dict[str, set[str]] = {"normal": {"mean", "std", "min", "max"},
                                         "uniform": {"min", "max"}}
 

@@ -216,7 +216,7 @@ def navigation_from_spec(spec: dict, field: str, geometry: Geometry | None,
                        required={"speed"})
         targets = [target_from_spec(spec, field, False)]
         names = [field]
-    speed = checks.number(spec["speed"], f"{field}.speed", nonnegative=True)
+    speed = checks.speed(spec["speed"], f"{field}.speed")
     cell = checks.number(spec.get("cell", CELL), f"{field}.cell", positive=True)
     buffer = checks.number(spec.get("wall_buffer", WALL_BUFFER), f"{field}.wall_buffer",
                            positive=True)

@@ -106,7 +106,7 @@ def groups_from_spec(raw: Any, rest_spec: Any, n_agents: int, field: str, rest_f
                        required={"agents", "drift"})
         names.append(_name(g.get("name", f"group{k}"), f"{gf}.name", k, seen))
         idx = _members(g["agents"], n_agents, f"{gf}.agents", taken, k)
-        own = (checks.number(g["speed"], f"{gf}.speed", positive=True,
+        own = (checks.speed(g["speed"], f"{gf}.speed", positive=True,
                              fix=f"set {gf}.speed to the group's preferred speed, a number "
                                  "> 0 (m/s)")
                if g.get("speed") is not None else None)

@@ -239,7 +239,7 @@ def _build(data: Any, default_name: str, base: Path | None = None, files: bool =
     radius = checks.within_bound(checks.per_agent(agents["radius"], n, "agents.radius",
                                                   positive=True), "agents.radius", "radius")
     law = radius_law_from_spec(agents.get("radius_law"))
-    speed = checks.number(agents.get("speed", DEFAULT_SPEED), "agents.speed", nonnegative=True)
+    speed = checks.speed(agents.get("speed", DEFAULT_SPEED), "agents.speed")
     spec["agents"] = {"positions": positions.tolist(), "radius": _compact(radius, agents["radius"]),
                       "radius_law": law.to_spec(), "speed": speed}
 
