@@ -257,6 +257,13 @@ def test_two_robots_of_one_name_and_reaction_refused():
     assert err.value.field == "crowd_reaction.radius"
 
 
+def test_a_reaction_strength_beyond_the_speed_bound_is_refused():
+    """strength is a speed (m/s); before, 1e20 was accepted."""
+    with pytest.raises(SceneError) as err:
+        _scene({"pose": [3, 3, 0]}, crowd_reaction={"kind": "avoid", "strength": 1e20})
+    assert err.value.field == "crowd_reaction.strength" and "10000 m/s" in str(err.value)
+
+
 def test_placing_a_robot_on_someone_is_refused():
     scene = _scene({"pose": [3, 3, 0]})
     sim = Simulator(scene, dt=0.05, seed=0)

@@ -270,6 +270,6 @@ def reaction_from_spec(value: Any) -> tuple[CrowdReaction, dict]:
         kind,
         checks.length(d.get("radius", 2.0), "crowd_reaction.radius", positive=True),
         checks.number(d.get("horizon", 1.0), "crowd_reaction.horizon", nonnegative=True),
-        checks.number(d.get("strength", 0.8), "crowd_reaction.strength", nonnegative=True))
+        checks.speed(d.get("strength", 0.8), "crowd_reaction.strength"))  # m/s
     return reaction, {"kind": kind, "radius": reaction.radius, "horizon": reaction.horizon,
                       "strength": reaction.strength}
