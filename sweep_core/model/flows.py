@@ -52,9 +52,7 @@ MAX_SINKS = 256
 #: 64 keep that near 20 ms. With MAX_SOURCE_COUNT each, the entering agents' ids stay below
 #: 2^24, exact in the float32 ``id`` field of /agents
 MAX_SOURCES = 64
-#: the largest preferred speed (m/s): one step of the longest time step, 1 s (io/limits.py),
-#: moves an agent at most the coordinate bound, 1e4 m, within which distances hold to 1e-11 m;
-#: at 1e300 m/s the projection's rows overflowed and the run stopped as "infeasible"
+#: the largest preferred speed (m/s): :data:`sweep_core.checks.MAX_SPEED`, every speed's bound
 MAX_SPEED = checks.MAX_SPEED
 _DISTRIBUTIONS: dict[str, set[str]] = {"normal": {"mean", "std", "min", "max"},
                                         "uniform": {"min", "max"}}
@@ -101,9 +99,8 @@ def draw_from_spec(value: Any, field: str, n: int | None, *, positive: bool,
     if positive and bounded and top > MAX_SPEED:
         where = (f"{field}.max" if d.values is None else
                  f"{field}[{int(np.argmax(d.values))}]" if d.values.ndim else field)
-        raise SceneError(where, f"{show(top)} m/s is above {MAX_SPEED:g} m/s, where a step of "
-                         "1 s would leave the scene's coordinate bound",
-                         f"give preferred speeds of at most {MAX_SPEED:g} m/s")
+        checks.speed(top, where, positive=True,
+                     fix=f"give preferred speeds of at most {MAX_SPEED:g} m/s")
     return d
 
 

@@ -22,6 +22,7 @@ The departure from each experiment's own points is reported beside it.
 from __future__ import annotations
 
 import csv
+import functools
 import math
 from importlib import resources
 from pathlib import Path
@@ -175,11 +176,12 @@ def bottleneck_scene(width: float, headway: dict | None, people: int = PEOPLE) -
     return spec
 
 
-def experiments() -> list[tuple[str, float, float]]:
-    """(source, width m, flow 1/s) of the bundled experimental data."""
+@functools.cache
+def experiments() -> tuple[tuple[str, float, float], ...]:
+    """(source, width m, flow 1/s) of the bundled experimental data, read once."""
     text = resources.files("sweep_core").joinpath("verify/data/bottleneck_flow.csv").read_text()
     rows = csv.DictReader(ln for ln in text.splitlines() if not ln.startswith("#"))
-    return [(r["source"], float(r["width_m"]), float(r["flow_per_s"])) for r in rows]
+    return tuple((r["source"], float(r["width_m"]), float(r["flow_per_s"])) for r in rows)
 
 
 def _cases_b(quick: bool) -> list[Case]:

@@ -56,11 +56,11 @@ SCALES = (1e10, 1e9, 1e8)
 SKIN_ULPS = 4.0
 #: PIQP's settings for the refined QP, in its scaled units: rows to 1e-8 / D m, the
 #: stationarity to 1e-8 m, the duality gap to 1e-4 / D m^2 (far below the skin's cost); a
-#: solve takes 10 to 25 iterations; the regularisation's floor as in :data:`.pivot.SETTINGS`
+#: solve takes 10 to 25 iterations; the regularisation's floor is :data:`.pivot.SETTINGS`'s
 SETTINGS: dict[str, float | bool | int] = {
     "eps_abs": 1e-8, "eps_rel": 0.0, "eps_duality_gap_abs": 1e-4,
     "eps_duality_gap_rel": 0.0, "check_duality_gap": True, "max_iter": 40,
-    "reg_lower_limit": 1e-11}
+    "reg_lower_limit": pivot.SETTINGS["reg_lower_limit"]}
 
 
 def skin(x: np.ndarray) -> float:
