@@ -117,22 +117,26 @@ def test_bench_speed_writes_finite_numbers(tmp_path, capsys):
 def test_bench_speed_evacuation_and_backend_table(tmp_path, capsys):
     """The evacuation scene at a small size: its run columns (p99, max / median, certified
     share, run time) are finite, the same run with mixed radii follows with the ratio of the
-    two runs' times, and the backend table has one row per installed backend."""
+    two runs' times, both again at each further tolerance, and the backend table has one row
+    per installed backend."""
     from sweep_core.numerics.projection import backends
     out = tmp_path / "speed.csv"
     assert main(["bench", "speed", "--scenes", "evacuation", "--evacuation-sizes", "60",
                  "--evacuation-warmup", "60", "--evacuation-steps", "4", "--backend-qps", "1",
-                 "--timeout", "20", "--backend-timeout", "20", "--csv", str(out)]) == 0
+                 "--tols", "1e-4", "--timeout", "20", "--backend-timeout", "20",
+                 "--csv", str(out)]) == 0
     _, rows = _csv_rows(out)
-    assert [(r["N"], r["scene"]) for r in rows] == [("60", "evacuation"),
-                                                    ("60", "evacuation_mixed")]
+    assert [(r["N"], r["scene"], float(r["tol"])) for r in rows] == [
+        ("60", "evacuation", 1e-6), ("60", "evacuation_mixed", 1e-6),
+        ("60", "evacuation", 1e-4), ("60", "evacuation_mixed", 1e-4)]
     for r in rows:
         for key in ("step_median_ms", "step_p99_ms", "step_max_ms", "max_over_median", "run_s"):
             assert np.isfinite(float(r[key])) and float(r[key]) > 0, key
         assert float(r["step_p99_ms"]) <= float(r["step_max_ms"])
         assert 0.0 <= float(r["certified_share"]) <= 1.0
-    ratio = float(rows[0]["run_s"]) / float(rows[1]["run_s"])
-    assert f"ratio {ratio:.2f}" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    for equal, mixed in (rows[:2], rows[2:]):
+        assert f"ratio {float(equal['run_s']) / float(mixed['run_s']):.2f}" in printed
     names, table = _csv_rows(tmp_path / "speed_backends.csv")
     assert [t["backend"] for t in table] == backends.available()
     assert "max_dist_m" in names
