@@ -269,6 +269,33 @@ def test_an_exit_choice_with_no_exit_its_agents_can_reach_is_refused():
     Scene.from_dict(corridor({"exit_choice": [{"exits": [out[0], {"goal": [9.5, 3.0]}]}]}))
 
 
+#: a wall across the corridor at x = 5 m: the east half cannot reach the west half
+SPLIT = [{"kind": "segment", "a": [5.0, -0.5], "b": [5.0, 4.5]}]
+EAST = {"region": {"kind": "rectangle", "min": [7.0, 1.0], "max": [8.5, 3.0]}, "rate": 4.0,
+        "count": 8}
+
+
+@pytest.mark.parametrize("flow, drift, what", [
+    ({"journeys": [{"legs": [{"goal": [3.0, 2.0]}, {"goal": [1.0, 3.0]}]}]}, None,
+     "flows.journeys[0].legs[0]"),
+    ({"exit_choice": [{"exits": [{"goal": [3.0, 1.0]}, {"goal": [3.0, 3.0]}]}]}, None,
+     "any of flows.exit_choice[0].exits"),
+    ({}, {"kind": "geodesic", "goal": [3.0, 2.0], "speed": 1.3}, "the drift's goal"),
+])
+def test_a_source_whose_agents_cannot_walk_to_their_target_is_refused(flow, drift, what):
+    """Before: accepted; the agents the source emitted in the walled-off half walked west
+    into the wall between them and their target and stayed pressed against it (x 5.2 to
+    5.6 m after 10 s); the initial agents, in the other half, were checked. The same source
+    in their half is accepted, and so is one across the wall (some of its points have a way:
+    only a source none of whose points has one is refused)."""
+    more = {"walls": copy.deepcopy(ROOM) + SPLIT, **({"drift": drift} if drift else {})}
+    err = refused(corridor({**flow, "sources": [SOURCE, EAST]}, **more))
+    assert err.field == "flows.sources[1].region" and what in err.problem
+    Scene.from_dict(corridor({**flow, "sources": [SOURCE]}, **more))
+    across = {**EAST, "region": {"kind": "rectangle", "min": [4.0, 1.0], "max": [6.0, 3.0]}}
+    Scene.from_dict(corridor({**flow, "sources": [across]}, **more))
+
+
 # -- sweep verify's options and outputs ------------------------------------------------------
 
 

@@ -1,7 +1,10 @@
 """What a scene's sources can never do, refused when the scene is built: a source whose region
 has no point where its largest disk is clear of the walls and obstacles (that agent, and every
-one due after it, would wait for ever), and a source whose region lies inside a sink (every
-agent it emits would leave at once). :mod:`sweep_core.model.flows` calls :func:`check_sources`.
+one due after it, would wait for ever), a source whose region lies inside a sink (every
+agent it emits would leave at once), and a source none of whose points has a way round the
+walls to the first target its agents head for (every agent it emits would walk into the walls
+between them and stay there).
+:mod:`sweep_core.model.flows` calls :func:`check_sources` and :func:`check_source_ways`.
 
 The room test is a proof, never a guess: the clearance c(q) (m) of a centre q, its distance to
 the nearest wall or obstacle (negative inside a polygon obstacle), is 1-Lipschitz in q. On a
@@ -25,6 +28,7 @@ from sweep_core.errors import SceneError, show
 from sweep_core.model.geometry import single_rows
 from sweep_core.model.outlines import points_in_polygon
 from sweep_core.model.regions import Region
+from sweep_core.model.travel import reaches
 
 #: grid nodes per axis of the room test: at most 128 x 128 = 16384 candidate centres, tested
 #: against the walls through the spatial index (a few milliseconds); a region up to about
@@ -97,3 +101,36 @@ def check_sources(sources: Sequence[Any], sinks: Sequence[Region], geometry: Any
                              "that radius could never enter there, nor any after it",
                              f"move {field}.region into the free space, make it larger, or "
                              f"make {field}.radius smaller")
+
+
+def region_samples(region: Region, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Points (M, 2) m standing for ``region`` on a navigation grid of node coordinates x (W,),
+    y (H,) m: the grid's nodes inside it, the centre of its bounding box when inside, and its
+    corners. Every free node an agent inside the region could start from is one of these
+    nodes or the nearest free node of a point near its edge."""
+    xs = x[(x >= region.lo[0]) & (x <= region.hi[0])]
+    ys = y[(y >= region.lo[1]) & (y <= region.hi[1])]
+    nodes = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+    inner = np.concatenate([nodes, 0.5 * (region.lo + region.hi)[None]])
+    return np.concatenate([inner[region.contains(inner)], region.points])
+
+
+def check_source_ways(sources: Sequence[Any], ways: dict[int, tuple[str, list]]) -> None:
+    """Refuse a source (``flows.sources[k]``) whose agents' group g has navigation fields
+    ``ways[g]`` = (what they lead to, [fields]) of which none has a way from any point of the
+    source's region (:func:`region_samples`, each taken to its nearest free node, as an agent
+    is). Sources of groups without a navigation field (a straight goal, no drift) and fields
+    recomputed as obstacles move are not tested."""
+    for k, src in enumerate(sources):
+        what, fields = ways.get(src.group, ("", []))
+        fields = [f for f in fields if f.update_every is None]
+        if not fields:
+            continue
+        if any(reaches(region_samples(src.region, f.x, f.y), f.x, f.y, f.free, f.travel).any()
+               for f in fields):
+            continue
+        raise SceneError(f"flows.sources[{k}].region", f"has no point with a way round the "
+                         f"walls to {what}: every agent the source emits would walk into a "
+                         "wall and stay there",
+                         f"move flows.sources[{k}].region to where {what} can be reached, "
+                         "open a passage, or move the target")

@@ -32,7 +32,7 @@ from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.exit_choice import ExitChoice, exit_choice_from_spec
 from sweep_core.model.fields import Field, Groups
-from sweep_core.model.flow_checks import check_sources
+from sweep_core.model.flow_checks import check_source_ways, check_sources
 from sweep_core.model.journeys import Journey, journey_from_spec, members
 from sweep_core.model.regions import Region, region_from_spec
 from sweep_core.model.speed_law import (
@@ -338,6 +338,8 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
                                                      None if recorded else positions)))
     if choices:
         spec["exit_choice"] = [c.spec for c in choices]
+    if not recorded and sources:
+        check_source_ways(sources, _first_ways(drift, names, journeys, choices))
     law = headway_from_spec(raw.get("headway"), bounded=not recorded)
     if law is not None:
         spec["headway"] = law
@@ -352,6 +354,23 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
     if out.changes_population:
         _check_changing(out, drift, sigma)
     return out
+
+
+def _first_ways(drift: Field, names: tuple[str, ...], journeys: list[Journey],
+                choices: list[ExitChoice]) -> dict[int, tuple[str, list]]:
+    """Per group (-1: agents in no group), what its agents head for first and the navigation
+    fields that lead there: its journey's first leg, its exit choice's exits, or its drift's
+    geodesic field (none for a straight goal)."""
+    from sweep_core.model.geodesic import navigation_fields  # built on fields
+
+    ways: dict[int, tuple[str, list]] = {
+        g: ("the drift's goal" if g < 0 else f"group {names[g]}'s goal", [f])
+        for g, f in navigation_fields(drift)}
+    for k, j in enumerate(journeys):
+        ways[j.group] = (f"flows.journeys[{k}].legs[0]", [j.fields[0]])
+    for k, c in enumerate(choices):
+        ways[c.group] = (f"any of flows.exit_choice[{k}].exits", list(c.fields))
+    return ways
 
 
 def _listed(raw: dict, key: str, most: int | None = None) -> list:
