@@ -28,7 +28,7 @@ from sweep_core.errors import SceneError, show
 from sweep_core.model.geometry import single_rows
 from sweep_core.model.outlines import points_in_polygon
 from sweep_core.model.regions import Region
-from sweep_core.model.travel import reaches
+from sweep_core.model.travel import node_index, reach_grid
 
 #: grid nodes per axis of the room test: at most 128 x 128 = 16384 candidate centres, tested
 #: against the walls through the spatial index (a few milliseconds); a region up to about
@@ -103,34 +103,52 @@ def check_sources(sources: Sequence[Any], sinks: Sequence[Region], geometry: Any
                              f"make {field}.radius smaller")
 
 
-def region_samples(region: Region, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Points (M, 2) m standing for ``region`` on a navigation grid of node coordinates x (W,),
-    y (H,) m: the grid's nodes inside it, the centre of its bounding box when inside, and its
-    corners. Every free node an agent inside the region could start from is one of these
-    nodes or the nearest free node of a point near its edge."""
-    xs = x[(x >= region.lo[0]) & (x <= region.hi[0])]
-    ys = y[(y >= region.lo[1]) & (y <= region.hi[1])]
-    nodes = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
-    inner = np.concatenate([nodes, 0.5 * (region.lo + region.hi)[None]])
-    return np.concatenate([inner[region.contains(inner)], region.points])
+#: grid nodes tested for lying inside a source's region at a time: the test stops at the first
+#: node inside whose nearest free node has a way, usually in the first batch
+WAY_BATCH = 4096
+
+
+def has_way(region: Region, x: np.ndarray, y: np.ndarray, good: np.ndarray) -> bool:
+    """Whether some point of ``region`` has a way to a navigation field's target: its corners,
+    the centre of its bounding box when inside, or a grid node (x (W,), y (H,) m) inside it,
+    whose nearest grid node is marked in ``good`` (H, W) bool (:func:`.travel.reach_grid`:
+    its nearest free node has a way), as an agent there is led."""
+    centre = 0.5 * (region.lo + region.hi)[None]
+    points = np.concatenate([region.points, centre[region.contains(centre)]])
+    if good[node_index(points, x, y)].any():
+        return True
+    x0, x1 = np.searchsorted(x, region.lo[0]), np.searchsorted(x, region.hi[0], side="right")
+    y0, y1 = np.searchsorted(y, region.lo[1]), np.searchsorted(y, region.hi[1], side="right")
+    gy, gx = np.nonzero(good[y0:y1, x0:x1])
+    for s in range(0, len(gy), WAY_BATCH):
+        nodes = np.stack([x[x0 + gx[s:s + WAY_BATCH]], y[y0 + gy[s:s + WAY_BATCH]]], axis=1)
+        if region.contains(nodes).any():
+            return True
+    return False
 
 
 def check_source_ways(sources: Sequence[Any], ways: dict[int, tuple[str, list]]) -> None:
     """Refuse a source (``flows.sources[k]``) whose agents' group g has navigation fields
-    ``ways[g]`` = (what they lead to, [fields]) of which none has a way from any point of the
-    source's region (:func:`region_samples`, each taken to its nearest free node, as an agent
-    is). Sources of groups without a navigation field (a straight goal, no drift) and fields
-    recomputed as obstacles move are not tested."""
+    ``ways[g]`` = (what they lead to, [fields]) none of which has a way from the source's
+    region (:func:`has_way`). Sources of groups without a navigation field (a straight goal,
+    no drift) and fields recomputed as obstacles move are not tested. One distance transform
+    per field, however many sources use it."""
+    grids: dict[int, np.ndarray] = {}
     for k, src in enumerate(sources):
         what, fields = ways.get(src.group, ("", []))
         fields = [f for f in fields if f.update_every is None]
         if not fields:
             continue
-        if any(reaches(region_samples(src.region, f.x, f.y), f.x, f.y, f.free, f.travel).any()
-               for f in fields):
-            continue
-        raise SceneError(f"flows.sources[{k}].region", f"has no point with a way round the "
-                         f"walls to {what}: every agent the source emits would walk into a "
-                         "wall and stay there",
-                         f"move flows.sources[{k}].region to where {what} can be reached, "
-                         "open a passage, or move the target")
+        found = False
+        for f in fields:
+            if id(f) not in grids:
+                grids[id(f)] = reach_grid(f.free, f.travel)
+            if has_way(src.region, f.x, f.y, grids[id(f)]):
+                found = True
+                break
+        if not found:
+            raise SceneError(f"flows.sources[{k}].region", f"has no point with a way round "
+                             f"the walls to {what}: every agent the source emits would walk "
+                             "into a wall and stay there",
+                             f"move flows.sources[{k}].region to where {what} can be reached, "
+                             "open a passage, or move the target")

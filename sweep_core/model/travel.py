@@ -254,25 +254,43 @@ def _descent(travel: np.ndarray, cell: float) -> np.ndarray:
     return out
 
 
+def node_index(positions: np.ndarray, x: np.ndarray, y: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """The row and column indices (M,) of the grid node (x (W,), y (H,) m) nearest each
+    position (M, 2) m, clipped to the grid."""
+    cell = float(x[1] - x[0])
+    ix = np.clip(np.rint((positions[:, 0] - x[0]) / cell).astype(np.int64), 0, len(x) - 1)
+    iy = np.clip(np.rint((positions[:, 1] - y[0]) / cell).astype(np.int64), 0, len(y) - 1)
+    return iy, ix
+
+
 def nearest_free(positions: np.ndarray, x: np.ndarray, y: np.ndarray, free: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """The row and column indices (M,) of the free node nearest each position (M, 2) m (some
     node must be free)."""
-    cell = float(x[1] - x[0])
-    ix = np.clip(np.rint((positions[:, 0] - x[0]) / cell).astype(np.int64), 0, len(x) - 1)
-    iy = np.clip(np.rint((positions[:, 1] - y[0]) / cell).astype(np.int64), 0, len(y) - 1)
+    iy, ix = node_index(positions, x, y)
     _, (ny, nx) = ndimage.distance_transform_edt(~free, return_indices=True)
     return ny[iy, ix], nx[iy, ix]
+
+
+def reach_grid(free: np.ndarray, travel: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the free node nearest each node of the grid has a free path to the goal
+    (False everywhere when no node is free); one distance transform for any number of
+    positions (:func:`node_index` finds theirs)."""
+    if not np.any(free):
+        return np.zeros(free.shape, dtype=bool)
+    _, (ny, nx) = ndimage.distance_transform_edt(~free, return_indices=True)
+    return np.isfinite(travel[ny, nx])
 
 
 def reaches(positions: np.ndarray, x: np.ndarray, y: np.ndarray, free: np.ndarray,
             travel: np.ndarray) -> np.ndarray:
     """(M,) bool: the free node nearest each position (M, 2) m has a free path to the goal
     (False everywhere when no node is free)."""
-    if len(positions) == 0 or not np.any(free):
-        return np.zeros(len(positions), dtype=bool)
-    ny, nx = nearest_free(positions, x, y, free)
-    return np.isfinite(travel[ny, nx])
+    if len(positions) == 0:
+        return np.zeros(0, dtype=bool)
+    iy, ix = node_index(positions, x, y)
+    return reach_grid(free, travel)[iy, ix]
 
 
 def check_agents(positions: np.ndarray, x: np.ndarray, y: np.ndarray, free: np.ndarray,
