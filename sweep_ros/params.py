@@ -128,16 +128,18 @@ SPECS: tuple[ParamSpec, ...] = (
               "fallback solver.", False, 1, 1000000),
     ParamSpec("solver_exact_vars", _DEFAULT_SOLVER.exact_vars, "Contact clusters of up to this "
               "many variables (2 per agent) are solved exactly by the active-set solver; larger "
-              "ones by the interior-point backend (its proved bound is in the diagnostics: up to "
-              "3e-5 m in a jam of 1000 equal disks at a door).",
+              "ones by the interior-point backend, whose answer is refined and certified the "
+              "same way (its proved bound is in the diagnostics: up to 3.5e-7 m in a jam of "
+              "1000 equal disks at a door).",
               False, 0, 100000),
     ParamSpec("solver_backend", _DEFAULT_SOLVER.backend, "QP solver (through qpsolvers) of "
               "the contact clusters too large for the exact active-set solver: any installed "
               "one (piqp, clarabel, osqp, proxqp, ...).", False,
               constraints="the name of an installed QP solver"),
     ParamSpec("solver_tol", _DEFAULT_SOLVER.tol, "Certified accuracy of each projection, m: "
-              "every step's distance to the exact projection is proved below it (reported as "
-              "'bound' in diagnostics).", False, 1e-12, 1.0),
+              "every step's distance to the exact projection is proved below it where rounding "
+              "allows (the bound proved is 'bound' in diagnostics); 1e-4 makes jams cheaper.",
+              False, 1e-12, 1.0),
     ParamSpec("solver_max_rounds", _DEFAULT_SOLVER.max_rounds, "Rounds of the certified solver "
               "per step before uncertified clusters go to the exact or interior-point solvers.",
               False, 0, 100000),
