@@ -156,3 +156,26 @@ def test_env_actions_refused(env: object, action: object) -> None:
     assert err.value.field == "action" and len(str(err.value)) < 300
     # the refused action took no step: the episode goes on
     assert np.isfinite(env.step([0.5, 0.0])[1])  # type: ignore[attr-defined]
+
+
+# -- the node's command messages -------------------------------------------------------------
+
+def test_command_refusal_cuts_an_enormous_frame_id() -> None:
+    """A goal, velocity or initial pose in a frame id of 1e5 characters is refused with a
+    verdict of one short line (the whole frame id used to be quoted, twice for a map)."""
+    pytest.importorskip("rclpy")
+    from geometry_msgs.msg import PointStamped, PoseWithCovarianceStamped, TwistStamped
+
+    from sweep_ros import messages, robot_messages
+
+    huge = "x" * 100_000
+    goal, twist, pose = PointStamped(), TwistStamped(), PoseWithCovarianceStamped()
+    for msg in (goal, twist, pose):
+        msg.header.frame_id = huge
+    pose.pose.pose.orientation.w = 1.0
+    for parse in (lambda: messages.goal_point(goal, "map"),
+                  lambda: robot_messages.velocity_command(twist, True, "base_link", "bot/cmd_vel"),
+                  lambda: robot_messages.initial_pose(pose, "map", "bot/initialpose")):
+        with pytest.raises(messages.CommandError) as err:
+            parse()
+        assert "frame" in str(err.value) and len(str(err.value)) < 400, str(err.value)[:200]
