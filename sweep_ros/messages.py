@@ -80,7 +80,7 @@ def goal_point(msg: Any, frame_id: str, topic: str = "goal") -> np.ndarray:
     the origin; the header's frame must be empty or ``frame_id`` (there is no TF lookup)."""
     frame = msg.header.frame_id
     if frame not in ("", frame_id):
-        raise CommandError(topic, f"frame {frame!r} is not the simulation frame {frame_id!r} "
+        raise CommandError(topic, f"frame {show(frame)} is not the simulation frame {frame_id!r} "
                                   f"(fix: send the goal in {frame_id!r})")
     p = [msg.point.x, msg.point.y, msg.point.z]
     if not all(math.isfinite(c) for c in p):
@@ -134,9 +134,9 @@ def map_from_grid(msg: Any, frame_id: str, topic: str = "map") -> OccupancyMap:
     rotation about z."""
     frame = msg.header.frame_id
     if frame not in ("", frame_id):
-        raise CommandError(topic, f"frame {frame!r} is not the simulation frame {frame_id!r} "
+        raise CommandError(topic, f"frame {show(frame)} is not the simulation frame {frame_id!r} "
                                   f"(fix: publish the map in {frame_id!r}, or set the node's "
-                                  f"frame_id to {frame!r})")
+                                  f"frame_id to {show(frame)})")
     info = msg.info
     o, p = info.origin.orientation, info.origin.position
     quat = [o.x, o.y, o.z, o.w]

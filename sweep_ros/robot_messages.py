@@ -52,7 +52,7 @@ def velocity_command(msg: Any, stamped: bool, base_frame: str, topic: str
     if stamped:
         frame = msg.header.frame_id
         if frame not in ("", base_frame):
-            raise CommandError(topic, f"header.frame_id {frame!r} is not the robot's base frame "
+            raise CommandError(topic, f"header.frame_id {show(frame)} is not the robot's base frame "
                                       f"{base_frame!r} (fix: send the velocity in "
                                       f"{base_frame!r}, or an empty frame_id)")
         twist = msg.twist
@@ -74,7 +74,7 @@ def initial_pose(msg: Any, map_frame: str, topic: str) -> tuple[float, float, fl
     exact)."""
     frame = msg.header.frame_id
     if frame not in ("", map_frame):
-        raise CommandError(topic, f"header.frame_id {frame!r} is not the map frame "
+        raise CommandError(topic, f"header.frame_id {show(frame)} is not the map frame "
                                   f"{map_frame!r} (fix: send the pose in {map_frame!r})")
     p, o = msg.pose.pose.position, msg.pose.pose.orientation
     quat = [o.x, o.y, o.z, o.w]

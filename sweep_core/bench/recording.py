@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sweep_core.bench import options
 from sweep_core.bench.speed import crowd
 from sweep_core.bench.tables import write_csv
 from sweep_core.io import topics
@@ -75,6 +76,11 @@ def measure(n: int, jammed: bool, steps: int, warmup: int, block: int = 20,
 
 
 def run(args: argparse.Namespace) -> int:
+    options.counts(args.sizes, "--sizes", high=options.MAX_AGENTS, example="1000")
+    options.count(args.steps, "--steps", example="200")
+    options.count(args.warmup, "--warmup", low=0, example="5")
+    options.count(args.block, "--block", example="20")
+    options.csv_path(args.csv)
     widths = (6, 7, 9, 11, 10, 14, 11, 13, 12, 12)
     print("per step, ms; record = snapshot + CDR encoding + hand-off on the stepping thread")
     print(" ".join(f"{c:>{w}}" for c, w in zip(COLUMNS, widths)), flush=True)

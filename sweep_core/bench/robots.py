@@ -16,7 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
+from sweep_core.bench import options
 from sweep_core.bench.tables import write_csv
+from sweep_core.model.robots import MAX_BEAMS
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.robots.scan import scan
 
@@ -54,6 +56,10 @@ def measure(n: int, beams: int, repeat: int) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    options.counts(args.sizes, "--sizes", high=options.MAX_AGENTS, example="1000")
+    options.counts(args.beams, "--beams", high=MAX_BEAMS, example="360")
+    options.count(args.repeat, "--repeat", example="50")
+    options.csv_path(args.csv)
     print("per scan, ms (median and max over the repeats); core_pct_10hz: one core's share")
     print(" ".join(f"{c:>14}" for c in COLUMNS), flush=True)
     results = []

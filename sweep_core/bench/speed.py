@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from sweep_core.bench import options
 from sweep_core.bench.evacuation import DT as EVACUATION_DT
 from sweep_core.bench.evacuation import evacuation
 from sweep_core.bench.tables import write_csv
@@ -265,6 +266,7 @@ def _cell(value: Any, width: int) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    options.speed(args)
     args.backend = projection.SolverOptions.from_values(backend=args.backend).backend
     baseline = not args.no_baseline
     missing = cromosim_missing() if baseline else "baselines off"

@@ -5,13 +5,16 @@ import csv
 from collections.abc import Sequence
 from pathlib import Path
 
+from sweep_core.io.outputs import replacing
+
 
 def write_csv(path: Path, rows: list[dict], columns: Sequence[str] | None = None) -> None:
-    """The rows as a CSV with a header: ``columns``, or the keys of the first row. Nothing is
-    written for no rows without columns."""
+    """The rows as a CSV with a header: ``columns``, or the keys of the first row, written whole
+    or not at all (:func:`~sweep_core.io.outputs.replacing`). Nothing is written for no rows
+    without columns."""
     if columns is None and not rows:
         return
-    with Path(path).open("w", newline="") as fh:
+    with replacing(path, other="--csv OTHER.csv") as tmp, Path(tmp).open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(columns or rows[0]))
         w.writeheader()
         w.writerows(rows)

@@ -17,6 +17,7 @@ from typing import Any
 
 from sweep_core.ensemble import paired
 from sweep_core.errors import SceneError
+from sweep_core.io import limits
 from sweep_core.numerics.schemes import SCHEMES
 
 #: keys that are run options, not scene keys
@@ -92,6 +93,8 @@ def check_value(key: str, value: Any) -> Value:
     if key == "dt" and (isinstance(value, str) or value <= 0):
         raise SceneError("--vary", f"dt: value {value!r} is not a positive number of seconds",
                          "e.g. dt=0.02,0.01")
+    if key == "dt":  # the range sweep run and sweep_node accept
+        limits.check_dt(value, "--vary dt")
     if key == paired.KEY and value not in (paired.WITH, paired.WITHOUT):
         raise SceneError("--vary", f"robots: value {value!r} is neither with nor without",
                          "pair runs with and without the scene's robots: robots=with,without")

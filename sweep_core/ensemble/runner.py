@@ -22,6 +22,7 @@ from sweep_core.analysis.lines import parse_line
 from sweep_core.ensemble import cluster, grid, paired, store
 from sweep_core.ensemble.task import RECORD, Task, simulate
 from sweep_core.errors import SceneError
+from sweep_core.io import limits
 from sweep_core.io.outputs import write_text
 from sweep_core.model.scene import DEFAULT_SCENE, Scene, copy_spec, load_scene
 from sweep_core.numerics import kernels
@@ -44,10 +45,26 @@ def resolve_scene(scene: Scene | dict | str | Path | None) -> Scene:
     return load_scene(str(scene))
 
 
+#: most runs (runs per grid point x grid points) of one ensemble: each run is a Dask task and
+#: a head and a task kept here before the first one is submitted (measured: 53 MB and 1.5 s
+#: per 1e5 runs, so 1e9 runs built lists until memory ran out), and Dask's scheduler adds
+#: its own state and scheduling time per task (about 1 ms, Dask's own figure)
+MAX_RUNS = 100_000
+
+#: largest seed: runs.parquet stores seeds as int64 (a seed of 2^64 failed after every run)
+MAX_SEED = 2**63 - 1
+
+
 def _check_options(runs: int, seed0: int, t_end: float, dt: float, scheme: str, record: str,
                    out: str | Path | None, arrive_radius: float | None) -> None:
     checks.integer(runs, "--runs", low=1, fix="e.g. --runs 200")
+    if runs > MAX_RUNS:
+        raise SceneError("--runs", f"{runs} runs are more than the limit {MAX_RUNS} of one "
+                         "ensemble", f"--runs {MAX_RUNS} or fewer (several --out folders for more)")
     checks.integer(seed0, "--seed0", fix="e.g. --seed0 0")
+    if seed0 + runs - 1 > MAX_SEED:
+        raise SceneError("--seed0", f"{seed0} + {runs} runs passes the largest seed {MAX_SEED} "
+                         "(2^63 - 1)", f"--seed0 {MAX_SEED - runs + 1} or less")
     for field, value, example in (("--t-end", t_end, "60"), ("--dt", dt, "0.01"),
                                   ("--arrive-radius", arrive_radius, "1.0")):
         if value is None and field == "--arrive-radius":
@@ -58,6 +75,8 @@ def _check_options(runs: int, seed0: int, t_end: float, dt: float, scheme: str, 
             shown = f"{value:g}" if isinstance(value, float) else repr(value)
             raise SceneError(field, f"must be a positive number, got {shown}",
                              f"e.g. {field} {example}")
+    limits.check_dt(dt, "--dt")
+    check_steps(t_end, dt, "--dt")
     if scheme not in SCHEMES:
         raise SceneError("--scheme", f"unknown scheme {scheme!r}", f"use one of {sorted(SCHEMES)}")
     if record not in RECORD:
@@ -66,6 +85,19 @@ def _check_options(runs: int, seed0: int, t_end: float, dt: float, scheme: str, 
     if record == "full" and out is None:
         raise SceneError("--record", "full writes one MCAP per run into the output directory",
                          "give --out DIR (out=DIR)")
+
+
+def check_steps(t_end: float, dt: float, field: str) -> None:
+    """Refuses a run of more than :data:`limits.MAX_STEPS` steps (``sweep run``'s bound
+    without --force), naming ``field`` (``--dt``, or the grid key ``dt``)."""
+    steps = t_end / dt
+    if steps > limits.MAX_STEPS:
+        shorter = f"a shorter --t-end (at most {limits.MAX_STEPS * dt:g} s)"
+        least = t_end / limits.MAX_STEPS
+        raise SceneError(f"--t-end/{field}", f"{t_end:g} s at dt = {dt:g} s is {steps:g} steps "
+                         f"per run, more than the limit {limits.MAX_STEPS:g}",
+                         f"a dt of at least {least:g} s, or {shorter}"
+                         if least <= limits.DT_MAX else shorter)
 
 
 def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0: int = 0,
@@ -117,6 +149,14 @@ def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0:
     base.check_horizon(t_end)
     spec = copy_spec(base)
     points = grid.grid(vary, spec)
+    if runs * len(points) > MAX_RUNS:
+        raise SceneError("--runs", f"{runs} runs x {len(points)} grid points are "
+                         f"{runs * len(points)} runs, more than the limit {MAX_RUNS} of one "
+                         "ensemble", f"--runs {MAX_RUNS // len(points)} or fewer, or fewer "
+                         "--vary values")
+    for point in points:
+        if "dt" in point:
+            check_steps(t_end, float(point["dt"]), "--vary dt")
     keys = list(points[0])
     out_dir = Path(out).resolve() if out is not None else None
     held = None  # DIR/.lock, held while this ensemble writes DIR

@@ -41,8 +41,10 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+from sweep_core import checks
 from sweep_core.analysis import social
-from sweep_core.errors import SceneError
+from sweep_core.errors import SceneError, show
+from sweep_core.io import limits
 from sweep_core.model.scene import Scene, load_scene
 from sweep_core.numerics.simulator import Simulator
 
@@ -96,14 +98,14 @@ class CrowdNavEnv(gymnasium.Env):
         if not spec.get("scan"):
             raise SceneError(f"{field}.scan", "is missing: the observation holds a scan",
                              f"give {field}.scan (range_max, angle_min, angle_max, increment)")
-        self.dt, self.max_steps, self.scheme = float(dt), int(max_steps), scheme
-        if not (self.dt > 0 and math.isfinite(self.dt)):
-            raise SceneError("dt", f"must be a positive number of seconds, got {dt!r}",
-                             "e.g. dt=0.1")
-        if self.max_steps < 1:
-            raise SceneError("max_steps", f"must be at least 1, got {max_steps!r}",
-                             "e.g. max_steps=500")
-        self.rewards = (float(success_reward), float(contact_penalty), float(discomfort_penalty))
+        self.dt = limits.check_dt(dt, "dt")  # the range of sweep run and sweep_node
+        self.max_steps = checks.integer(max_steps, "max_steps", low=1, fix="e.g. max_steps=500")
+        self.scheme = scheme
+        # a NaN or infinite term would make every reward NaN or infinite, silently
+        self.rewards = tuple(checks.number(v, k, fix=f"set {k} to a finite number, e.g. {d}")
+                             for k, v, d in (("success_reward", success_reward, 1.0),
+                                             ("contact_penalty", contact_penalty, 0.25),
+                                             ("discomfort_penalty", discomfort_penalty, 0.5)))
         self.spec_robot = social.RobotSpec(name, float(spec["radius"]),
                                            np.asarray(spec["goal"], dtype=np.float64)[:2],
                                            float(spec.get("goal_radius",
@@ -203,10 +205,14 @@ class CrowdNavEnv(gymnasium.Env):
 
     def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool,
                                          dict[str, Any]]:
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        try:
+            a = np.asarray(action, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError):  # a string, a dict, complex numbers
+            raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, got "
+                             f"{show(action)}", "give an element of env.action_space") from None
         if a.shape != self.box.shape or not np.isfinite(a).all():
             raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, "
-                             f"got {a.tolist()}", "give an element of env.action_space")
+                             f"got {show(a)}", "give an element of env.action_space")
         a = np.clip(a, self.box.low, self.box.high)
         cmd = (a[0], a[1], a[2]) if self.holonomic else (a[0], 0.0, a[1])
         assert self.sim.robots is not None

@@ -15,7 +15,7 @@ from importlib import resources
 from pathlib import Path
 
 from sweep_core import checks
-from sweep_core.errors import SceneError
+from sweep_core.errors import SceneError, show
 from sweep_core.model.yaml_files import load_yaml
 
 #: the index of the bundled scenes, beside them
@@ -74,16 +74,21 @@ def resolve_scene_path(scene: str | Path) -> Path:
             the bundled names).
     """
     path = Path(scene)
-    if path.exists():
-        return path
     text = str(scene)
+    try:
+        if path.exists():
+            return path
+    except OSError as err:  # a name longer than the file system takes (ENAMETOOLONG)
+        raise SceneError("scene", f"{show(text)} ({len(text)} characters) cannot be looked up: "
+                         f"{err.strerror}", "give the path of a scene YAML file, or a bundled "
+                         "scene's name (sweep scenes lists them)") from None
     name = text[:-5] if text.endswith(".yaml") else text
     names = bundled_names()
     if name in names:  # a bundled name, e.g. bottleneck or rimea/rimea06_corner
         return scenes_dir() / f"{name}.yaml"
     if str(path.parent) != ".":
         return path
-    raise SceneError("scene", f"no file {str(scene)!r} here, and no bundled scene of that name",
+    raise SceneError("scene", f"no file {show(text)} here, and no bundled scene of that name",
                      f"give the path of a scene YAML file, or a bundled scene: "
                      f"{', '.join(names)} (sweep scenes describes them)")
 
