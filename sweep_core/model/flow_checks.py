@@ -134,19 +134,16 @@ def check_source_ways(sources: Sequence[Any], ways: dict[int, tuple[str, list]])
     no drift) and fields recomputed as obstacles move are not tested. One distance transform
     per field, however many sources use it."""
     grids: dict[int, np.ndarray] = {}
+
+    def good(f: Any) -> np.ndarray:
+        if id(f) not in grids:
+            grids[id(f)] = reach_grid(f.free, f.travel)
+        return grids[id(f)]
+
     for k, src in enumerate(sources):
         what, fields = ways.get(src.group, ("", []))
         fields = [f for f in fields if f.update_every is None]
-        if not fields:
-            continue
-        found = False
-        for f in fields:
-            if id(f) not in grids:
-                grids[id(f)] = reach_grid(f.free, f.travel)
-            if has_way(src.region, f.x, f.y, grids[id(f)]):
-                found = True
-                break
-        if not found:
+        if fields and not any(has_way(src.region, f.x, f.y, good(f)) for f in fields):
             raise SceneError(f"flows.sources[{k}].region", f"has no point with a way round "
                              f"the walls to {what}: every agent the source emits would walk "
                              "into a wall and stay there",
