@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from sweep_core.cli.commands import summary
 from sweep_core.ensemble import grid, paired
 from sweep_core.ensemble.task import RECORD
 from sweep_core.numerics.schemes import SCHEMES
@@ -53,9 +54,7 @@ def _ensemble(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Adds ``ensemble`` to the ``sweep`` command's subparsers."""
-    p = sub.add_parser(
-        "ensemble", help="seeded runs x a grid of scene keys on a Dask cluster: one row of "
-        "analyze metrics per run, summary statistics and plots",
+    p = sub.add_parser("ensemble", help=summary("ensemble"),
         description="Run k of every grid point uses seed SEED0+k and gives exactly what `sweep "
         "run --seed SEED0+k` gives. Without --scheduler a LocalCluster of --workers processes "
         "runs on this machine; with it, the runs go to that Dask cluster (`dask scheduler`, "

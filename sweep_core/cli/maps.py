@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from sweep_core.cli.commands import summary
 from sweep_core.errors import SceneError
 from sweep_core.io.outputs import check_output, replacing, write_text
 from sweep_core.model.maps import OccupancyMap, read_map_yaml
@@ -129,8 +130,7 @@ def _positive(kind: type) -> Any:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Adds ``map`` to the ``sweep`` command's subparsers."""
-    p = sub.add_parser("map", help="show what a map_server map becomes (walls), draw it, and "
-                       "write a scene that uses it",
+    p = sub.add_parser("map", help=summary("map"),
                        description="Reads a map_server YAML (PGM or PNG image) and prints its "
                        "cells, free area and the wall segments a scene gets from it (the exact "
                        "boundary of blocked cells: occupied or unknown).")

@@ -15,6 +15,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
+from sweep_core.cli.commands import summary
 from sweep_core import checks
 from sweep_core.errors import SweepError
 from sweep_core.io import limits
@@ -187,8 +188,7 @@ def _write_summary(summary_path: Path, out: Path, scene: Scene, sim: Simulator,
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``run`` to the ``sweep`` command's subparsers."""
-    parser = sub.add_parser(
-        "run", help="run a scene headless and record it to MCAP",
+    parser = sub.add_parser("run", help=summary("run"),
         description="Runs a scene, records every K-th step to OUT (MCAP) and writes "
         "OUT.summary.json. The summary's status is completed, interrupted (SIGINT, SIGTERM: the "
         "run stops between two steps and the recording is closed) or failed (with the error); "
@@ -207,7 +207,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help=f"time step, s, in [{limits.DT_MIN:g}, {limits.DT_MAX:g}] as the "
                              "node's dt parameter (default 0.01)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the Brownian path (default 0)")
-    parser.add_argument("--scheme", default="projected_euler", choices=sorted(SCHEMES))
+    parser.add_argument("--scheme", default="projected_euler", choices=sorted(SCHEMES),
+                        help="time-stepping scheme: projected_euler (one projection per step, the "
+                             "default), bridge (projected Euler with the Brownian-bridge "
+                             "correction of wall and obstacle contacts), adaptive (bridge "
+                             "steps bisected where an agent in contact moves far against "
+                             "its radius); docs/mathematics.md")
     parser.add_argument("--out", default="run.mcap", help="MCAP file to write (default run.mcap)")
     parser.add_argument("--frame-id", default="map", help="frame of the recorded poses")
     parser.add_argument("--record-every", type=int, default=1, metavar="K",
