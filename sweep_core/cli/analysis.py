@@ -8,8 +8,8 @@ import argparse
 import json
 import sys
 
-from sweep_core.cli.commands import summary
 from sweep_core.analysis import compare, metrics, replay, report
+from sweep_core.cli.commands import summary
 from sweep_core.io.recording.recover import hint
 from sweep_core.numerics import kernels
 

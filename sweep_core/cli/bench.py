@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import argparse
 
-from sweep_core.cli.commands import summary
 from sweep_core.bench import STUDIES
+from sweep_core.cli.commands import summary
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

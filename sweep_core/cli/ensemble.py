@@ -67,7 +67,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed0", type=int, default=0, help="seed of run 0 (default 0)")
     p.add_argument("--t-end", type=float, default=60.0, help="simulated time, s (default 60)")
     p.add_argument("--dt", type=float, default=0.01, help="time step, s (default 0.01)")
-    p.add_argument("--scheme", default="projected_euler", choices=sorted(SCHEMES))
+    p.add_argument("--scheme", default="projected_euler", choices=sorted(SCHEMES),
+                   help="time-stepping scheme of every run, as sweep run --scheme (default "
+                        "projected_euler)")
     p.add_argument("--vary", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="a grid over a run option (dt, scheme) or a dotted scene key "
                         "(noise.sigma, agents.radius, walls.0.velocity); repeatable: the grid is "

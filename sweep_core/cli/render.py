@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import argparse
 
-from sweep_core.cli.commands import summary
 from sweep_core.analysis import render
+from sweep_core.cli.commands import summary
 from sweep_core.errors import SweepError
 
 __all__ = ["register"]

@@ -15,8 +15,8 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from sweep_core.cli.commands import summary
 from sweep_core import checks
+from sweep_core.cli.commands import summary
 from sweep_core.errors import SweepError
 from sweep_core.io import limits
 from sweep_core.io.metadata import run_metadata
