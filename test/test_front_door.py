@@ -82,3 +82,25 @@ def test_bench_startup_times_each_line(tmp_path: Path, capsys: pytest.CaptureFix
     assert float(rows["python -c pass"]["over_python"]) == 1.0
     assert all(float(r["median_s"]) > 0 for r in rows.values())
     assert "sweep --help" in capsys.readouterr().out
+
+
+def test_run_never_replaces_a_recording_unasked(tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """A second sweep run on the same --out is refused in one line and leaves the first
+    recording as it was; --overwrite replaces it; a missing folder is made."""
+    import yaml
+
+    scene = tmp_path / "s.yaml"
+    scene.write_text(yaml.safe_dump({"agents": {"positions": [[1.0, 1.0], [2.0, 2.0]],
+                                                "radius": 0.2}}))
+    out = tmp_path / "tour" / "one.mcap"
+    assert main(["run", str(scene), "--t-end", "0.05", "--out", str(out), "--quiet"]) == 0
+    before = out.read_bytes()
+    capsys.readouterr()
+    assert main(["run", str(scene), "--t-end", "0.1", "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{out}: exists" in err and "--overwrite" in err, err
+    assert out.read_bytes() == before
+    assert main(["run", str(scene), "--t-end", "0.1", "--out", str(out), "--quiet",
+                 "--overwrite"]) == 0
+    assert out.read_bytes() != before

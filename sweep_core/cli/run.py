@@ -17,7 +17,7 @@ from typing import Any
 
 from sweep_core import checks
 from sweep_core.cli.commands import summary
-from sweep_core.errors import SweepError
+from sweep_core.errors import OutputError, SweepError
 from sweep_core.io import limits
 from sweep_core.io.metadata import run_metadata
 from sweep_core.io.outputs import check_output, write_text
@@ -93,6 +93,14 @@ def _run(args: argparse.Namespace) -> int:
                           path_dt=args.path_dt or None, frame_id=args.frame_id, force=args.force)
     inputs = scene_files(args.scene, scene)
     out = check_output(args.out, inputs)
+    if out.exists() and not args.overwrite:
+        raise OutputError(str(out), "exists: sweep run never replaces a recording unasked",
+                          "--out OTHER.mcap, or --overwrite to replace it")
+    if not out.parent.is_dir():
+        if out.parent.exists():
+            raise OutputError(str(out), f"its folder {out.parent} is not a folder",
+                              "--out in a folder")
+        out.parent.mkdir(parents=True)
     summary_out = check_output(out.with_suffix(".summary.json"), inputs)
     stats = {"min_gap": math.inf, "active_rows_max": 0, "active_rows_sum": 0, "steps": 0,
              "backend_agents_max": 0, "bound_max_m": 0.0}
@@ -213,7 +221,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                              "correction of wall and obstacle contacts), adaptive (bridge "
                              "steps bisected where an agent in contact moves far against "
                              "its radius); docs/mathematics.md")
-    parser.add_argument("--out", default="run.mcap", help="MCAP file to write (default run.mcap)")
+    parser.add_argument("--out", default="run.mcap",
+                        help="MCAP file to write, its folder made when absent (default run.mcap); "
+                             "an existing file is refused unless --overwrite")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace OUT and OUT.summary.json when they exist")
     parser.add_argument("--frame-id", default="map", help="frame of the recorded poses")
     parser.add_argument("--record-every", type=int, default=1, metavar="K",
                         help="record every K-th step (default 1: every step)")
