@@ -104,3 +104,21 @@ def test_run_never_replaces_a_recording_unasked(tmp_path: Path,
     assert main(["run", str(scene), "--t-end", "0.1", "--out", str(out), "--quiet",
                  "--overwrite"]) == 0
     assert out.read_bytes() != before
+
+
+def test_an_obstacle_centre_is_spelt_either_way() -> None:
+    """``centre`` (the docs' spelling) and ``center`` give the same obstacle; both at once is
+    a one-line error naming the obstacle."""
+    from sweep_core.errors import SceneError
+    from sweep_core.model.scene import Scene
+
+    base = {"agents": {"positions": [[0.0, 0.0]], "radius": 0.2}}
+    british = Scene.from_dict({**base, "obstacles": [
+        {"kind": "circle", "centre": [2.0, 1.0], "radius": 0.5}]})
+    american = Scene.from_dict({**base, "obstacles": [
+        {"kind": "circle", "center": [2.0, 1.0], "radius": 0.5}]})
+    assert british.geometry.circle_center.tolist() == american.geometry.circle_center.tolist()
+    assert british.geometry.circle_center.tolist() == [[2.0, 1.0]]
+    with pytest.raises(SceneError, match=r"obstacles\[0\]: has both centre and center"):
+        Scene.from_dict({**base, "obstacles": [
+            {"kind": "circle", "centre": [2.0, 1.0], "center": [2.0, 1.0], "radius": 0.5}]})
