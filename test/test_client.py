@@ -361,7 +361,8 @@ def test_status_is_the_node_now_consistent_with_pause_step_and_reset(installed, 
         assert done.returncode == 0, done
         paused_at = int(re.match(r"paused at step (\d+)", done.stdout).group(1))
         now = status()
-        assert now["head"] == "sweep_node: simulation: OK paused", now
+        # the level is OK unless the machine's load made timer overruns (WARN, said first)
+        assert re.fullmatch(r"sweep_node: simulation: (OK paused|WARN .+)", now["head"]), now
         assert now["paused"] == "true" and int(now["steps"]) == paused_at, (now, paused_at)
         assert client("step", "2").returncode == 0
         now = status()
@@ -370,7 +371,9 @@ def test_status_is_the_node_now_consistent_with_pause_step_and_reset(installed, 
         now = status()
         assert int(now["steps"]) == 0 and now["paused"] == "true", now
         assert client("resume").returncode == 0
-        assert status()["head"] == "sweep_node: simulation: OK running"
+        now = status()
+        assert now["paused"] == "false", now
+        assert re.fullmatch(r"sweep_node: simulation: (OK running|WARN .+)", now["head"]), now
     finally:
         code = node.stop(signal.SIGTERM)
     assert code == 0, node.log
