@@ -7,7 +7,7 @@
     python -m sweep_ros.client cmd-vel VX VY    # the crowd's uniform field, m/s (crowd/cmd_vel)
     python -m sweep_ros.client goal X Y         # goal-directed field towards (X, Y), m
     python -m sweep_ros.client goal X Y --group NAME   # the same for the scene's group NAME only
-    python -m sweep_ros.client status           # the node's latest diagnostics message
+    python -m sweep_ros.client status           # the node's status now (its status service)
 
 Options: ``--namespace NS`` (the node's namespace, default none), ``--timeout S`` (discovery,
 and then the reply or verdict, default 10 s). DDS settings come from the environment as for the
@@ -116,7 +116,8 @@ def build_parser() -> argparse.ArgumentParser:
     goal.add_argument("--group", type=_group_name, default=None, metavar="NAME",
                       help="only the scene's group NAME heads there (topic goal/NAME); the "
                            "others keep their drift")
-    sub.add_parser("status", help="print the node's latest diagnostics message")
+    sub.add_parser("status", help="print the node's status now, as it answers between two "
+                   "steps (level, message, steps, paused, rates, counters)")
     return ap
 
 
@@ -285,22 +286,6 @@ class Client:
                 return gid_hex(e.endpoint_gid)
         return ""
 
-    def diagnostics(self) -> Any:
-        """The node's latest diagnostics message (latched: at once, or the next one); other
-        nodes' messages on the topic (their status is not ``<node>: simulation``) are
-        skipped."""
-        from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
-        got: list[Any] = []
-
-        def keep(msg: Any) -> None:
-            if len(msg.status) == 1 and msg.status[0].name.endswith(": simulation"):
-                got.append(msg)
-        latched = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        sub = self.node.create_subscription(DiagnosticArray, "diagnostics", keep, latched)
-        return self._spin_until(lambda: got and got[-1], f"sweep_node on {sub.topic_name}")
 
 
 def _one_server(client: Client, what: str) -> int:
@@ -368,12 +353,11 @@ def run(args: argparse.Namespace, client: Client) -> int:
         who = "" if args.group is None else f" for group {args.group}"
         return _report(client, client.command(PointStamped, topic, point),
                        f"goal ({args.x:g}, {args.y:g}) m{who}")
-    status = client.diagnostics().status[0]
-    level = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}.get(status.level[0], "?")
-    print(f"{status.name}: {level} {status.message}")
-    for kv in status.values:
-        print(f"  {kv.key}: {kv.value}")
-    return 0
+    from std_srvs.srv import Trigger
+
+    res = client.call(Trigger, "status", Trigger.Request())
+    print(res.message)
+    return (0 if res.success else 1) or _one_server(client, "status")
 
 
 def main(argv: list[str] | None = None) -> int:

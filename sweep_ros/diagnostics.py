@@ -1,5 +1,6 @@
 """The node's diagnostics (:class:`DiagnosticsMixin` of :class:`sweep_ros.node.SweepNode`, once
-a second on the latched ``diagnostics`` topic) and the DiagnosticArray they are sent as
+a second on the latched ``diagnostics`` topic, and at once after pause, step and reset; the same
+status answered now by the ``status`` service) and the DiagnosticArray they are sent as
 (:func:`diagnostics`).
 """
 from __future__ import annotations
@@ -50,8 +51,9 @@ class DiagnosticsMixin:
             if not self._closed:
                 self._publish_diagnostics()
 
-    def _publish_diagnostics(self) -> None:
-        """Publishes (and records) one diagnostics message; the caller holds the gate."""
+    def _status_now(self) -> tuple[str, str, dict[str, Any]]:
+        """The node's level, message and values now (the caller holds the gate); nothing is
+        published or reset."""
         w, now = self._window, time.monotonic()
         wall = max(now - w.wall0, 1e-9)
         sim, rec = self.sim, self.recorder
@@ -79,8 +81,6 @@ class DiagnosticsMixin:
                                       f"{wall:.1f} s (subscription queue full; latest wins)")
         else:
             level, message = "OK", "paused" if self.paused else "running"
-        if isinstance(lost, int):
-            self._lost_reported = lost
         values = {
             "sim_time_s": sim.t, "steps": sim.n_steps, "agents": self.scene.n_agents,
             "paused": self.paused,
@@ -107,8 +107,24 @@ class DiagnosticsMixin:
             "recording_backlog": rec.backlog if rec is not None else 0,
             "recorded_messages": rec.written if rec is not None else 0,
         }
-        msg = diagnostics(topics.stamp_ns(sim.t), f"{self.get_name()}: simulation",
-                                   self.scene.name, level, message, values)
-        self._publish(self.pub_diag, bytes(serialize_message(msg)), self._log_ns(sim.t))
-        self._window = Window(sim.t)
+        return level, message, values
+
+    def _status_text(self) -> str:
+        """What the ``status`` service answers: the diagnostics' status line and values, now
+        (the caller holds the gate)."""
+        level, message, values = self._status_now()
+        lines = [f"{self.get_name()}: simulation: {level} {message}"]
+        lines += [f"  {k}: {_show(v)}" for k, v in values.items()]
+        return "\n".join(lines)
+
+    def _publish_diagnostics(self) -> None:
+        """Publishes (and records) one diagnostics message; the caller holds the gate."""
+        level, message, values = self._status_now()
+        lost = values["commands_lost"]
+        if isinstance(lost, int):
+            self._lost_reported = lost
+        msg = diagnostics(topics.stamp_ns(self.sim.t), f"{self.get_name()}: simulation",
+                          self.scene.name, level, message, values)
+        self._publish(self.pub_diag, bytes(serialize_message(msg)), self._log_ns(self.sim.t))
+        self._window = Window(self.sim.t)
         self._map_problem = None

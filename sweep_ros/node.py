@@ -223,6 +223,7 @@ class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin
         self.srv_reset = self.create_service(Trigger, "reset", self._on_reset)
         self.srv_pause = self.create_service(SetBool, "pause", self._on_pause)
         self.srv_step = self.create_service(Trigger, "step", self._on_step)
+        self.srv_status = self.create_service(Trigger, "status", self._on_status)
 
         if self._p["record"]:
             self._open_recording()

@@ -44,6 +44,7 @@ class ServicesMixin:
                               self._log_ns(0.0))
             self._publish_walls()
             self._publish_state(force_markers=True)
+            self._publish_diagnostics()
             response.success = True
             response.message = (f"reset to t = 0 with seed {self.sim.seed} (was step "
                                 f"{before[0]}, t = {before[1]:g} s); drift back to the scene's "
@@ -56,6 +57,7 @@ class ServicesMixin:
         with self._gate.control():
             self.paused = bool(request.data)
             self._rt_anchor = None
+            self._publish_diagnostics()
             response.success = True
             response.message = (f"{'paused' if self.paused else 'running'} at step "
                                 f"{self.sim.n_steps}, t = {self.sim.t:g} s")
@@ -66,14 +68,25 @@ class ServicesMixin:
         with self._gate.control():
             if not self.paused:
                 response.success = False
-                response.message = "not paused (fix: call pause with data: true first)"
+                response.message = ("not paused (fix: pause first: sweep_client pause, or the "
+                                    "pause service with data: true)")
             elif self._advance():
                 self._publish_state(force_markers=True)
+                self._publish_diagnostics()
                 response.success = True
                 response.message = f"step {self.sim.n_steps}, t = {self.sim.t:g} s"
             else:
                 response.success = False
                 response.message = f"step failed: {self.failure}"
+        return response
+
+    def _on_status(self, request: Trigger.Request, response: Trigger.Response
+                   ) -> Trigger.Response:
+        """The node's status now, between two steps (the latched diagnostics message can be up
+        to a second old)."""
+        with self._gate.control():
+            response.success = not self._closed
+            response.message = self._status_text() if not self._closed else "closing"
         return response
 
     # -- parameters ------------------------------------------------------------------------------

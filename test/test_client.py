@@ -332,3 +332,48 @@ def test_client_names_a_subscriber_of_another_type():
         rclpy.try_shutdown()
         other.destroy_node()
         rclpy.shutdown(context=context)
+
+
+def test_status_is_the_node_now_consistent_with_pause_step_and_reset(installed, probe,  # noqa: F811
+                                                                      tmp_path):
+    """status is answered by the node between two steps: right after pause it says paused at
+    the step pause named, after step the next step, after reset step 0; step while running
+    names the client's pause command."""
+    scene_path = tmp_path / "scene.yaml"
+    scene_path.write_text(yaml.safe_dump(SCENE))
+    node = Running(installed, tmp_path, {
+        "scene": str(scene_path), "dt": DT, "rate_hz": 50.0, "publish_markers": False})
+    client = client_runner(installed, tmp_path)
+
+    def status() -> dict[str, str]:
+        done = client("status")
+        assert done.returncode == 0, done
+        head, *rest = done.stdout.strip().splitlines()
+        values = dict(line.strip().split(": ", 1) for line in rest)
+        values["head"] = head
+        return values
+    try:
+        connect(probe, node)
+        done = client("step")
+        assert done.returncode == 1, done
+        assert "sweep_client pause" in done.stdout, done
+        done = client("pause")
+        assert done.returncode == 0, done
+        paused_at = int(re.match(r"paused at step (\d+)", done.stdout).group(1))
+        now = status()
+        # the level is OK unless the machine's load made timer overruns (WARN, said first)
+        assert re.fullmatch(r"sweep_node: simulation: (OK paused|WARN .+)", now["head"]), now
+        assert now["paused"] == "true" and int(now["steps"]) == paused_at, (now, paused_at)
+        assert client("step", "2").returncode == 0
+        now = status()
+        assert int(now["steps"]) == paused_at + 2, (now, paused_at)
+        assert client("reset").returncode == 0
+        now = status()
+        assert int(now["steps"]) == 0 and now["paused"] == "true", now
+        assert client("resume").returncode == 0
+        now = status()
+        assert now["paused"] == "false", now
+        assert re.fullmatch(r"sweep_node: simulation: (OK running|WARN .+)", now["head"]), now
+    finally:
+        code = node.stop(signal.SIGTERM)
+    assert code == 0, node.log

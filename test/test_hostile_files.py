@@ -194,8 +194,8 @@ def test_two_writers_of_one_recording(tmp_path, scene):
         while not (busy.exists() and busy.stat().st_size > 0):
             assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
             time.sleep(0.05)
-        done = _sweep(["run", str(scene), "--t-end", "0.05", "--out", "busy.mcap", "--quiet"],
-                      tmp_path)
+        done = _sweep(["run", str(scene), "--t-end", "0.05", "--out", "busy.mcap", "--quiet",
+                       "--overwrite"], tmp_path)
         assert done.returncode == 2, done.stdout + done.stderr
         assert "busy.mcap: another run is writing it right now" in done.stderr
         assert "completed" not in done.stdout

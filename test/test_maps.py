@@ -1,4 +1,5 @@
 """Occupancy maps (map_server YAML + PGM/PNG) as walls (issue 13)."""
+import re
 from pathlib import Path
 
 import numpy as np
@@ -141,8 +142,15 @@ def test_sweep_map_prints_draws_and_writes_a_scene(tmp_path: Path, capsys: pytes
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     scene = sc.Scene.from_yaml(scene_file)  # the map path is relative to the scene file
     assert scene.n_agents == 10
+    # people walk round the walls to a free point; coordinates are written as decimals
+    assert scene.spec["drift"]["kind"] == "geodesic"
+    assert not re.search(r"\d\.\d*0000000\d|\d\.\d*9999999\d", scene_file.read_text())
     sim = sc.Simulator(scene, dt=0.01, seed=0)
-    sim.step(20)
+    start = sim.positions.copy()
+    goal = np.array(scene.spec["drift"]["goal"])
+    sim.step(100)
+    before = np.linalg.norm(start - goal, axis=1).mean()
+    assert np.linalg.norm(sim.positions - goal, axis=1).mean() < 0.8 * before  # 0.5 here
 
 
 def test_sweep_map_bad_file_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

@@ -99,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``recording`` to the ``bench`` subcommands."""
     p = sub.add_parser("recording", help="per-step cost of recording beside the step time")
-    p.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000])
+    p.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000], metavar="N",
+                   help="agent counts measured (default 1000 10000)")
     p.add_argument("--steps", type=int, default=200,
                    help="measured steps, with and without recording each (default 200)")
     p.add_argument("--warmup", type=int, default=5, help="steps before measuring")

@@ -77,8 +77,10 @@ def run(args: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``robots`` to the ``bench`` subcommands."""
     p = sub.add_parser("robots", help="cost of a robot's laser scan among N people")
-    p.add_argument("--sizes", type=int, nargs="+", default=[100, 1000])
-    p.add_argument("--beams", type=int, nargs="+", default=[360, 1440])
+    p.add_argument("--sizes", type=int, nargs="+", default=[100, 1000], metavar="N",
+                   help="people round the robot (default 100 1000)")
+    p.add_argument("--beams", type=int, nargs="+", default=[360, 1440],
+                   help="beams of the scan (default 360 1440)")
     p.add_argument("--repeat", type=int, default=50, help="scans timed per row (default 50)")
     p.add_argument("--csv", default="bench_robots.csv", help="CSV file to write")
     p.set_defaults(func=run)

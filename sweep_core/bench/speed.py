@@ -369,7 +369,8 @@ def compare_backends(worker: Worker, qps: list[dict], limit_s: float) -> list[di
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``speed`` to the ``bench`` subcommands."""
     p = sub.add_parser("speed", help="step time vs floor and whole-set QP baselines")
-    p.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 4000, 10000])
+    p.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 4000, 10000], metavar="N",
+                   help="agent counts of the scenes (default 100 1000 4000 10000)")
     shown = [s for s in SCENES if s != "evacuation_mixed"]  # run with "evacuation"
     p.add_argument("--scenes", nargs="+", default=shown, choices=shown,
                    help="hex: hexagonal jam pushed to its centre; disordered: polydisperse "

@@ -1,43 +1,56 @@
-"""The ``sweep`` command: ``run`` a scene headless and record it (``scenes`` lists the bundled
-ones), ``analyze``, ``render``, ``replay`` and ``compare`` recordings, ``recover`` one cut short,
-``bench accuracy`` and ``bench speed``, ``verify`` (the RiMEA tests) and ``export`` (PedPy
-trajectories)."""
+"""The sweep command: run a scene headless and record it (scenes lists the bundled ones);
+analyze, render, replay and compare recordings; recover one cut short; bench (measured
+studies of the engine); verify (the RiMEA tests and the validation against experiments); export
+(PedPy trajectories). sweep COMMAND --help tells more of each."""
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 
-from sweep_core.cli import analysis, bench, ensemble, maps, recover, render, run, scenes, verify
+from sweep_core.cli.commands import COMMANDS
 from sweep_core.errors import SweepError
+from sweep_core.version import __version__
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``sweep`` parser. With ``command`` (a key of :data:`COMMANDS`), only that command's
+    module is imported and its options registered; the others appear with their one-line help
+    alone (so ``sweep --help`` imports none of the engine). Without it, every command is
+    registered."""
     parser = argparse.ArgumentParser(prog="sweep", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True)
-    run.register(sub)
-    scenes.register(sub)
-    analysis.register(sub)
-    render.register(sub)
-    recover.register(sub)
-    maps.register(sub)
-    bench.register(sub)
-    ensemble.register(sub)
-    verify.register(sub)
+    parser.add_argument("--version", action="version", version=f"sweep {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    chosen = {c.module for n, c in COMMANDS.items() if command is None or n == command}
+    registered: set[str] = set()
+    for name, (module, help_line) in COMMANDS.items():
+        if module not in chosen:
+            sub.add_parser(name, help=help_line)
+        elif module not in registered:
+            importlib.import_module(f"sweep_core.cli.{module}").register(sub)
+            registered.add(module)
     return parser
 
 
+def _command(argv: list[str]) -> str:
+    """The command ``argv`` names: its first word that is not an option ('' when none)."""
+    for word in argv:
+        if not word.startswith("-"):
+            return word if word in COMMANDS else ""
+    return ""
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    args_list = sys.argv[1:] if argv is None else argv
+    parser = build_parser(_command(args_list))
+    args = parser.parse_args(args_list)
     if getattr(args, "record_every", 1) < 1:
         parser.error("--record-every: must be >= 1")
     try:
-        return args.func(args)
+        return int(args.func(args))
     except SweepError as err:
         print(f"sweep: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("sweep: interrupted; the recording was closed", file=sys.stderr)
         return 130
-
-

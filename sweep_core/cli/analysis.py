@@ -9,6 +9,7 @@ import json
 import sys
 
 from sweep_core.analysis import compare, metrics, replay, report
+from sweep_core.cli.commands import summary
 from sweep_core.io.recording.recover import hint
 from sweep_core.numerics import kernels
 
@@ -73,8 +74,7 @@ def _compare(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Adds the ``analyze``, ``replay`` and ``compare`` subcommands to ``sweep``."""
-    p = sub.add_parser("analyze", help="metrics of a recording: gaps, touching constraints, "
-                       "pressure, speeds, flow, arrivals, density (CSV, PNG, summary)",
+    p = sub.add_parser("analyze", help=summary("analyze"),
                        description="Writes RUN.analysis.csv (one row per recorded step), "
                        "RUN.density.csv and RUN.analysis.png next to RUN.mcap and prints a "
                        "summary, starting with how the run ended (its status record: completed, "
@@ -104,8 +104,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_analyze)
 
-    p = sub.add_parser("replay", help="re-simulate a recording from its metadata and check "
-                       "every recorded pose bit for bit",
+    p = sub.add_parser("replay", help=summary("replay"),
                        description="Exit status 0: identical; 1: diverged (the first step and "
                        "agent are reported); 2: the recording cannot be replayed.")
     p.add_argument("recording", help="MCAP file from sweep run or sweep_node")
@@ -113,8 +112,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_replay)
 
-    p = sub.add_parser("compare", help="pathwise distance between two runs of one scene on "
-                       "their common times (e.g. dt = 0.01 vs 0.001 on one Brownian path)",
+    p = sub.add_parser("compare", help=summary("compare"),
                        description="Writes A_vs_B.compare.csv, A_vs_B.agents.csv and "
                        "A_vs_B.compare.png next to A.")
     p.add_argument("a", help="first recording")

@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from sweep_core.cli.commands import summary
 from sweep_core.ensemble import grid, paired
 from sweep_core.ensemble.task import RECORD
 from sweep_core.numerics.schemes import SCHEMES
@@ -53,9 +54,7 @@ def _ensemble(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Adds ``ensemble`` to the ``sweep`` command's subparsers."""
-    p = sub.add_parser(
-        "ensemble", help="seeded runs x a grid of scene keys on a Dask cluster: one row of "
-        "analyze metrics per run, summary statistics and plots",
+    p = sub.add_parser("ensemble", help=summary("ensemble"),
         description="Run k of every grid point uses seed SEED0+k and gives exactly what `sweep "
         "run --seed SEED0+k` gives. Without --scheduler a LocalCluster of --workers processes "
         "runs on this machine; with it, the runs go to that Dask cluster (`dask scheduler`, "
@@ -68,7 +67,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed0", type=int, default=0, help="seed of run 0 (default 0)")
     p.add_argument("--t-end", type=float, default=60.0, help="simulated time, s (default 60)")
     p.add_argument("--dt", type=float, default=0.01, help="time step, s (default 0.01)")
-    p.add_argument("--scheme", default="projected_euler", choices=sorted(SCHEMES))
+    p.add_argument("--scheme", default="projected_euler", choices=sorted(SCHEMES),
+                   help="time-stepping scheme of every run, as sweep run --scheme (default "
+                        "projected_euler)")
     p.add_argument("--vary", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="a grid over a run option (dt, scheme) or a dotted scene key "
                         "(noise.sigma, agents.radius, walls.0.velocity); repeatable: the grid is "

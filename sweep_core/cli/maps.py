@@ -9,9 +9,11 @@ from typing import Any
 
 import numpy as np
 
+from sweep_core.cli.commands import summary
 from sweep_core.errors import SceneError
 from sweep_core.io.outputs import check_output, replacing, write_text
 from sweep_core.model.maps import OccupancyMap, read_map_yaml
+from sweep_core.model.scene import Scene
 from sweep_core.model.spawn import capacity, grown_area
 from sweep_core.model.yaml_files import dump_yaml
 
@@ -34,17 +36,54 @@ def describe(grid: OccupancyMap, walls: tuple[np.ndarray, np.ndarray]) -> list[t
             ("wall_length_m", f"{float(np.hypot(*(b - a).T).sum()):g}")]
 
 
+#: the starter scene's walking speed, m/s: Weidmann's free walking speed (1993)
+STARTER_SPEED = 1.34
+#: how far the starter scene's paths keep from the walls, m (the geodesic drift's default)
+STARTER_BUFFER = 0.3
+
+
+def _coordinates(points: np.ndarray) -> list[list[float]]:
+    """Points as plain lists, rounded to 1e-9 m (cell arithmetic leaves 0.30000000000000004)."""
+    return [[round(float(v), 9) for v in p] for p in points]
+
+
 def starter_scene(grid: OccupancyMap, yaml_path: str, count: int, radius: float) -> dict:
-    """A scene on the map: agents spawned over the free cells' bounding box, no drift."""
-    rows, cols = np.nonzero(~grid.blocked)
+    """A scene on the map: ``count`` agents spawned in the largest connected free space and a
+    geodesic drift, at :data:`STARTER_SPEED`, to its point farthest from any blocked cell.
+
+    The free space is the cells whose centre lies at least ``radius`` +
+    :data:`STARTER_BUFFER` + half a cell from every blocked cell's centre (so a path and a
+    disk fit); its largest 8-connected part gives the goal and, by its bounding box, the spawn
+    region.
+
+    Raises:
+        SceneError: the map has no such free space (naming ``--radius``).
+    """
+    from scipy import ndimage
+
+    free = ~grid.blocked
+    clearance = ndimage.distance_transform_edt(free) * grid.resolution
+    room = clearance >= radius + STARTER_BUFFER + 0.5 * grid.resolution
+    parts, n = ndimage.label(room, structure=np.ones((3, 3), dtype=bool))
+    if n == 0:
+        raise SceneError("--radius", f"{radius:g} m leaves no free space on the map that keeps "
+                         f"{STARTER_BUFFER:g} m from its blocked cells",
+                         "a smaller --radius, or a map with more free space")
+    largest = 1 + int(np.argmax(np.bincount(parts.ravel())[1:]))
+    rows, cols = np.nonzero(parts == largest)
     lo = np.array([cols.min(), rows.min()], dtype=float) * grid.resolution
     hi = (np.array([cols.max(), rows.max()], dtype=float) + 1.0) * grid.resolution
     box = grid.to_world(np.array([lo, hi]))
+    inner = np.where(parts == largest, clearance, -1.0)
+    r, c = np.unravel_index(int(np.argmax(inner)), inner.shape)
+    goal = grid.to_world(np.array([[c + 0.5, r + 0.5]]) * grid.resolution)
     return {"name": Path(yaml_path).stem, "map": {"yaml": yaml_path},
             "agents": {"spawn": {"region": {"kind": "rectangle",
-                                            "min": box.min(axis=0).tolist(),
-                                            "max": box.max(axis=0).tolist()},
+                                            "min": _coordinates(box.min(axis=0)[None])[0],
+                                            "max": _coordinates(box.max(axis=0)[None])[0]},
                                  "count": count, "radius": radius, "seed": 0}},
+            "drift": {"kind": "geodesic", "goal": _coordinates(goal)[0],
+                      "speed": STARTER_SPEED},
             "noise": {"sigma": 0.05}}
 
 
@@ -107,8 +146,14 @@ def _map(args: argparse.Namespace) -> int:
             rel = rel.relative_to(scene.resolve().parent)
         except ValueError:
             pass
-        write_text(scene, dump_yaml(starter_scene(grid, str(rel), args.count, args.radius)),
-                   inputs, other="--scene OTHER.yaml")
+        spec = starter_scene(grid, str(rel), args.count, args.radius)
+        try:  # written only when it loads: its agents placed, each with a way to the goal
+            Scene.from_dict(spec, base=scene.resolve().parent)
+        except SceneError as err:
+            raise SceneError("--scene", f"the starter scene does not load: {err}",
+                             "a smaller --count or --radius, or edit a scene by hand "
+                             "(docs/scenes.md)") from None
+        write_text(scene, dump_yaml(spec), inputs, other="--scene OTHER.yaml")
         print(f"{'scene':<{width}}{scene}")
     return 0
 
@@ -129,14 +174,15 @@ def _positive(kind: type) -> Any:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Adds ``map`` to the ``sweep`` command's subparsers."""
-    p = sub.add_parser("map", help="show what a map_server map becomes (walls), draw it, and "
-                       "write a scene that uses it",
+    p = sub.add_parser("map", help=summary("map"),
                        description="Reads a map_server YAML (PGM or PNG image) and prints its "
                        "cells, free area and the wall segments a scene gets from it (the exact "
                        "boundary of blocked cells: occupied or unknown).")
     p.add_argument("map", help="map_server YAML file")
     p.add_argument("--png", help="write the walls over the map to this PNG")
-    p.add_argument("--scene", help="write a starter scene (map + agents.spawn) to this YAML")
+    p.add_argument("--scene", help="write a starter scene to this YAML: the map, --count agents "
+                        "spawned in its largest free space, walking round the walls to its "
+                        "most open point")
     p.add_argument("--count", type=_positive(int), default=50,
                    help="agents of the starter scene (50)")
     p.add_argument("--radius", type=_positive(float), default=0.25,

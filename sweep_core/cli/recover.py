@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from sweep_core.cli.commands import summary
 from sweep_core.io.recording import read_metadata
 from sweep_core.io.recording.recover import default_output, format_recovery, recover
 
@@ -26,9 +27,7 @@ def _recover(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Adds ``recover`` to the ``sweep`` command's subparsers."""
-    p = sub.add_parser(
-        "recover", help="rewrite a recording cut short (kill -9, full disk) into a complete "
-        "MCAP file that rosbags, Foxglove and rosbag2 open",
+    p = sub.add_parser("recover", help=summary("recover"),
         description="Reads IN up to its last complete chunk (as sweep analyze does) and writes "
         "everything read (schemas, channels, messages, metadata, attachments) to OUT with "
         "indexes, summary and footer, plus a metadata record sweep_recover; prints the "

@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 
 from sweep_core.analysis import render
+from sweep_core.cli.commands import summary
 from sweep_core.errors import SweepError
 
 __all__ = ["register"]
@@ -35,8 +36,7 @@ def _render(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Adds the ``render`` subcommand to ``sweep``."""
-    p = sub.add_parser("render", help="an animation of a recording: disks, walls, obstacles, "
-                       "groups, the navigation field, time and status (MP4 or GIF)",
+    p = sub.add_parser("render", help=summary("render"),
                        description="Writes RUN.mp4 next to RUN.mcap (H.264 through "
                        "imageio-ffmpeg; RUN.gif through Pillow when no encoder is available, "
                        "or when --out ends in .gif). Times are seconds since the first recorded "

@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from sweep_core import checks
-from sweep_core.errors import SweepError
+from sweep_core.cli.commands import summary
+from sweep_core.errors import OutputError, SweepError
 from sweep_core.io import limits
 from sweep_core.io.metadata import run_metadata
 from sweep_core.io.outputs import check_output, write_text
@@ -92,6 +93,14 @@ def _run(args: argparse.Namespace) -> int:
                           path_dt=args.path_dt or None, frame_id=args.frame_id, force=args.force)
     inputs = scene_files(args.scene, scene)
     out = check_output(args.out, inputs)
+    if out.exists() and not args.overwrite:
+        raise OutputError(str(out), "exists: sweep run never replaces a recording unasked",
+                          "--out OTHER.mcap, or --overwrite to replace it")
+    if not out.parent.is_dir():
+        if out.parent.exists():
+            raise OutputError(str(out), f"its folder {out.parent} is not a folder",
+                              "--out in a folder")
+        out.parent.mkdir(parents=True)
     summary_out = check_output(out.with_suffix(".summary.json"), inputs)
     stats = {"min_gap": math.inf, "active_rows_max": 0, "active_rows_sum": 0, "steps": 0,
              "backend_agents_max": 0, "bound_max_m": 0.0}
@@ -187,8 +196,7 @@ def _write_summary(summary_path: Path, out: Path, scene: Scene, sim: Simulator,
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``run`` to the ``sweep`` command's subparsers."""
-    parser = sub.add_parser(
-        "run", help="run a scene headless and record it to MCAP",
+    parser = sub.add_parser("run", help=summary("run"),
         description="Runs a scene, records every K-th step to OUT (MCAP) and writes "
         "OUT.summary.json. The summary's status is completed, interrupted (SIGINT, SIGTERM: the "
         "run stops between two steps and the recording is closed) or failed (with the error); "
@@ -207,8 +215,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help=f"time step, s, in [{limits.DT_MIN:g}, {limits.DT_MAX:g}] as the "
                              "node's dt parameter (default 0.01)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the Brownian path (default 0)")
-    parser.add_argument("--scheme", default="projected_euler", choices=sorted(SCHEMES))
-    parser.add_argument("--out", default="run.mcap", help="MCAP file to write (default run.mcap)")
+    parser.add_argument("--scheme", default="projected_euler", choices=sorted(SCHEMES),
+                        help="time-stepping scheme: projected_euler (one projection per step, the "
+                             "default), bridge (projected Euler with the Brownian-bridge "
+                             "correction of wall and obstacle contacts), adaptive (bridge "
+                             "steps bisected where an agent in contact moves far against "
+                             "its radius); docs/mathematics.md")
+    parser.add_argument("--out", default="run.mcap",
+                        help="MCAP file to write, its folder made when absent (default run.mcap); "
+                             "an existing file is refused unless --overwrite")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace OUT and OUT.summary.json when they exist")
     parser.add_argument("--frame-id", default="map", help="frame of the recorded poses")
     parser.add_argument("--record-every", type=int, default=1, metavar="K",
                         help="record every K-th step (default 1: every step)")

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from sweep_core.cli.commands import summary
 from sweep_core.model.gallery import bundled_scenes, measured_on, scenes_dir
 from sweep_core.text import text_table
 
@@ -21,8 +22,7 @@ def _scenes(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``scenes`` to the ``sweep`` command's subparsers."""
-    parser = sub.add_parser(
-        "scenes", help="list the bundled scenes (sweep run NAME runs one)",
+    parser = sub.add_parser("scenes", help=summary("scenes"),
         description="Lists the scenes bundled with sweep: name, agents, the measured wall time "
         "of sweep run NAME (10 s simulated) and what each shows. sweep run NAME runs one; a "
         "name is resolved to a bundled scene only when no file of that name exists.")

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from sweep_core.cli.commands import summary
 from sweep_core.errors import SweepError
 from sweep_core.io.outputs import check_folder
 
@@ -75,8 +76,7 @@ def _export(args: argparse.Namespace) -> int:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``verify`` and ``export`` to the ``sweep`` command's subparsers."""
-    p = subparsers.add_parser(
-        "verify", help="the RiMEA tests and the validation against experiments",
+    p = subparsers.add_parser("verify", help=summary("verify"),
         description="Runs the RiMEA tests (and the validation studies) over several seeds, "
         "prints one line per test (measured, criterion, value over seeds, PASS/FAIL; DOC: "
         "documented, no threshold) and writes a report folder. Exit status 1 when any fails.")
@@ -101,7 +101,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     where.add_argument("--in-process", action="store_true", help="no Dask: run here")
     p.set_defaults(func=_verify)
 
-    e = subparsers.add_parser("export", help="a recording as PedPy trajectories",
+    e = subparsers.add_parser("export", help=summary("export"),
                               description="Writes a recording's trajectories in PedPy's text "
                               "format (id frame x y z; frame rate 1 / (dt record_every)).")
     e.add_argument("recording", help="an MCAP recording of sweep run or the node")

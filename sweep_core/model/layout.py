@@ -111,9 +111,14 @@ def geometry_from_spec(data: dict, grid: OccupancyMap | None = None
             s_m[first:] = [row] * (len(sa) - first)
             obstacles_spec.append({"kind": "polygon", "points": points.tolist(), **keys})
             continue
-        checks.mapping(obs, field, allowed={"kind", "center", "radius"} | moving,
-                       required={"center", "radius"})
-        center = checks.point(obs["center"], f"{field}.center")
+        # the key is spelt either way (centre, as the prose of the docs; center, as before)
+        if "centre" in obs and "center" in obs:
+            raise SceneError(field, "has both centre and center (one key, spelt two ways)",
+                             "keep one of them")
+        key = "centre" if "centre" in obs else "center"
+        checks.mapping(obs, field, allowed={"kind", key, "radius"} | moving,
+                       required={key, "radius"})
+        center = checks.point(obs[key], f"{field}.{key}")
         radius = checks.length(obs["radius"], f"{field}.radius", nonnegative=True)
         cc.append(center)
         cr.append(radius)
