@@ -3,7 +3,14 @@ ensemble's workers: the ``/poses`` and ``/agents`` channels, every ``record_ever
 (the first included), and a final ``sweep_status`` record however the run ends. When the
 drift has a navigation field (geodesic, exits), ``/navigation_field`` holds it too, as the node
 publishes it (:func:`~sweep_core.io.topics.encode_navigation`): with the first state, and again
-with the first recorded state of each period a field with ``update_every`` is recomputed for."""
+with the first recorded state of each period a field with ``update_every`` is recomputed for.
+
+What the bundled Foxglove layout and RViz config draw is recorded as the node publishes it
+(:mod:`sweep_core.io.markers`): ``/walls`` (MarkerArray, latched) with the first state, again
+whenever the simulator's walls change (``Simulator.set_scene``), and with every ``/markers``
+while a wall or obstacle moves; ``/markers`` (people as disks of their radii coloured by
+group, robots' footprints and headings) with every ``markers_every``-th recorded state (by
+default at 10 Hz of simulated time: a message of N people weighs about 230 N bytes)."""
 from __future__ import annotations
 
 import os
@@ -13,7 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from sweep_core.errors import RecordingError, SweepError
-from sweep_core.io import cdr, robot_topics, topics
+from sweep_core.io import cdr, markers, robot_topics, topics
+from sweep_core.io.cdr.markers import encode_marker_array
 from sweep_core.io.metadata import STATUS_RECORD, status_metadata
 from sweep_core.io.recording.background import BackgroundRecorder
 from sweep_core.io.recording.format import qos_profiles
@@ -35,9 +43,33 @@ class RecordedRun:
     wall_s: float
 
 
+class Walls:
+    """``/walls`` of a recorded run: written when the simulator's scene is another than the
+    last written (the first state, ``set_scene``) and, while a wall moves, with the markers."""
+
+    def __init__(self, frame_id: str, height: float) -> None:
+        self.frame_id, self.height = frame_id, height
+        self.scene: object = None
+        self.moving = False
+
+    def record(self, write: Callable[[str, int, bytes], None], sim: Simulator, ns: int,
+               with_markers: bool) -> None:
+        """Write ``/walls`` at stamp ``ns`` if they changed (or move and markers are due)."""
+        changed = sim.scene is not self.scene
+        if not (changed or (self.moving and with_markers)):
+            return
+        if changed:
+            self.moving = markers.moving_walls(sim.scene.geometry)
+        batches = markers.wall_batches(sim.scene.geometry, sim.scene.positions, sim.t,
+                                       self.height, clear=self.scene is not None and changed)
+        self.scene = sim.scene
+        write(markers.WALLS, ns, encode_marker_array(ns, self.frame_id, batches))
+
+
 def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str], *,
                record_every: int = 1, frame_id: str = "map", path_dt: float | None = None,
-               progress: bool = False,
+               progress: bool = False, markers_every: int | None = None,
+               marker_height: float = 1.0,
                on_state: Callable[[Simulator], None] | None = None,
                inputs: Iterable[str | os.PathLike[str] | None] = ()) -> RecordedRun:
     """Steps ``sim`` to ``t_end`` (s), on a Brownian path drawn at ``path_dt`` when given,
@@ -48,7 +80,9 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
     run never raises once the recording is open: the outcome, written as the ``sweep_status``
     record too, is returned. ``out`` may be none of ``inputs`` (the scene and map files) and is
     locked while written (:mod:`sweep_core.io.outputs`): an OutputError is raised before the
-    first step if it cannot be."""
+    first step if it cannot be. ``markers_every`` (>= 1): ``/markers`` with every that many
+    recorded states (``marker_height`` m tall); None: at
+    :data:`~sweep_core.io.markers.MARKER_RATE_HZ` of simulated time."""
     status, error = "completed", ""
     failure: BaseException | None = None
     steps = 0
@@ -67,13 +101,20 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
                                 offered_qos_profiles=qos_profiles(1, transient_local=True))
             else:
                 rec.add_channel(name, msgtype)
+        rec.add_channel(markers.MARKERS, cdr.MARKER_ARRAY)
+        rec.add_channel(markers.WALLS, cdr.MARKER_ARRAY,
+                        offered_qos_profiles=qos_profiles(1, transient_local=True))
+        walls = Walls(frame_id, marker_height)
+        every = (markers.markers_every(sim.dt, record_every) if markers_every is None
+                 else max(int(markers_every), 1))
+        recorded = 0  # states recorded so far
         if sim.robots is not None:
             ns0 = topics.stamp_ns(sim.t)
             rec.write(robot_topics.TF_STATIC, ns0,
                       robot_topics.encode_static(sim.scene, ns0, frame_id))
 
         def record(s: Simulator) -> None:
-            nonlocal steps
+            nonlocal steps, recorded
             state = s.state
             if s.robots is not None:  # their messages; the applied commands every step
                 ns = topics.stamp_ns(state.t)
@@ -84,6 +125,13 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
                     rec.write(name, ns, data)
             if state.step % record_every == 0:
                 topics.record_state(rec.write, state, frame_id)
+                ns = topics.stamp_ns(state.t)
+                with_markers = recorded % every == 0
+                walls.record(rec.write, s, ns, with_markers)
+                if with_markers:
+                    rec.write(markers.MARKERS, ns, encode_marker_array(
+                        ns, frame_id, markers.state_batches(s, height=marker_height)))
+                recorded += 1
                 if navigation and topics.navigation_key(s.drift, state.t) != navigation[0]:
                     navigation[0] = topics.navigation_key(s.drift, state.t)
                     ns = topics.stamp_ns(state.t)
