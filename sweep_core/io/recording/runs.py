@@ -22,6 +22,7 @@ from pathlib import Path
 from sweep_core.errors import RecordingError, SweepError
 from sweep_core.io import cdr, markers, robot_topics, topics
 from sweep_core.io.cdr.markers import encode_marker_array
+from sweep_core.io.live import LiveView
 from sweep_core.io.metadata import STATUS_RECORD, status_metadata
 from sweep_core.io.recording.background import BackgroundRecorder
 from sweep_core.io.recording.format import qos_profiles
@@ -69,7 +70,7 @@ class Walls:
 def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str], *,
                record_every: int = 1, frame_id: str = "map", path_dt: float | None = None,
                progress: bool = False, markers_every: int | None = None,
-               marker_height: float = 1.0,
+               marker_height: float = 1.0, live: LiveView | None = None,
                on_state: Callable[[Simulator], None] | None = None,
                inputs: Iterable[str | os.PathLike[str] | None] = ()) -> RecordedRun:
     """Steps ``sim`` to ``t_end`` (s), on a Brownian path drawn at ``path_dt`` when given,
@@ -82,35 +83,44 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
     locked while written (:mod:`sweep_core.io.outputs`): an OutputError is raised before the
     first step if it cannot be. ``markers_every`` (>= 1): ``/markers`` with every that many
     recorded states (``marker_height`` m tall); None: at
-    :data:`~sweep_core.io.markers.MARKER_RATE_HZ` of simulated time."""
+    :data:`~sweep_core.io.markers.MARKER_RATE_HZ` of simulated time. ``live``: every channel
+    served to Foxglove too (:mod:`sweep_core.io.live`), paced after each recorded state."""
     status, error = "completed", ""
     failure: BaseException | None = None
     steps = 0
     wall = 0.0
     with BackgroundRecorder(out, metadata=metadata, max_backlog=64, inputs=inputs) as rec:
-        for name, msgtype in topics.TYPES.items():
-            rec.add_channel("/" + name, msgtype)
-        navigation: list[tuple | None] = []  # the key of the field last recorded, once there is one
-        if navigation_fields(sim.drift):
-            rec.add_channel("/" + topics.NAVIGATION, cdr.POINT_CLOUD2,
-                            offered_qos_profiles=qos_profiles(1, transient_local=True))
-            navigation.append(None)
-        for name, msgtype in robot_topics.channels(sim.scene).items():  # robots, if any
-            if name == robot_topics.TF_STATIC:
+        def channel(name: str, msgtype: str, latched: bool = False) -> None:
+            if latched:
                 rec.add_channel(name, msgtype,
                                 offered_qos_profiles=qos_profiles(1, transient_local=True))
             else:
                 rec.add_channel(name, msgtype)
-        rec.add_channel(markers.MARKERS, cdr.MARKER_ARRAY)
-        rec.add_channel(markers.WALLS, cdr.MARKER_ARRAY,
-                        offered_qos_profiles=qos_profiles(1, transient_local=True))
+            if live is not None:
+                live.add_channel(name, msgtype, latched)
+
+        def write(name: str, ns: int, data: bytes) -> None:
+            rec.write(name, ns, data)
+            if live is not None:
+                live.write(name, ns, data)
+
+        for name, msgtype in topics.TYPES.items():
+            channel("/" + name, msgtype)
+        navigation: list[tuple | None] = []  # the key of the field last recorded, once there is one
+        if navigation_fields(sim.drift):
+            channel("/" + topics.NAVIGATION, cdr.POINT_CLOUD2, latched=True)
+            navigation.append(None)
+        for name, msgtype in robot_topics.channels(sim.scene).items():  # robots, if any
+            channel(name, msgtype, latched=name == robot_topics.TF_STATIC)
+        channel(markers.MARKERS, cdr.MARKER_ARRAY)
+        channel(markers.WALLS, cdr.MARKER_ARRAY, latched=True)
         walls = Walls(frame_id, marker_height)
         every = (markers.markers_every(sim.dt, record_every) if markers_every is None
                  else max(int(markers_every), 1))
         recorded = 0  # states recorded so far
         if sim.robots is not None:
             ns0 = topics.stamp_ns(sim.t)
-            rec.write(robot_topics.TF_STATIC, ns0,
+            write(robot_topics.TF_STATIC, ns0,
                       robot_topics.encode_static(sim.scene, ns0, frame_id))
 
         def record(s: Simulator) -> None:
@@ -122,23 +132,25 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
                             if state.step % record_every == 0
                             else robot_topics.encode_commands(s.robots, ns))
                 for name, data in messages:
-                    rec.write(name, ns, data)
+                    write(name, ns, data)
             if state.step % record_every == 0:
-                topics.record_state(rec.write, state, frame_id)
+                topics.record_state(write, state, frame_id)
                 ns = topics.stamp_ns(state.t)
                 with_markers = recorded % every == 0
-                walls.record(rec.write, s, ns, with_markers)
+                walls.record(write, s, ns, with_markers)
                 if with_markers:
-                    rec.write(markers.MARKERS, ns, encode_marker_array(
+                    write(markers.MARKERS, ns, encode_marker_array(
                         ns, frame_id, markers.state_batches(s, height=marker_height)))
                 recorded += 1
                 if navigation and topics.navigation_key(s.drift, state.t) != navigation[0]:
                     navigation[0] = topics.navigation_key(s.drift, state.t)
                     ns = topics.stamp_ns(state.t)
-                    rec.write("/" + topics.NAVIGATION, ns,
+                    write("/" + topics.NAVIGATION, ns,
                               topics.encode_navigation(ns, frame_id, s.drift, state.t))
                 if rec.error:
                     raise RecordingError(rec.error)
+                if live is not None:
+                    live.pace(state.t)
             if state.step:
                 steps += 1
             if on_state is not None:
