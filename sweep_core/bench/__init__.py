@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from types import ModuleType
 
-from sweep_core.bench import accuracy_report, recording, robots, speed
+from sweep_core.bench import accuracy_report, live, recording, robots, speed
 
 #: name of a study -> module with ``register(subparsers)``
 STUDIES: dict[str, ModuleType] = {"accuracy": accuracy_report, "speed": speed,
-                                  "recording": recording, "robots": robots}
+                                  "recording": recording, "robots": robots, "live": live}
