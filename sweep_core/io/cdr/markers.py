@@ -121,10 +121,10 @@ def _columns(batch: MarkerBatch) -> dict[str, np.ndarray]:
 
 def _encode_run(start: int, head: tuple[int, int, bytes], batch: MarkerBatch,
                 columns: dict[str, np.ndarray], lo: int, hi: int, period: int
-                ) -> tuple[bytes, int, int]:
+                ) -> tuple[np.ndarray, int, int]:
     """Markers lo..hi-1 of a batch written from payload offset ``start``, (hi - lo) a multiple
     of ``period``, when the alignment of the markers repeats every ``period`` markers; returns
-    their bytes, the next offset and the trailing padding of the last marker."""
+    their bytes (uint8, flat), the next offset and the trailing padding of the last marker."""
     blocks, offsets, pos = [], [], start
     for _ in range(period):
         block, offs, size = _template(pos, *head, batch)
@@ -141,7 +141,7 @@ def _encode_run(start: int, head: tuple[int, int, bytes], batch: MarkerBatch,
             off = base + offs[key]
             buf[:, off:off + raw.shape[1]] = raw
     pad = len(blocks[-1]) - offsets[-1][1]["end"]
-    return buf.tobytes(), start + reps * len(unit), pad
+    return buf.reshape(-1), start + reps * len(unit), pad
 
 
 def encode_marker_array(stamp_ns: int, frame_id: str, batches: list[MarkerBatch]) -> bytes:
@@ -156,7 +156,7 @@ def encode_marker_array(stamp_ns: int, frame_id: str, batches: list[MarkerBatch]
         raise ValueError(f"frame_id: must be a str without NUL, got {frame_id!r}")
     head = (sec, nanosec, frame_id.encode("utf-8"))
     total = sum(len(b) for b in batches)
-    parts = [ENCAPSULATION, struct.pack("<I", total)]
+    parts: list = [ENCAPSULATION, struct.pack("<I", total)]
     pos, pad = 4, 0
     for batch in batches:
         n = len(batch)
@@ -177,5 +177,6 @@ def encode_marker_array(stamp_ns: int, frame_id: str, batches: list[MarkerBatch]
             data, pos, pad = _encode_run(pos, head, batch, columns, lo, hi, period)
             parts.append(data)
             lo = hi
-    out = b"".join(parts)
-    return out[:len(out) - pad]
+    if pad:  # the last marker's trailing alignment is no part of the message
+        parts[-1] = parts[-1][:len(parts[-1]) - pad]
+    return b"".join(parts)  # one copy: numpy buffers joined as they are
