@@ -36,9 +36,10 @@ setup(
         "numba>=0.60",
         "cvxopt>=1.3",
     ],
-    # sweep verify and sweep export (PedPy needs Python >= 3.11); the Gymnasium environment
+    # sweep verify and sweep export (PedPy needs Python >= 3.11); the Gymnasium environment;
+    # sweep run --live (the Foxglove WebSocket server)
     extras_require={"verify": ["pedpy==1.5.1", "distributed", "pandas"],
-                    "gym": ["gymnasium==1.4.0"]},
+                    "gym": ["gymnasium==1.4.0"], "live": ["foxglove-sdk==0.30.3"]},
     zip_safe=True,
     maintainer="sweep_ros developers",
     maintainer_email="sweep-ros@example.org",

@@ -74,13 +74,14 @@ from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import MarkerArray
 
 from sweep_core import SceneError, Simulator
+from sweep_core.io import markers as marker_content
 from sweep_core.io import topics
 from sweep_core.io.metadata import STATUS_RECORD, status_metadata
 from sweep_core.io.recording import BackgroundRecorder
 from sweep_core.model.fields import Field, Groups
 from sweep_core.model.scene import load_scene
 from sweep_core.numerics import kernels
-from sweep_ros import graph, markers, params, results
+from sweep_ros import graph, params, results
 from sweep_ros.commands import CommandsMixin, has_geometry, scene_map
 from sweep_ros.diagnostics import DiagnosticsMixin
 from sweep_ros.errors import StartError
@@ -158,10 +159,7 @@ class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin
         #: the navigation_field last published: (its key, the drift it was of)
         self._navigation: tuple[tuple, Field | None] = ((), None)
         # moving walls and obstacles are republished with the markers, at their pose then
-        self._moving_walls = bool(self.scene.geometry.is_moving or (
-            len(self.scene.geometry.halfplane_velocity)
-            and (self.scene.geometry.halfplane_velocity != 0).any()))
-        self._agent_markers = markers.AgentMarkers(self.frame_id, self._p["marker_height"])
+        self._moving_walls = marker_content.moving_walls(self.scene.geometry)
         # threads: see the module docstring
         self._gate = StepGate()
         self._stopping = threading.Event()

@@ -10,6 +10,8 @@ from typing import Any
 from rclpy.serialization import serialize_message
 
 from sweep_core.io import cdr, topics
+from sweep_core.io import markers as content
+from sweep_core.io.cdr.markers import encode_marker_array
 from sweep_ros import markers
 
 
@@ -31,8 +33,9 @@ class PublishingMixin:
         if self._p["publish_markers"] and (
                 force_markers or now - self._last_markers >= 1.0 / self._p["marker_rate_hz"]):
             self._last_markers = now
-            self._publish(self.pub_markers,
-                          self._agent_markers.encode(ns, state.positions, state.radii), log_ns)
+            batches = content.state_batches(self.sim, height=self._p["marker_height"])
+            self._publish(self.pub_markers, encode_marker_array(ns, self.frame_id, batches),
+                          log_ns)
             if self._moving_walls:
                 self._publish_walls()
         self._publish_robots(log_ns)
@@ -56,8 +59,5 @@ class PublishingMixin:
         can have fewer wall pieces than the last)."""
         t = self.sim.t
         msg = markers.wall_markers(self.scene.geometry, self.scene.positions, self.frame_id,
-                                    topics.stamp_ns(t), t, self._p["marker_height"])
-        if clear:
-            msg.markers.insert(0, markers.delete_all(self.frame_id, topics.stamp_ns(t),
-                                                      "walls").markers[0])
+                                   topics.stamp_ns(t), t, self._p["marker_height"], clear)
         self._publish(self.pub_walls, bytes(serialize_message(msg)), self._log_ns(t))

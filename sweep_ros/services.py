@@ -116,7 +116,6 @@ class ServicesMixin:
                     "step": str(self.sim.n_steps),
                     "log_time_ns": str(self._log_ns(self.sim.t))})
         elif name == "marker_height":
-            self._agent_markers = markers.AgentMarkers(self.frame_id, value)
             self._publish_walls()
         elif name in ("real_time_factor", "max_steps_per_tick"):
             self._rt_anchor = None

@@ -585,7 +585,7 @@ def _strip(text: str) -> list[str]:
 def test_schemas_structure():
     assert set(cdr.SCHEMAS) == {cdr.POSE_ARRAY, cdr.POINT_CLOUD2, cdr.CLOCK, cdr.ODOMETRY,
                                 cdr.TWIST_STAMPED, cdr.LASER_SCAN, cdr.TF_MESSAGE,
-                                cdr.POSE_WITH_COVARIANCE_STAMPED}
+                                cdr.POSE_WITH_COVARIANCE_STAMPED, cdr.MARKER_ARRAY}
     sep = "\n" + "=" * 80 + "\n"
     for msgtype, text in cdr.SCHEMAS.items():
         sections = text.split(sep)

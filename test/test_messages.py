@@ -12,6 +12,9 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 import sweep_core as sc
 from sweep_core.io import cdr
+from sweep_core.io.cdr.markers import MarkerBatch, encode_marker_array
+from sweep_core.io.cdr.markers import delete_all as delete_all_batch
+from sweep_core.io.markers import agent_batch
 from sweep_core.model import fields
 from sweep_core.model.scene import load_scene
 from sweep_ros import clouds, diagnostics, markers, messages, msgdefs, params
@@ -202,34 +205,27 @@ def test_cloud_flagged_in_the_wrong_byte_order_is_named(dtype, flag, words):
 
 
 @pytest.mark.parametrize("frame_id", ["map", "m", "odom_12", "a_longer_frame"])
-def test_agent_markers_bytes_match_rclpy(frame_id):
+def test_marker_array_encoder_matches_rclpy(frame_id):
+    """sweep_core's vectorised MarkerArray bytes deserialise (rclpy) to the message rclpy
+    serialises from the same batches, for namespaces of every length modulo 8 (the markers'
+    alignment repeats after one marker or two)."""
     rng = np.random.default_rng(1)
-    enc = markers.AgentMarkers(frame_id, height=1.7)
-    assert enc._layout is not None  # the fast path is the one tested here
+    stamp = 12_345_678_901
     for n in (0, 1, 2, 3, 8, 41):
-        q, r = rng.uniform(-5, 5, (n, 2)), rng.uniform(0.1, 0.4, n)
-        stamp = 12_345_678_901
-        data = enc.encode(stamp, q, r)
-        want = MarkerArray(markers=[markers.agent_marker(frame_id, stamp, i, q[i, 0], q[i, 1],
-                                                          r[i], 1.7) for i in range(n)])
-        ref = serialize_message(want)
+        batches = [MarkerBatch("ab"[:k] + "cdefghij"[:k], k % 4, rng.integers(0, 99, n),
+                               rng.uniform(-5, 5, (n, 3)), rng.uniform(-3, 3, n),
+                               rng.uniform(0.1, 2, (n, 3)), rng.uniform(0, 1, (n, 4)))
+                   for k in range(9)]
+        batches.insert(3, delete_all_batch("walls"))
+        data = encode_marker_array(stamp, frame_id, batches)
+        ref = serialize_message(markers.to_message(frame_id, stamp, batches))
         assert len(data) == len(ref)
         got = deserialize_message(data, MarkerArray)
         assert got == deserialize_message(ref, MarkerArray)
-        for i, m in enumerate(got.markers):
-            assert (m.id, m.type, m.action, m.header.frame_id) == (i, Marker.CYLINDER,
-                                                                    Marker.ADD, frame_id)
-            assert (m.pose.position.x, m.pose.position.y) == (q[i, 0], q[i, 1])
-            assert m.scale.x == m.scale.y == 2 * r[i] and m.scale.z == 1.7
+        assert len(got.markers) == 9 * n + 1
+        for m in got.markers:
+            assert m.header.frame_id == frame_id
             assert (m.header.stamp.sec, m.header.stamp.nanosec) == (12, 345_678_901)
-
-
-def test_agent_markers_fallback_path():
-    enc = markers.AgentMarkers("map")
-    enc._layout = None
-    q, r = np.array([[1.0, 2.0], [3.0, 4.0]]), np.array([0.2, 0.3])
-    got = deserialize_message(enc.encode(5, q, r), MarkerArray)
-    assert [m.scale.x for m in got.markers] == [0.4, 0.6]
 
 
 def test_wall_markers_and_delete_all():
@@ -357,7 +353,8 @@ def test_definitions_decode_with_mcap_ros2_and_rosbags(msg_class):
     full = msgdefs.definition(msgtype)
     msg = msg_class()
     if msg_class is MarkerArray:
-        msg = MarkerArray(markers=[markers.agent_marker("map", 7, 3, 1.5, 2.5, 0.25, 1.0)])
+        msg = markers.to_message("map", 7, [agent_batch(np.array([[1.5, 2.5]]), np.array([0.25]),
+                                                        np.array([3]), np.array([-1]))])
     data = bytes(serialize_message(msg))
     decoded = generate_dynamic(msgtype, full)[msgtype](data)
     store = get_typestore(Stores.EMPTY)

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 from types import ModuleType
 
-from sweep_core.bench import accuracy_report, recording, robots, speed, startup
+from sweep_core.bench import accuracy_report, live, recording, robots, speed, startup
 
 #: name of a study -> module with ``register(subparsers)``
 STUDIES: dict[str, ModuleType] = {"accuracy": accuracy_report, "speed": speed,
-                                  "recording": recording, "robots": robots,
+                                  "recording": recording, "robots": robots, "live": live,
                                   "startup": startup}

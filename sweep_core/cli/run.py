@@ -13,12 +13,12 @@ import signal
 import sys
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sweep_core import checks
 from sweep_core.cli.commands import summary
 from sweep_core.errors import OutputError, SweepError
-from sweep_core.io import limits
+from sweep_core.io import limits, markers
 from sweep_core.io.metadata import run_metadata
 from sweep_core.io.outputs import check_output, write_text
 from sweep_core.io.recording.runs import record_run
@@ -29,6 +29,9 @@ from sweep_core.numerics.projection import SolverOptions
 from sweep_core.numerics.projection.options import METHODS
 from sweep_core.numerics.schemes import SCHEMES
 from sweep_core.numerics.simulator import Simulator
+
+if TYPE_CHECKING:
+    from sweep_core.io.live import LiveView
 
 
 class Interrupted(KeyboardInterrupt):
@@ -86,6 +89,8 @@ def _run(args: argparse.Namespace) -> int:
                                        method=args.method, backend=args.backend)
     sim = Simulator(scene, dt=dt, seed=args.seed, scheme=args.scheme, solver=solver)
     scene.check_horizon(t_end)
+    checks.number(args.marker_rate, "--marker-rate", positive=True)
+    checks.number(args.live_rate, "--live-rate", nonnegative=True)
     if args.path_dt:
         paths.substeps(dt, args.path_dt)  # refused before the recording is created
     most = scene.n_agents + (scene.flows.entering if scene.flows is not None else 0)
@@ -102,6 +107,7 @@ def _run(args: argparse.Namespace) -> int:
                               "--out in a folder")
         out.parent.mkdir(parents=True)
     summary_out = check_output(out.with_suffix(".summary.json"), inputs)
+    live = start_live(args)  # a port in use is said before any work
     stats = {"min_gap": math.inf, "active_rows_max": 0, "active_rows_sum": 0, "steps": 0,
              "backend_agents_max": 0, "bound_max_m": 0.0}
 
@@ -121,10 +127,17 @@ def _run(args: argparse.Namespace) -> int:
             stats["bound_max_m"] = max(stats["bound_max_m"], s.bound)
         stop.check()
 
-    with StopOnSignal() as stop:
-        run = record_run(sim, t_end, out, meta, record_every=args.record_every,
-                         frame_id=args.frame_id, path_dt=args.path_dt or None,
-                         progress=not args.quiet, on_state=tally, inputs=inputs)
+    try:
+        with StopOnSignal() as stop:
+            run = record_run(sim, t_end, out, meta, record_every=args.record_every,
+                             frame_id=args.frame_id, path_dt=args.path_dt or None,
+                             progress=not args.quiet and live is None, on_state=tally,
+                             inputs=inputs, live=live,
+                             markers_every=(markers.markers_every(dt, args.record_every,
+                                                                  args.marker_rate)))
+    finally:
+        if live is not None:
+            live.stop()
     status, error, failure, wall = run.status, run.error, run.failure, run.wall_s
     summary_path = _write_summary(summary_out, out, scene, sim, solver, stats, wall, status,
                                   error)
@@ -135,6 +148,23 @@ def _run(args: argparse.Namespace) -> int:
     if failure is not None:
         raise failure
     return 0
+
+
+def start_live(args: argparse.Namespace) -> LiveView | None:
+    """The live view of ``--live`` (None without), its address said in one line."""
+    if args.live is None:
+        return None
+    from sweep_core.io.live import LiveError, LiveView
+    port = checks.integer(args.live, "--live", fix="a port in [0, 65535], 0 for any free one")
+    if port > 65535:
+        raise LiveError(f"--live: got {port}, a port is at most 65535 (fix: e.g. --live 8765, "
+                        "or 0 for any free port)")
+    live = LiveView(port, checks.number(args.live_rate, "--live-rate", nonnegative=True))
+    rate = live.rate
+    print(f"sweep: live view on ws://127.0.0.1:{live.port} (Foxglove: Open connection, "
+          f"Foxglove WebSocket), {'as fast as it runs' if rate == 0 else f'{rate:g} x real time'}",
+          file=sys.stderr, flush=True)
+    return live
 
 
 def scene_files(path: str | None, scene: Scene) -> list[str]:
@@ -258,5 +288,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help=f"run even beyond {limits.MAX_STEPS:g} steps or a recording of "
                              f"more than {limits.MAX_RECORDING_BYTES / 1e9:g} GB (estimated "
                              "uncompressed: 88 bytes per agent per recorded step)")
+    parser.add_argument("--marker-rate", type=float, default=markers.MARKER_RATE_HZ,
+                        metavar="HZ",
+                        help="record /markers (people as disks, robots) at HZ of simulated "
+                             "time, at most with every recorded step (default %(default)g)")
+    parser.add_argument("--live", type=int, nargs="?", const=8765, default=None, metavar="PORT",
+                        help="serve the run to Foxglove over its WebSocket protocol on "
+                             "127.0.0.1:PORT (default 8765; 0: any free port) while recording")
+    parser.add_argument("--live-rate", type=float, default=1.0, metavar="FACTOR",
+                        help="with --live: simulated time runs at FACTOR x real time "
+                             "(default 1; 0: as fast as the run goes)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=_run)

@@ -11,6 +11,8 @@ Message types:
 * ``geometry_msgs/msg/PoseArray``: agent positions (z = 0) and heading (yaw about z).
 * ``sensor_msgs/msg/PointCloud2``: per-agent scalar fields as an unorganised FLOAT32 cloud.
 * ``rosgraph_msgs/msg/Clock``: simulated time.
+* ``visualization_msgs/msg/MarkerArray``: what viewers draw (:mod:`sweep_core.io.cdr.markers`,
+  vectorised; its content is :mod:`sweep_core.io.markers`').
 * the robot's ``nav_msgs/msg/Odometry``, ``geometry_msgs/msg/TwistStamped``,
   ``sensor_msgs/msg/LaserScan``, ``tf2_msgs/msg/TFMessage`` and
   ``geometry_msgs/msg/PoseWithCovarianceStamped`` (:mod:`sweep_core.io.cdr.robot`).
@@ -41,6 +43,7 @@ from sweep_core.io.cdr.msgdefs import (
                                       CLOCK,
                                       CLOCK_MSGDEF,
                                       LASER_SCAN,
+                                      MARKER_ARRAY,
                                       ODOMETRY,
                                       POINT_CLOUD2,
                                       POINT_CLOUD2_MSGDEF,
@@ -73,6 +76,7 @@ from sweep_core.io.cdr.robot import (
 
 __all__ = [
     "LASER_SCAN",
+    "MARKER_ARRAY",
     "ODOMETRY",
     "POSE_WITH_COVARIANCE_STAMPED",
     "TF_MESSAGE",

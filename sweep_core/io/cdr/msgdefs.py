@@ -10,6 +10,7 @@ TWIST_STAMPED = "geometry_msgs/msg/TwistStamped"
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 POSE_WITH_COVARIANCE_STAMPED = "geometry_msgs/msg/PoseWithCovarianceStamped"
+MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
 
 # ---------------------------------------------------------------------------------------------
 # Message definitions (ros2msg), comments stripped.
@@ -117,6 +118,39 @@ _LOCAL_DEFS: dict[str, str] = {
         "float32[] intensities\n"
     ),
     "tf2_msgs/TFMessage": "geometry_msgs/TransformStamped[] transforms\n",
+    # visualization_msgs/MarkerArray as ROS 2 Kilted defines it (visualization_msgs 5.5)
+    "visualization_msgs/MarkerArray": "Marker[] markers\n",
+    "visualization_msgs/Marker": (
+        "".join(f"int32 {name}={value}\n" for name, value in (
+            ("ARROW", 0), ("CUBE", 1), ("SPHERE", 2), ("CYLINDER", 3), ("LINE_STRIP", 4),
+            ("LINE_LIST", 5), ("CUBE_LIST", 6), ("SPHERE_LIST", 7), ("POINTS", 8),
+            ("TEXT_VIEW_FACING", 9), ("MESH_RESOURCE", 10), ("TRIANGLE_LIST", 11),
+            ("ARROW_STRIP", 12), ("ADD", 0), ("MODIFY", 0), ("DELETE", 2), ("DELETEALL", 3)))
+        + "std_msgs/Header header\n"
+        "string ns\n"
+        "int32 id\n"
+        "int32 type\n"
+        "int32 action\n"
+        "geometry_msgs/Pose pose\n"
+        "geometry_msgs/Vector3 scale\n"
+        "std_msgs/ColorRGBA color\n"
+        "builtin_interfaces/Duration lifetime\n"
+        "bool frame_locked\n"
+        "geometry_msgs/Point[] points\n"
+        "std_msgs/ColorRGBA[] colors\n"
+        "string texture_resource\n"
+        "sensor_msgs/CompressedImage texture\n"
+        "UVCoordinate[] uv_coordinates\n"
+        "string text\n"
+        "string mesh_resource\n"
+        "MeshFile mesh_file\n"
+        "bool mesh_use_embedded_materials\n"
+    ),
+    "visualization_msgs/MeshFile": "string filename\nuint8[] data\n",
+    "visualization_msgs/UVCoordinate": "float32 u\nfloat32 v\n",
+    "sensor_msgs/CompressedImage": "std_msgs/Header header\nstring format\nuint8[] data\n",
+    "std_msgs/ColorRGBA": "float32 r\nfloat32 g\nfloat32 b\nfloat32 a\n",
+    "builtin_interfaces/Duration": "int32 sec\nuint32 nanosec\n",
 }
 _PRIMITIVES = frozenset({"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16",
                          "uint16", "int32", "uint32", "int64", "uint64", "string", "wstring"})
@@ -160,6 +194,7 @@ TWIST_STAMPED_MSGDEF = _local_definition(TWIST_STAMPED)
 LASER_SCAN_MSGDEF = _local_definition(LASER_SCAN)
 TF_MESSAGE_MSGDEF = _local_definition(TF_MESSAGE)
 POSE_WITH_COVARIANCE_STAMPED_MSGDEF = _local_definition(POSE_WITH_COVARIANCE_STAMPED)
+MARKER_ARRAY_MSGDEF = _local_definition(MARKER_ARRAY)
 
 SCHEMAS: dict[str, str] = {
     POSE_ARRAY: POSE_ARRAY_MSGDEF,
@@ -170,4 +205,5 @@ SCHEMAS: dict[str, str] = {
     LASER_SCAN: LASER_SCAN_MSGDEF,
     TF_MESSAGE: TF_MESSAGE_MSGDEF,
     POSE_WITH_COVARIANCE_STAMPED: POSE_WITH_COVARIANCE_STAMPED_MSGDEF,
+    MARKER_ARRAY: MARKER_ARRAY_MSGDEF,
 }
