@@ -91,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``live`` to the ``bench`` subcommands."""
     p = sub.add_parser("live", help="step rate of a live-served run with one client vs none")
-    p.add_argument("--sizes", type=int, nargs="+", default=[1000])
+    p.add_argument("--sizes", type=int, nargs="+", default=[1000], metavar="N",
+                   help="agent counts of the runs (default 1000)")
     p.add_argument("--steps", type=int, default=200, help="steps per run (default 200)")
     p.add_argument("--repeats", type=int, default=3, help="runs of each variant (default 3)")
     p.add_argument("--csv", default="bench_live.csv", help="CSV file to write")
