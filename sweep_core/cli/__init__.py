@@ -5,6 +5,7 @@ trajectories)."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from sweep_core.cli import analysis, bench, ensemble, maps, recover, render, run, scenes, verify
@@ -32,7 +33,11 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "record_every", 1) < 1:
         parser.error("--record-every: must be >= 1")
     try:
-        return args.func(args)
+        code = args.func(args)
+        sys.stdout.flush()  # a reader that left (``| head``) is met here, not at exit
+        return code
+    except BrokenPipeError:
+        return reader_gone()
     except SweepError as err:
         print(f"sweep: error: {err}", file=sys.stderr)
         return 2
@@ -41,3 +46,22 @@ def main(argv: list[str] | None = None) -> int:
         return 130
 
 
+
+
+#: the exit status of a command whose reader closed the pipe: 128 + SIGPIPE, as the shell
+#: reports a command killed by it
+PIPE_CLOSED = 141
+
+
+def reader_gone() -> int:
+    """The output's reader closed the pipe (``sweep compare A B | head``): end quietly. The
+    standard streams are pointed at /dev/null, so the interpreter's last flush finds no closed
+    pipe either (no traceback, no "Exception ignored" line). Returns :data:`PIPE_CLOSED`."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            os.dup2(devnull, stream.fileno())
+        except (OSError, ValueError, AttributeError):  # not a real file (captured): left as is
+            pass
+    os.close(devnull)
+    return PIPE_CLOSED
