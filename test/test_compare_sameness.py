@@ -47,3 +47,35 @@ def test_two_scenes_on_one_seed_are_not_a_pathwise_error(tmp_path, capsys):
     assert same["pathwise"] is True and same["sup_m"] == 0.0
     assert same["same_scene"].startswith("same") and same["shared_path"].startswith("shared")
     assert same["distance"].startswith("the pathwise error")
+
+
+def _no_state(path):
+    """A recording of the project's writer with its channels and no recorded state."""
+    from sweep_core.io import topics
+    from sweep_core.io.metadata import run_metadata
+    from sweep_core.io.recording.background import BackgroundRecorder
+    from sweep_core.model.scene import Scene
+    from sweep_core.numerics.simulator import Simulator
+
+    scene = Scene.from_dict({"agents": {"positions": [[0.0, 0.0]], "radius": 0.2}})
+    with BackgroundRecorder(path, metadata=run_metadata(scene, Simulator(scene, dt=0.05,
+                                                                         seed=0), None)) as r:
+        for name, msgtype in topics.TYPES.items():
+            r.add_channel("/" + name, msgtype)
+    return path
+
+
+def test_bad_recordings_are_refused_in_one_line(tmp_path, capsys):
+    """Before: a recording without a state was 'no recorded time in common' with the other,
+    and a 0-byte file 'cut short before its first flush'."""
+    empty, foreign = tmp_path / "empty.mcap", tmp_path / "foreign.mcap"
+    empty.write_bytes(b"")
+    foreign.write_text("t,x,y\n0,1,2\n")
+    none = _no_state(tmp_path / "none.mcap")
+    for bad, problem in ((empty, "the file is empty (0 bytes)"), (foreign, "not an MCAP file"),
+                         (none, "holds no recorded state")):
+        assert main(["compare", str(bad), str(none), "--no-plots", "--quiet"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"sweep: error: {bad}: {problem}"), err
+        assert "fix:" in err[0]
+    assert not list(tmp_path.glob("*.csv"))

@@ -50,6 +50,8 @@ def test_corner_with_gap_fails(tmp_path, capsys):
     assert line.split()[1] == "FAIL", line
     outside = float(line.split("| ")[2].split()[0])  # the mean count of people outside
     assert outside > 0, line
+    # the failing seeds name the condition that failed, with the count
+    assert "FAILED seed 0: " in line and "people left the corridors" in line, line
 
 
 def test_unknown_test_is_refused(capsys):
