@@ -309,9 +309,9 @@ def test_compare_on_the_same_brownian_path(three_runs, capsys):
     assert c.sup_t_s == pytest.approx(0.01 * dist.max(axis=1).argmax())
     assert c.sup_agent == dist.max(axis=0).argmax()
     assert np.allclose(c.table[:, 2], dist.mean(axis=1))
-    assert c.shared_path.startswith("yes")
+    assert c.shared_path.startswith("shared") and c.pathwise
     o = compare.compare(fine, other)
-    assert o.shared_path.startswith("NO")
+    assert o.shared_path.startswith("NOT shared") and not o.pathwise
     assert c.sup_m < 0.5 * o.sup_m, (c.sup_m, o.sup_m)
     assert compare.compare(coarse, coarse).sup_m == 0.0
 
@@ -332,4 +332,4 @@ def test_compare_aligns_on_common_times_only(tmp_path):
         np.linalg.norm(s_a[4].positions - s_b[6].positions, axis=1).max(), rel=1e-12)
     assert c.table[1, 1] == pytest.approx(
         np.linalg.norm(s_a[2].positions - s_b[3].positions, axis=1).max(), rel=1e-12)
-    assert c.shared_path.startswith("NO")
+    assert c.shared_path.startswith("NOT shared") and not c.pathwise

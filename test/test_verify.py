@@ -50,6 +50,8 @@ def test_corner_with_gap_fails(tmp_path, capsys):
     assert line.split()[1] == "FAIL", line
     outside = float(line.split("| ")[2].split()[0])  # the mean count of people outside
     assert outside > 0, line
+    # the failing seeds name the condition that failed, with the count
+    assert "FAILED seed 0: " in line and "people left the corridors" in line, line
 
 
 def test_unknown_test_is_refused(capsys):
@@ -189,3 +191,14 @@ def test_bottleneck_verdict_judges_each_seed_against_the_line():
     ok = judge_flows({"headway": {w: [line[w]] for w in WIDTHS},
                       "pure": {w: [line[w]] for w in WIDTHS}})
     assert ok.status == "PASS" and ok.values == [pytest.approx(0.0)]
+
+
+def test_a_test_named_twice_runs_once(capsys):
+    """Before: ``--tests rimea1 rimea1`` ran its cases twice and printed two lines."""
+    rc = main(["verify", "--quick", "--tests", "rimea1", "rimea1", "--seeds", "1",
+               "--no-report", "--in-process"])
+    captured = capsys.readouterr()
+    assert rc == 0
+    assert [ln.split()[0] for ln in captured.out.splitlines()
+            if ln.startswith("rimea")] == ["rimea1"], captured.out
+    assert "1 of 1 runs done" in captured.err, captured.err

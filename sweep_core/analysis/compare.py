@@ -1,14 +1,21 @@
 """Two runs side by side (``sweep compare``).
 
 Compare aligns two recordings on their common times (log time, i.e. simulation time for
-``sweep run``) and reports the pathwise sup-distance max_i |q_i^A(t) - q_i^B(t)| over time and,
-per agent, over time.
+``sweep run``) and reports the sup-distance max_i |q_i^A(t) - q_i^B(t)| over time and, per
+agent, over time. It first says what the two runs share (:func:`sameness`): the scene (their
+normalised specs, the name and description aside, and the node's commands and parameters),
+the seed, and the Brownian path (seed, the resolution it was drawn at, the agent count). The
+distance is called the pathwise error only when they share the scene and the path (the
+deterministic case: the scene alone): two approximations, by two dt or two schemes, of one
+solution. Otherwise it is a distance between two runs, and the statistics of each
+(``sweep analyze``) are what can be compared.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -36,6 +43,10 @@ class Comparison:
     per_agent_sup_m: list[float]
     per_agent_t_s: list[float]
     shared_path: str
+    same_scene: str
+    same_seed: str
+    pathwise: bool
+    distance: str
     truncated: list[str]
     notes: list[str]
     table: np.ndarray  # t, max over agents, mean over agents
@@ -47,20 +58,113 @@ class Comparison:
         return jsonable(d)
 
 
-def _path_note(ma: RunMeta, mb: RunMeta) -> str:
-    sig = [m.scene is not None and not np.any(m.scene.sigma) and not m.parameters.get(
-        "noise_sigma", -1.0) > 0 for m in (ma, mb)]
-    if all(sig):
-        return "no noise (sigma = 0): deterministic runs"
+#: keys of a scene that do not change its dynamics
+LABELS = ("name", "description")
+
+
+def spec_differences(a: Any, b: Any, where: str = "", depth: int = 2) -> list[str]:
+    """The dotted keys where two specs differ (down to ``depth`` levels; a list compared
+    whole)."""
+    if isinstance(a, dict) and isinstance(b, dict) and depth > 0:
+        out = []
+        for key in sorted(set(a) | set(b), key=str):
+            if not where and key in LABELS:
+                continue
+            name = f"{where}.{key}" if where else str(key)
+            if key not in a or key not in b:
+                out.append(name)
+            else:
+                out += spec_differences(a[key], b[key], name, depth - 1)
+        return out
+    return [] if a == b else [where or "scene"]
+
+
+@dataclass
+class Sameness:
+    """What two runs share: ``scene`` (the differing keys, [] when the same; None when a
+    recording carries no scene), ``seed`` and ``path`` (one line each), ``noisy`` (either run
+    has noise), ``shared_path`` (the same Brownian path: seed, resolution, agents) and
+    ``pathwise`` (the distance is the pathwise error: same scene and, with noise, path)."""
+
+    scene: list[str] | None
+    seed: str
+    path: str
+    noisy: bool
+    shared_path: bool
+    pathwise: bool
+
+    def scene_line(self) -> str:
+        if self.scene is None:
+            return "unknown (a recording carries no scene that loads)"
+        if not self.scene:
+            return "same (normalised specs equal, name and description aside)"
+        shown = ", ".join(self.scene[:6]) + (f", ... ({len(self.scene)} keys)"
+                                             if len(self.scene) > 6 else "")
+        return f"DIFFERENT: {shown}"
+
+    def distance_line(self) -> str:
+        if self.pathwise:
+            return ("the pathwise error: one scene" + (", one Brownian path" if self.noisy
+                                                       else ", no noise"))
+        why = []
+        if self.scene is None:
+            why.append("the scenes are unknown")
+        elif self.scene:
+            why.append("the scenes differ")
+        if self.noisy and not self.shared_path:
+            why.append("the noise paths differ")
+        return ("NOT a pathwise error (" + ", ".join(why) + "): a distance between two runs; "
+                "compare their statistics instead (sweep analyze on each)")
+
+
+def _noise(m: RunMeta) -> bool:
+    """Whether a run has noise (the scene's sigma, or the node's noise_sigma parameter)."""
+    sigma = m.parameters.get("noise_sigma", -1.0)
+    live = any(c.name == "noise_sigma" for c in m.parameter_changes)
+    return bool(m.scene is None or np.any(m.scene.sigma) or live
+                or (isinstance(sigma, (int, float)) and sigma > 0))
+
+
+def _settings(m: RunMeta) -> dict:
+    """What besides the scene sets a run's dynamics (what replay applies): the node's
+    noise_sigma and its changes, its commands and maps, with their steps (dt and seed are
+    compared as the path's)."""
+    return {"noise_sigma": m.parameters.get("noise_sigma", -1.0),
+            "commands": [(c.segment, c.step, c.spec) for c in m.commands],
+            "noise_sigma_changes": [(c.segment, c.step, c.value) for c in m.parameter_changes
+                                    if c.name == "noise_sigma"],
+            "maps": [(c.segment, c.step, c.spec) for c in m.maps]}
+
+
+def sameness(ma: RunMeta, mb: RunMeta) -> Sameness:
+    """What two recorded runs share (module docstring)."""
+    scene = None
+    if ma.scene is not None and mb.scene is not None:
+        scene = spec_differences(ma.scene.spec, mb.scene.spec)
+        scene += spec_differences(_settings(ma), _settings(mb), "", 1)
+    if ma.seed is None or mb.seed is None:
+        seed = "unknown (missing from the metadata)"
+    else:
+        seed = f"same: {ma.seed}" if ma.seed == mb.seed else f"DIFFERENT: {ma.seed} / {mb.seed}"
+    noisy = _noise(ma) or _noise(mb)
+    n = [m.scene.n_agents if m.scene is not None else None for m in (ma, mb)]
     if ma.seed is None or mb.seed is None or ma.dt is None or mb.dt is None:
-        return "unknown (seed or dt missing from the metadata)"
-    res_a, res_b = ma.path_dt or ma.dt, mb.path_dt or mb.dt
-    if ma.seed == mb.seed and math.isclose(res_a, res_b, rel_tol=1e-9):
-        return (f"yes: seed {ma.seed}, path drawn at {res_a:g} s in both (the distance is the "
-                "pathwise error)")
-    return (f"NO: seeds {ma.seed} / {mb.seed}, path resolution {res_a:g} / {res_b:g} s (the "
-            "distance mixes two Brownian paths; fix: sweep run --path-dt FINE on the coarse "
-            "run with the fine run's dt and seed)")
+        shared, path = False, "unknown (seed or dt missing from the metadata)"
+    else:
+        res_a, res_b = ma.path_dt or ma.dt, mb.path_dt or mb.dt
+        shared = (ma.seed == mb.seed and math.isclose(res_a, res_b, rel_tol=1e-9)
+                  and n[0] == n[1] and n[0] is not None)
+        if shared:
+            path = f"shared: seed {ma.seed}, drawn at {res_a:g} s, {n[0]} agents in both"
+        else:
+            path = (f"NOT shared: seeds {ma.seed} / {mb.seed}, drawn at {res_a:g} / {res_b:g} s, "
+                    f"{n[0]} / {n[1]} agents (one path needs the same seed, resolution and "
+                    "agents; fix for a pathwise error: sweep run --path-dt FINE on the coarse "
+                    "run with the fine run's dt and seed)")
+        if not noisy:
+            path = "no noise (sigma = 0 in both): deterministic runs"
+    pathwise = scene == [] and (shared or not noisy)
+    return Sameness(scene, seed, path, noisy, shared, pathwise)
 
 
 def _ids(fr: Frame, path: str, t: float) -> np.ndarray:
@@ -75,8 +179,12 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
     """Aligns two recordings on their common log times and measures |q^A - q^B|."""
     ma, mb = load_run(a), load_run(b)
     notes = []
-    if ma.scene is not None and mb.scene is not None and ma.scene.spec != mb.scene.spec:
-        notes.append("the recorded scenes differ")
+    same = sameness(ma, mb)
+    for m in (ma, mb):
+        if not m.frames:
+            raise RecordingError(f"{m.path}: holds no recorded state (no /poses message), so "
+                                 "there is nothing to compare (fix: compare recordings of at "
+                                 "least one recorded step)")
     # with flows (agents entering, leaving) the agents two frames share are matched by id
     by_id = any(m.scene is not None and m.scene.flows is not None for m in (ma, mb))
     if by_id:
@@ -138,7 +246,9 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
         t_last_s=float(table[-1, 0]), sup_m=float(table[:, 1].max()), sup_t_s=sup_t,
         sup_agent=sup_agent, final_max_m=float(last.max(initial=0.0)),
         final_mean_m=float(last.mean()) if len(last) else 0.0, per_agent_sup_m=per.tolist(),
-        per_agent_t_s=arg.tolist(), shared_path=_path_note(ma, mb), truncated=truncated,
+        per_agent_t_s=arg.tolist(), shared_path=same.path, same_scene=same.scene_line(),
+        same_seed=same.seed, pathwise=same.pathwise, distance=same.distance_line(),
+        truncated=truncated,
         notes=notes, table=table, problems=ra.problems + rb.problems)
 
 
@@ -147,7 +257,10 @@ def format_comparison(c: Comparison) -> str:
     lines = [
         f"A                  {c.a}",
         f"B                  {c.b}",
-        f"shared path        {c.shared_path}",
+        f"scene              {c.same_scene}",
+        f"seed               {c.same_seed}",
+        f"noise path         {c.shared_path}",
+        f"distance           {c.distance}",
         f"common times       {c.common_frames} (t = {c.t_first_s:.6g} .. {c.t_last_s:.6g} s)",
         f"sup distance       {c.sup_m:.6g} m (t = {c.sup_t_s:.6g} s)",
         f"final distance     max {c.final_max_m:.6g} m, mean {c.final_mean_m:.6g} m",

@@ -2,11 +2,24 @@
 arrays) as a ``pedpy.TrajectoryData``, its text export, and PedPy's own measurements (classic
 and Voronoi density, speed, flow at a line, fundamental diagram) called on it.
 
-Frames: frame k is recorded step k * record_every, so the frame rate is 1 / (dt record_every)
-frames per second (dt and record_every from the recording's metadata; without record_every,
-from the smallest step between recorded states). Ids: the ``id`` column of ``/agents`` (agents
-keep their id when others leave or enter); a recording without ``/agents`` numbers the agents
-of each frame 0 .. N - 1. Coordinates in metres.
+Frames: PedPy needs one frame rate, so frame k is the time k P (s) with P the frame period.
+P is dt record_every when the recording says record_every (``sweep run``), else dt times the
+most common number of steps between recorded states (the node records once per tick, and a
+tick may hold more or fewer steps: one cut short by ``initialpose``, several under
+``real_time_factor``). Times come from the recorded stamps, never from a count of messages.
+When every recorded state lies on that grid, one after the other, the frames are the
+recorded states themselves. Otherwise each agent's centre is interpolated linearly in time
+between its two recorded states either side of k P, for the k P between its first and last
+recorded state (an agent is never extended before it entered or after it left); a frame on
+a recorded time takes that state exactly. :attr:`Trajectories.resampling` says how many
+frames were interpolated and the recorded step gaps. A linear interpolation is exact for a
+straight walk at constant velocity; over a gap of G steps it replaces the path by its chord,
+so a speed measured by PedPy over a window of W frames is off by at most the path's turning
+within the gaps at the window's two ends.
+
+Ids: the ``id`` column of ``/agents`` (agents keep their id when others leave or enter); a
+recording without ``/agents`` numbers the agents of each frame 0 .. N - 1. Coordinates in
+metres.
 
 PedPy is imported when one of these functions runs (it pulls in shapely and pandas).
 """
@@ -29,13 +42,18 @@ from sweep_core.io.outputs import replacing
 
 @dataclass
 class Trajectories:
-    """Every agent's recorded positions, one row per agent and frame: ``ids`` (M,) int,
-    ``frames`` (M,) int, ``xy`` (M, 2) m, and ``frame_rate`` (frames per second)."""
+    """Every agent's positions, one row per agent and frame: ``ids`` (M,) int, ``frames``
+    (M,) int, ``xy`` (M, 2) m, and ``frame_rate`` (frames per second); frame k is the time
+    k / frame_rate (s). ``resampling``: how the frames were made from uneven recorded states
+    ("" when they are the recorded states); ``cut``: where a recording cut short ends (""
+    when it is whole)."""
 
     ids: np.ndarray
     frames: np.ndarray
     xy: np.ndarray
     frame_rate: float
+    resampling: str = ""
+    cut: str = ""
 
     @classmethod
     def from_frames(cls, frames: Sequence[tuple[int, np.ndarray, np.ndarray]],
@@ -59,25 +77,92 @@ class Trajectories:
         return pedpy.TrajectoryData(data=data, frame_rate=self.frame_rate)
 
 
-def read_trajectories(path: str | os.PathLike[str]) -> Trajectories:
-    """The trajectories of a recording (module docstring).
+#: stamps this close (ns) are one time: a frame there is the recorded state
+SAME_NS = 1000
+
+
+def _mode(gaps: np.ndarray) -> int:
+    """The most common gap (steps); of several equally common, the largest."""
+    values, counts = np.unique(gaps, return_counts=True)
+    return int(values[counts == counts.max()].max())
+
+
+def even_frames(stamps_ns: Sequence[int], ids: Sequence[np.ndarray], xy: Sequence[np.ndarray],
+                dt: float, record_every: int | None) -> Trajectories:
+    """Recorded states (stamp (ns), ids (N,), centres (N, 2) m each, in any order; a stamp
+    recorded twice keeps its last state) on frames of one period (module docstring).
 
     Raises:
-        RecordingError: not a recording of ``sweep run`` or the node, or no dt in it.
+        RecordingError: no state.
+    """
+    if not len(stamps_ns):
+        raise RecordingError("no recorded state")
+    order = np.argsort(np.asarray(stamps_ns, dtype=np.int64), kind="stable")
+    t_all = np.asarray(stamps_ns, dtype=np.int64)[order]
+    last = np.append(t_all[1:] != t_all[:-1], True)  # the last state of each stamp
+    keep = order[last]
+    t = t_all[last].astype(np.float64)
+    steps = np.rint(t / (dt * NS)).astype(np.int64)
+    gaps = np.diff(steps)
+    g = int(record_every) if record_every else (_mode(gaps[gaps > 0]) if np.any(gaps > 0)
+                                                 else 1)
+    period = g * dt * NS  # ns
+    rate = 1.0 / (g * dt)
+    on_grid = np.all(np.abs(t - steps * dt * NS) <= SAME_NS) and np.all(steps % g == 0)
+    if on_grid and np.all(gaps == g):  # the recorded states are the frames
+        return Trajectories.from_frames(
+            [(int(s) // g, ids[k], xy[k]) for s, k in zip(steps, keep)], rate)
+    row_t = np.concatenate([np.full(len(ids[k]), t[j]) for j, k in enumerate(keep)])
+    row_id = np.concatenate([np.asarray(ids[k], np.int64) for k in keep])
+    row_xy = np.concatenate([np.asarray(xy[k], np.float64).reshape(-1, 2) for k in keep])
+    by = np.lexsort((row_t, row_id))
+    row_t, row_id, row_xy = row_t[by], row_id[by], row_xy[by]
+    starts = np.flatnonzero(np.append(True, row_id[1:] != row_id[:-1]))
+    ends = np.append(starts[1:], len(row_id))
+    out_id, out_frame, out_xy = [], [], []
+    for a, b in zip(starts, ends):  # one agent's recorded states, in time order
+        tk, qk = row_t[a:b], row_xy[a:b]
+        k = np.arange(math.ceil((tk[0] - SAME_NS) / period),
+                      math.floor((tk[-1] + SAME_NS) / period) + 1, dtype=np.int64)
+        at = k * period
+        out_id.append(np.full(len(k), row_id[a]))
+        out_frame.append(k)
+        out_xy.append(np.column_stack([np.interp(at, tk, qk[:, 0]),
+                                       np.interp(at, tk, qk[:, 1])]))
+    frames = np.concatenate(out_frame)
+    made = np.unique(frames)
+    nearest = np.searchsorted(t, made * period).clip(1, len(t) - 1)
+    exact = np.minimum(np.abs(t[nearest] - made * period),
+                       np.abs(t[nearest - 1] - made * period)) <= SAME_NS
+    lo, hi = (int(gaps.min()), int(gaps.max())) if len(gaps) else (0, 0)
+    note = (f"{int((~exact).sum())} of {len(made)} frames interpolated linearly in time "
+            f"between recorded states (frame period {g} steps of dt = {dt:g} s; recorded "
+            f"states {lo}-{hi} steps apart)")
+    return Trajectories(np.concatenate(out_id), frames, np.concatenate(out_xy), rate, note)
+
+
+def read_trajectories(path: str | os.PathLike[str]) -> Trajectories:
+    """The trajectories of a recording on frames of one period (module docstring). A file
+    cut short is read up to its last complete chunk, said in ``cut``.
+
+    Raises:
+        RecordingError: not a recording of ``sweep run`` or the node, no dt in it, resets,
+            a state without ids where agents come and go, or no recorded state.
     """
     meta = load_run(path)
     if meta.resets:
         raise RecordingError(f"{path}: has {len(meta.resets)} resets; a trajectory for PedPy "
                              "is one run (fix: export a recording without resets)")
-    rows: list[tuple[int, np.ndarray, np.ndarray]] = []
-    steps: list[int] = []
+    if meta.dt is None:
+        raise RecordingError(f"{path}: its metadata give no time step dt, so its states "
+                             "cannot be put on PedPy's frames (fix: export a recording of "
+                             "sweep run or the node)")
+    stamps: list[int] = []
+    ids: list[np.ndarray] = []
+    xy: list[np.ndarray] = []
     flows = meta.changes_population
-    for fr in FrameReader(meta):
-        if meta.dt is None:
-            raise RecordingError(f"{path}: its metadata give no time step dt; PedPy needs "
-                                 "the frame rate (fix: export a recording of sweep run or "
-                                 "the node)")
-        step = int(round(fr.stamp_ns / (meta.dt * NS)))
+    reader = FrameReader(meta)
+    for fr in reader:
         known = fr.agents is not None and "id" in fr.agents and len(fr.agents["id"]) == \
             len(fr.positions)
         if not known and flows:
@@ -85,27 +170,30 @@ def read_trajectories(path: str | os.PathLike[str]) -> Trajectories:
                                  "readable /agents ids, which a scene whose agents enter and "
                                  "leave needs (numbering them 0 .. N - 1 would mix agents up) "
                                  "(fix: record /agents, as sweep run does)")
-        ids = (np.rint(fr.agents["id"]).astype(np.int64) if known and fr.agents is not None
-               else np.arange(len(fr.positions)))
-        steps.append(step)
-        rows.append((step, ids, fr.positions))
-    every = meta.record_every
-    if not every:
-        diffs = np.diff(np.asarray(steps))
-        every = int(diffs[diffs > 0].min()) if np.any(diffs > 0) else 1
-    if meta.dt is None:
-        raise RecordingError(f"{path}: holds no recorded state (fix: record at least one step)")
-    return Trajectories.from_frames([(s // every, i, q) for s, i, q in rows],
-                                    1.0 / (meta.dt * every))
+        stamps.append(fr.stamp_ns)
+        ids.append(np.rint(fr.agents["id"]).astype(np.int64) if known and fr.agents is not None
+                   else np.arange(len(fr.positions)))
+        xy.append(fr.positions)
+    if not stamps:
+        raise RecordingError(f"{path}: holds no recorded state (no readable /poses message), "
+                             "so it has no frame to export (fix: export a recording of at "
+                             "least one recorded step)")
+    traj = even_frames(stamps, ids, xy, meta.dt, meta.record_every)
+    if reader.truncated:
+        traj.cut = (f"cut short: read up to its last complete chunk (t = "
+                    f"{max(stamps) / NS:g} s)")
+    return traj
 
 
 def write_pedpy_txt(traj: Trajectories, out: str | os.PathLike[str],
                     inputs: Sequence[str | os.PathLike[str]] = ()) -> Path:
     """PedPy's text format (``pedpy.load_trajectory_from_txt`` reads it): a commented header
-    with the frame rate and the unit, then one line ``id frame x y z`` per agent and frame."""
+    with the frame rate, how the frames were made (when resampled) and the unit, then one line
+    ``id frame x y z`` per agent and frame."""
     order = np.lexsort((traj.frames, traj.ids))
+    made = f"# frames: {traj.resampling}\n" if traj.resampling else ""
     header = (f"# sweep_ros trajectories for PedPy\n# framerate: {traj.frame_rate:.10g}\n"
-              "# x/m y/m z/m\n# id frame x y z\n")
+              f"{made}# x/m y/m z/m\n# id frame x y z\n")
     table = np.column_stack([traj.ids[order], traj.frames[order], traj.xy[order],
                              np.zeros(len(order))])
     with replacing(out, inputs, other="--pedpy OTHER") as tmp:

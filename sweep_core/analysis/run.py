@@ -222,6 +222,9 @@ def load_run(path: str | Path) -> RunMeta:
     declared = _json(raw.get("topics"), "topics", problems)
     poses = _pick_topic(info.channels, "/poses", cdr.POSE_ARRAY, declared)
     if info.message_count == 0 and poses is None:
+        if os.path.getsize(info.path) == 0:
+            raise RecordingError(f"{info.path}: the file is empty (0 bytes), not a recording "
+                                 "(fix: give the .mcap that sweep run or the node wrote)")
         if info.truncated:
             raise RecordingError(f"{info.path}: no messages: the file ends at byte "
                                  f"{os.path.getsize(info.path)} before its first chunk; it was "

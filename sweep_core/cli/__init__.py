@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from sweep_core.cli.commands import COMMANDS
@@ -43,14 +44,40 @@ def _command(argv: list[str]) -> str:
 def main(argv: list[str] | None = None) -> int:
     args_list = sys.argv[1:] if argv is None else argv
     parser = build_parser(_command(args_list))
-    args = parser.parse_args(args_list)
+    try:
+        args = parser.parse_args(args_list)
+    except BrokenPipeError:  # sweep --help | head -1
+        return reader_gone()
     if getattr(args, "record_every", 1) < 1:
         parser.error("--record-every: must be >= 1")
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
+        sys.stdout.flush()  # a reader that left (``| head``) is met here, not at exit
+        return code
+    except BrokenPipeError:
+        return reader_gone()
     except SweepError as err:
         print(f"sweep: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("sweep: interrupted; the recording was closed", file=sys.stderr)
         return 130
+
+
+#: the exit status of a command whose reader closed the pipe: 128 + SIGPIPE, as the shell
+#: reports a command killed by it
+PIPE_CLOSED = 141
+
+
+def reader_gone() -> int:
+    """The output's reader closed the pipe (``sweep compare A B | head``): end quietly. The
+    standard streams are pointed at /dev/null, so the interpreter's last flush finds no closed
+    pipe either (no traceback, no "Exception ignored" line). Returns :data:`PIPE_CLOSED`."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            os.dup2(devnull, stream.fileno())
+        except (OSError, ValueError, AttributeError):  # not a real file (captured): left as is
+            pass
+    os.close(devnull)
+    return PIPE_CLOSED

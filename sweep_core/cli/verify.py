@@ -11,7 +11,7 @@ import argparse
 import sys
 
 from sweep_core.cli.commands import summary
-from sweep_core.errors import SweepError
+from sweep_core.errors import RecordingError, SweepError
 from sweep_core.io.outputs import check_folder
 
 __all__ = ["register"]
@@ -29,7 +29,9 @@ def _verify(args: argparse.Namespace) -> int:
     from sweep_core.verify import TESTS
     from sweep_core.verify.runner import verify
 
-    names = args.tests or [k for k, t in TESTS.items() if not (args.quick and t.slow)]
+    # a test named twice runs once, in the order first named
+    names = (list(dict.fromkeys(args.tests)) if args.tests else
+             [k for k, t in TESTS.items() if not (args.quick and t.slow)])
     unknown = [n for n in names if n not in TESTS]
     if unknown:
         raise SweepError(f"--tests: {unknown[0]!r} is not a test (fix: choose from "
@@ -68,9 +70,19 @@ def _export(args: argparse.Namespace) -> int:
 
     check_pedpy()
     traj = read_trajectories(args.recording)
+    if traj.cut:
+        raise RecordingError(f"{args.recording}: {traj.cut}; its export would end there as if "
+                             f"the run had (fix: sweep recover {args.recording}, then export "
+                             "the complete copy it writes)")
+    if not len(traj.ids):
+        raise RecordingError(f"{args.recording}: no agent is present at any frame time, so "
+                             "there is no trajectory to export (fix: export a recording with "
+                             "agents in it)")
     path = write_pedpy_txt(traj, args.pedpy, inputs=[args.recording])
     print(f"{path}: {len(set(traj.ids.tolist()))} agents, {len(traj.ids)} rows, "
           f"{traj.frame_rate:g} frames/s (pedpy.load_trajectory_from_txt reads it)")
+    if traj.resampling:
+        print(f"frames: {traj.resampling}")
     return 0
 
 
@@ -103,7 +115,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     e = subparsers.add_parser("export", help=summary("export"),
                               description="Writes a recording's trajectories in PedPy's text "
-                              "format (id frame x y z; frame rate 1 / (dt record_every)).")
+                              "format (id frame x y z), frame k at time k P: P = dt "
+                              "record_every, or dt times the most common step gap between "
+                              "recorded states (a node's ticks). Recorded states off that grid "
+                              "(uneven ticks) are put on it by linear interpolation in time of "
+                              "each agent's centre within its presence, and the command says "
+                              "how many frames were. A recording cut short, with resets or "
+                              "without a recorded state is refused (exit status 2).")
     e.add_argument("recording", help="an MCAP recording of sweep run or the node")
     e.add_argument("--pedpy", required=True, metavar="OUT.txt", help="the file to write")
     e.set_defaults(func=_export)

@@ -7,6 +7,10 @@ the folder given by ``--scenes``) with keys changed by the test (dotted keys, as
 ensemble --vary`` takes them), a horizon, a time step and a recording interval. A run is built
 as ``sweep run`` builds it (``Scene.from_dict``, ``Simulator(scene, dt, seed)``); the spawned
 crowd of a scene with ``agents.spawn`` is drawn with the run's seed.
+
+A run's outcome depends on its case and seed only: it ends at the case's horizon ``t_end``
+in simulated time (or once every agent left, with ``stop_when_empty``), never on a clock; the
+wall time it took is kept for information (``Trace.wall_s``) and judges nothing.
 """
 from __future__ import annotations
 
@@ -89,8 +93,9 @@ class Trace:
     """What one run left for the verdict: ``traj`` (every recorded frame), ``left_at`` (id ->
     time, s, of leaving at a sink), ``left_xy`` (id -> last centre before leaving, m),
     ``start`` (id -> centre at t = 0), ``walls`` (the scene's walls spec), ``speeds`` (id ->
-    preferred speed, m/s, when the scene draws them), ``t_end`` (s reached), ``error`` (the
-    failure, "" if none), ``wall_s``."""
+    preferred speed, m/s, when the scene draws them), ``t_end`` (simulated time reached, s),
+    ``t_limit`` (the case's horizon, s), ``error`` (the failure, "" if none), ``wall_s`` (the
+    wall time it took, s: information only, no verdict reads it)."""
 
     case: str
     seed: int
@@ -104,6 +109,7 @@ class Trace:
     walls: list = field(default_factory=list)
     error: str = ""
     wall_s: float = 0.0
+    t_limit: float = 0.0
 
     def positions(self, agent: int) -> tuple[np.ndarray, np.ndarray]:
         """Times (s) and centres (K, 2) of one agent's recorded frames."""
@@ -116,7 +122,7 @@ def simulate(case: Case, seed: int, folder: str | None = None) -> Trace:
     start = time.perf_counter()
     rate = 1.0 / (case.dt * case.record_every)
     frames: list[tuple[int, np.ndarray, np.ndarray]] = []
-    trace = Trace(case.label, seed, Trajectories.from_frames([], rate))
+    trace = Trace(case.label, seed, Trajectories.from_frames([], rate), t_limit=case.t_end)
     try:
         spec = case.spec(seed, folder)
         trace.walls = list(spec.get("walls") or [])
@@ -171,17 +177,68 @@ def _more_to_come(sim: Simulator) -> bool:
                 any(k < len(src.times) for k, src in zip(pop.next, pop.flows.sources)))
 
 
+def failing(conditions: Sequence[tuple[bool, str]]) -> tuple[bool, str]:
+    """A seed's pass and why it fails: ``conditions`` are (holds, what failed, said when it
+    does not hold); returns whether all hold and the failed ones joined by "; "."""
+    failed = [text for holds, text in conditions if not holds]
+    return not failed, "; ".join(failed)
+
+
+def ran(tr: Trace) -> tuple[bool, str]:
+    """The condition that a run ended without an error (the error quoted when it did not)."""
+    return not tr.error, f"run error in case {tr.case}: {tr.error[:200]}"
+
+
+def all_left(tr: Trace) -> tuple[bool, str]:
+    """The condition that every agent of a run left (at a sink): how many had not, and when
+    the run ended (its horizon, simulated time)."""
+    gone = len(tr.left_at)
+    return (tr.n0 > 0 and gone >= tr.n0,
+            f"{tr.n0 - gone} of {tr.n0} agents had not left when case {tr.case} ended at "
+            f"t = {tr.t_end:g} s (its limit {tr.t_limit:g} s of simulated time)")
+
+
 @dataclass
 class Verdict:
     """A test's result: ``values`` (one per seed, the measured quantity), ``passed`` (per
-    seed; None: the test documents and has no threshold), ``unit``, and ``notes`` (extra
-    figures for the line and the report)."""
+    seed; None: the test documents and has no threshold), ``unit``, ``notes`` (extra figures
+    for the line and the report), and ``reasons`` (per seed: the conditions that failed, ""
+    where it passed; the runner adds run errors)."""
 
     values: list[float]
     passed: list[bool] | None
     unit: str = ""
     notes: str = ""
     figures: dict[str, Any] = field(default_factory=dict)
+    reasons: list[str] = field(default_factory=list)
+
+    @classmethod
+    def judged(cls, values: list[float],
+               checks: Sequence[Sequence[tuple[bool, str]]], unit: str = "",
+               notes: str = "") -> Verdict:
+        """From the conditions of each seed (:func:`failing`): passed where all hold, and
+        the failed ones as the seed's reason."""
+        out = [failing(c) for c in checks]
+        return cls(values, [ok for ok, _ in out], unit, notes,
+                   reasons=[why for _, why in out])
+
+    def fail(self, k: int, why: str) -> None:
+        """Seed number ``k`` (its position) fails for ``why`` (added to its reason)."""
+        n = len(self.values)
+        if self.passed is None:
+            self.passed = [True] * n
+        self.reasons += [""] * (n - len(self.reasons))
+        self.passed[k] = False
+        self.reasons[k] = f"{self.reasons[k]}; {why}" if self.reasons[k] else why
+
+    def failures(self, seeds: Sequence[int]) -> str:
+        """The failing seeds and why, "seed 0: ...; seed 2: ..." ("" when none fails); a
+        failing seed without a reason says so rather than nothing."""
+        if self.passed is None:
+            return ""
+        reasons = self.reasons + [""] * (len(self.passed) - len(self.reasons))
+        return " | ".join(f"seed {seed}: {why or 'failed (no condition recorded)'}"
+                          for seed, ok, why in zip(seeds, self.passed, reasons) if not ok)
 
     @property
     def status(self) -> str:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sweep_core.verify.base import Case, Test, Trace, Verdict
+from sweep_core.verify.base import Case, Test, Trace, Verdict, all_left, ran
 from sweep_core.verify.figures import figure, save
 
 # -- test 7 -------------------------------------------------------------------------------------
@@ -46,9 +46,10 @@ def measured_speeds(tr: Trace) -> dict[int, float]:
 
 def _judge_7(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
     n_seeds = len(next(iter(traces.values())))
-    values, ok, worst, drawn = [], [], [], []
+    values, checks, worst, drawn = [], [], [], []
     for k in range(n_seeds):
         inside = total = 0
+        why: list[tuple[bool, str]] = []
         for name, (lo, hi) in AGE_GROUPS.items():
             tr = traces[name][k]
             speeds = measured_speeds(tr)
@@ -57,13 +58,22 @@ def _judge_7(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
             good = (v >= lo * (1 - TOLERANCE)) & (v <= hi * (1 + TOLERANCE))
             inside += int(good.sum())
             total += tr.n0
+            why.append(ran(tr))
+            why.append((len(v) >= tr.n0, f"{name}: {tr.n0 - len(v)} of {tr.n0} people without "
+                        "a measured speed"))
+            if len(v):
+                out = v[~good]
+                why.append((not len(out), f"{name}: {len(out)} speeds outside "
+                            f"{lo * (1 - TOLERANCE):.3g}-{hi * (1 + TOLERANCE):.3g} m/s "
+                            f"(from {out.min() if len(out) else 0:.3g} to "
+                            f"{out.max() if len(out) else 0:.3g})"))
             if len(v):
                 worst.append(max(lo - v.min(), v.max() - hi, 0.0) / lo)
         values.append(inside / max(total, 1))
-        ok.append(inside == total)
+        checks.append(why)  # all hold exactly when every person's speed is in range
     notes = (f"largest departure from a range {max(worst, default=math.nan):.1%}; measured "
              f"against drawn speed: largest difference {max(drawn, default=math.nan):.1%}")
-    return Verdict(values, ok, "", notes)
+    return Verdict.judged(values, checks, "", notes)
 
 
 def _plot_7(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> list[Path]:
@@ -103,13 +113,15 @@ def evacuation_time(tr: Trace) -> float:
 
 
 def _judge_9(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
-    values, ok, times = [], [], []
+    values, checks, times = [], [], []
     for four, two in zip(traces["four"], traces["two"]):
         t4, t2 = evacuation_time(four), evacuation_time(two)
         ratio = t2 / t4 if t4 > 0 else math.nan
         values.append(ratio)
         times.append((t4, t2))
-        ok.append(1.6 <= ratio <= 2.4)
+        emptied = [ran(four), ran(two), all_left(four), all_left(two)]
+        checks.append(emptied + [(not all(c for c, _ in emptied) or 1.6 <= ratio <= 2.4,
+                                  f"ratio {ratio:.3g} outside 1.6-2.4")])
     notes = "evacuation times 4 doors / 2 doors " + ", ".join(
         f"{a:.1f}/{b:.1f} s" for a, b in times)
     stuck = [f"{label} doors, seed {tr.seed}: {remaining(tr)}" for four, two in
@@ -117,7 +129,7 @@ def _judge_9(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
              if remaining(tr)]
     if stuck:
         notes += "; not emptied: " + "; ".join(stuck)
-    return Verdict(values, ok, "", notes)
+    return Verdict.judged(values, checks, "", notes)
 
 
 def remaining(tr: Trace) -> str:
@@ -162,16 +174,20 @@ def _cases_15(quick: bool) -> list[Case]:
 
 
 def _judge_15(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
-    values, ok, times = [], [], []
+    values, checks, times = [], [], []
     for short, corner, long_ in zip(traces["short"], traces["corner"], traces["long"]):
         ts, tc, tl = (evacuation_time(tr) for tr in (short, corner, long_))
         # where the corner lies between the short (0) and the long (1) way
         values.append((tc - ts) / (tl - ts) if tl > ts else math.nan)
         times.append((ts, tc, tl))
-        ok.append(ts <= tc <= tl)
+        runs = (short, corner, long_)
+        emptied = [ran(tr) for tr in runs] + [all_left(tr) for tr in runs]
+        checks.append(emptied + [(not all(c for c, _ in emptied) or ts <= tc <= tl,
+                                  f"evacuation times short/corner/long {ts:.1f}/{tc:.1f}/"
+                                  f"{tl:.1f} s not in that order")])
     notes = "evacuation times short/corner/long " + ", ".join(
         f"{a:.1f}/{b:.1f}/{c:.1f} s" for a, b, c in times)
-    return Verdict(values, ok, "", notes)
+    return Verdict.judged(values, checks, "", notes)
 
 
 def _plot_15(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> list[Path]:

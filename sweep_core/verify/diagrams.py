@@ -96,14 +96,18 @@ def _judge_4(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
     head = _diagram(traces, "headway")
     pure = _diagram(traces, "pure")
     n_seeds = len(next(iter(head.values())))
-    values, ok = [], []
+    values, checks = [], []
     for k in range(n_seeds):
-        worst = 0.0
-        for rho, per_seed in head.items():
+        worst, why = 0.0, []
+        for rho, per_seed in sorted(head.items()):
             if rho <= TARGET_MAX_DENSITY:
-                worst = max(worst, abs(per_seed[k][1] / float(weidmann(rho)) - 1.0))
+                off = abs(per_seed[k][1] / float(weidmann(rho)) - 1.0)
+                worst = max(worst, off)
+                why.append((off <= TARGET, f"speed at {rho:g} /m^2 {per_seed[k][1]:.3g} m/s, "
+                            f"{off:.1%} from Weidmann's {float(weidmann(rho)):.3g} (more than "
+                            f"{TARGET:.0%})"))
         values.append(worst)
-        ok.append(worst <= TARGET)
+        checks.append(why)
 
     def row(d: dict[float, list[tuple[float, float]]]) -> str:
         return ", ".join(f"{rho:g}: {np.nanmean([v for _, v in s]):.2f}" for rho, s in
@@ -111,7 +115,7 @@ def _judge_4(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
 
     notes = (f"speeds (m/s) with the speed law {row(head)}; pure model {row(pure)}; "
              "Weidmann " + ", ".join(f"{r:g}: {float(weidmann(r)):.2f}" for r in sorted(head)))
-    verdict = Verdict(values, ok, "", notes)
+    verdict = Verdict.judged(values, checks, "", notes)
     verdict.figures = {"headway": head, "pure": pure}
     return verdict
 
@@ -269,7 +273,19 @@ def judge_flows(flows: dict[str, dict[float, list[float]]]) -> Verdict:
         return math.nan if any(math.isnan(e) for e in errors) else max(errors)
 
     values = [worst(line_flow_at, k) for k in range(n_seeds)]
-    ok = [bool(v <= TARGET) for v in values]
+
+    def why(k: int) -> list[tuple[bool, str]]:
+        out = []
+        for w in WIDTHS:
+            j = flows["headway"][w][k]
+            off = abs(j / line_flow_at(w) - 1.0)
+            out.append((bool(off <= TARGET), f"no flow at width {w:g} m (the run failed)"
+                        if math.isnan(j) else f"flow at width {w:g} m {j:.3g}/s, {off:.1%} "
+                        f"from the experiments' line {line_flow_at(w):.3g}/s (more than "
+                        f"{TARGET:.0%})"))
+        return out
+
+    checks = [why(k) for k in range(n_seeds)]
     notes = "; ".join(
         f"{law}: " + ", ".join(f"w {w:g} m J/w {np.nanmean(js) / w:.2f}" for w, js in
                                sorted(flows[law].items())) for law in LAWS)
@@ -282,7 +298,7 @@ def judge_flows(flows: dict[str, dict[float, list[float]]]) -> Verdict:
             f"{source_flow(source, w) / w:.2f}" for w in WIDTHS)
             + f") {100 * np.nanmin(each):.1f}-{100 * np.nanmax(each):.1f} %, within "
             f"{TARGET:.0%} on {sum(e <= TARGET for e in each)} of {n_seeds} seeds")
-    verdict = Verdict(values, ok, "", notes)
+    verdict = Verdict.judged(values, checks, "", notes)
     verdict.figures = flows
     return verdict
 

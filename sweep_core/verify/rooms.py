@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from sweep_core.analysis.pedpy_export import classic_density, line_flow, rectangle
-from sweep_core.verify.base import Case, Test, Trace, Verdict
+from sweep_core.verify.base import Case, Test, Trace, Verdict, all_left, ran
 from sweep_core.verify.figures import figure, save, walls
 
 # -- test 1 -------------------------------------------------------------------------------------
@@ -25,12 +25,14 @@ def _cases_1(quick: bool) -> list[Case]:
 
 
 def _judge_1(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
-    values, ok = [], []
+    values, checks = [], []
     for tr in traces["corridor"]:
         t = tr.left_at.get(0, math.nan) if not tr.error else math.nan
         values.append(t)
-        ok.append(26.0 <= t <= 34.0)
-    return Verdict(values, ok, " s")
+        checks.append([ran(tr), all_left(tr),
+                       (0 not in tr.left_at or 26.0 <= t <= 34.0,
+                        f"travel time {t:.4g} s outside 26-34 s")])
+    return Verdict.judged(values, checks, " s")
 
 
 TEST_1 = Test(
@@ -55,7 +57,7 @@ def _cases_6(quick: bool) -> list[Case]:
 
 
 def _judge_6(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
-    values, ok, out_all = [], [], []
+    values, checks, out_all = [], [], []
     for tr in traces["corner"]:
         outside = set(tr.traj.ids[~corner_inside(tr.traj.xy)].tolist())
         for i, xy in tr.left_xy.items():  # the last centre before leaving counts too
@@ -64,9 +66,11 @@ def _judge_6(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
         done = len(tr.left_at)
         values.append(float(len(outside)))
         out_all.append(done)
-        ok.append(not tr.error and not outside and done == tr.n0 == 20)
+        checks.append([ran(tr), (tr.n0 == 20, f"{tr.n0} people, not 20"), all_left(tr),
+                       (not outside, f"{len(outside)} people left the corridors (ids "
+                        f"{sorted(outside)[:6]})")])
     notes = f"left by the exit: {min(out_all)}-{max(out_all)} of 20"
-    return Verdict(values, ok, " outside the corridors", notes)
+    return Verdict.judged(values, checks, " outside the corridors", notes)
 
 
 def _plot_6(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> list[Path]:
@@ -121,7 +125,7 @@ def _assigned(n: int) -> list[str]:
 
 
 def _judge_10(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
-    values, ok = [], []
+    values, checks = [], []
     for tr in traces["rooms"]:
         want = _assigned(tr.n0)
         right = 0
@@ -130,8 +134,10 @@ def _judge_10(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
             box = MAIN_EXIT if want[i] == "main" else SECONDARY_EXIT
             right += int(xy is not None and _in_box(xy, box))
         values.append(float(right))
-        ok.append(not tr.error and right == tr.n0 == 23)
-    return Verdict(values, ok, " of 23")
+        checks.append([ran(tr), (tr.n0 == 23, f"{tr.n0} people, not 23"), all_left(tr),
+                       (right == tr.n0, f"{tr.n0 - right} of {tr.n0} did not leave by their "
+                        "assigned exit")])
+    return Verdict.judged(values, checks, " of 23")
 
 
 TEST_10 = Test(
@@ -152,17 +158,21 @@ def _cases_11(quick: bool) -> list[Case]:
 
 
 def _judge_11(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
-    values, ok, second = [], [], []
+    values, checks, second = [], [], []
     for tr in traces["hall"]:
         one = sum(_in_box(xy, EXIT_1) for xy in tr.left_xy.values())
         two = sum(_in_box(xy, EXIT_2) for xy in tr.left_xy.values())
         share = one / max(one + two, 1)
         values.append(share)
         second.append(two)
-        ok.append(not tr.error and share > 0.5 and two > 0 and one + two == tr.n0)
+        elsewhere = len(tr.left_xy) - one - two
+        checks.append([ran(tr), all_left(tr), (share > 0.5, f"share by exit 1 {share:.3f}, not "
+                                               "> 0.5"),
+                       (two > 0, "exit 2 unused"),
+                       (elsewhere <= 0, f"{elsewhere} of {tr.n0} left by neither exit")])
     notes = (f"exit 2 used by {min(second)}-{max(second)} people (each person takes the exit "
              "of least estimated time, walk plus queue: flows.exit_choice)")
-    return Verdict(values, ok, "", notes)
+    return Verdict.judged(values, checks, "", notes)
 
 
 def _plot_11(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> list[Path]:
@@ -217,19 +227,23 @@ def _jams(tr: Trace) -> tuple[float, float, float, float]:
 
 
 def _judge_12(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
-    values, ok, flows = [], [], []
+    values, checks, flows = [], [], []
     for tr in traces["headway"]:
         before, after, j_corridor, j_exit = _jams(tr)
         values.append(after)
         flows.append((j_corridor, j_exit, before))
-        ok.append(not tr.error and before >= JAM_DENSITY > after and len(tr.left_at) == tr.n0)
+        checks.append([ran(tr), all_left(tr),
+                       (before >= JAM_DENSITY, f"peak density before the corridor {before:.2f} "
+                        f"/m^2, not >= {JAM_DENSITY:g}"),
+                       (after < JAM_DENSITY, f"peak density before the exit {after:.2f} /m^2, "
+                        f"not < {JAM_DENSITY:g}")])
     pure = [_jams(tr) for tr in traces["pure"]]
     notes = ("peak density before the corridor " + ", ".join(f"{b:.2f}" for _, _, b in flows)
              + "; flows corridor/exit " + ", ".join(f"{a:.2f}/{b:.2f}" for a, b, _ in flows)
              + " 1/s; without a speed law, peak densities corridor/exit "
              + ", ".join(f"{a:.2f}/{b:.2f}" for a, b, _, _ in pure) + " /m^2, flows "
              + ", ".join(f"{c:.2f}/{d:.2f}" for _, _, c, d in pure) + " 1/s")
-    return Verdict(values, ok, " /m^2", notes)
+    return Verdict.judged(values, checks, " /m^2", notes)
 
 
 TEST_12 = Test(

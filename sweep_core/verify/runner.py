@@ -14,14 +14,36 @@ from typing import Any
 from sweep_core.errors import SweepError
 from sweep_core.io.outputs import write_text
 from sweep_core.model.scene import Scene
-from sweep_core.verify.base import Case, Test, Trace, Verdict, simulate
+from sweep_core.verify.base import Case, Test, Trace, Verdict, ran, simulate
 
 
-def line(test: Test, verdict: Verdict) -> str:
-    """The printed line of a test: name, what is measured, criterion, value, status."""
+def line(test: Test, verdict: Verdict, seeds: Sequence[int] = ()) -> str:
+    """The printed line of a test: name, what is measured, criterion, value, notes, and for
+    a FAIL the failing seeds with the conditions that failed."""
     text = (f"{test.key:<9} {verdict.status:<4}  {test.title}: {test.measures} | criterion "
             f"{test.criterion} | {verdict.spread()}")
-    return text + (f" | {verdict.notes}" if verdict.notes else "")
+    text += f" | {verdict.notes}" if verdict.notes else ""
+    failed = verdict.failures(seeds or range(len(verdict.values)))
+    return text + (f" | FAILED {failed}" if failed else "")
+
+
+def judge(test: Test, mine: dict[str, list[Trace]], seeds: Sequence[int],
+          quick: bool) -> Verdict:
+    """A test's verdict from its traces: its judge's, then each seed with a run error fails
+    with that error quoted (every case's, by name); a judge that raises fails every seed
+    with its error."""
+    try:
+        verdict = test.judge(mine, quick)
+    except Exception as err:  # noqa: BLE001 - a measurement that fails is a FAIL line
+        why = f"the measurement failed: {type(err).__name__}: {str(err)[:200]}"
+        verdict = Verdict([math.nan] * len(seeds), [False] * len(seeds),
+                          reasons=[why] * len(seeds))
+    for k in range(len(seeds)):
+        for trs in mine.values():
+            ok, why = ran(trs[k])
+            if not ok and why not in (verdict.reasons[k:k + 1] or [""])[0]:
+                verdict.fail(k, why)
+    return verdict
 
 
 def run_traces(tasks: Sequence[tuple[Case, int]], folder: str | None, client: Any,
@@ -82,19 +104,10 @@ def verify(tests: Sequence[Test], seeds: Sequence[int], quick: bool, out: Path |
         out.mkdir(parents=True, exist_ok=True)
     for t in tests:
         mine = by_test[t.key]
-        errors = sorted({tr.error for trs in mine.values() for tr in trs if tr.error})
-        try:
-            verdict = t.judge(mine, quick)
-        except Exception as err:  # noqa: BLE001 - a measurement that fails is a FAIL line
-            verdict = Verdict([math.nan] * len(seeds), [False] * len(seeds),
-                              notes=f"the measurement failed: {type(err).__name__}: "
-                              f"{str(err)[:200]}")
-        if errors:
-            verdict.passed = [False] * len(verdict.values)
-            verdict.notes = (verdict.notes + "; " if verdict.notes else "") + \
-                "failed runs: " + errors[0][:200]
+        errors = any(tr.error for trs in mine.values() for tr in trs)
+        verdict = judge(t, mine, seeds, quick)
         results.append((t, verdict))
-        say(line(t, verdict))
+        say(line(t, verdict, seeds))
         if out is not None and t.plot is not None and not errors:
             figures[t.key] = t.plot(mine, verdict, out)
     if out is not None:
@@ -108,17 +121,17 @@ def write_report(results: list[tuple[Test, Verdict]], figures: dict[str, list[Pa
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(["test", "status", "measures", "criterion", "mean", "min", "max", "values",
-                "notes"])
+                "notes", "failed"])
     for t, v in results:
         vals = [x for x in v.values if math.isfinite(x)]
         w.writerow([t.key, v.status, t.measures, t.criterion,
                     f"{sum(vals) / len(vals):.6g}" if vals else "",
                     f"{min(vals):.6g}" if vals else "", f"{max(vals):.6g}" if vals else "",
-                    " ".join(f"{x:.6g}" for x in v.values), v.notes])
+                    " ".join(f"{x:.6g}" for x in v.values), v.notes, v.failures(seeds)])
     write_text(out / "summary.csv", buf.getvalue())
     md = [f"# sweep verify{' --quick' if quick else ''}", "",
           f"Seeds: {', '.join(str(s) for s in seeds)}.", "", "```"]
-    md += [line(t, v) for t, v in results] + ["```", ""]
+    md += [line(t, v, seeds) for t, v in results] + ["```", ""]
     for t, _ in results:
         md += [f"## {t.title}", "", f"Source: {t.source}.", ""]
         for path in figures.get(t.key, []):
