@@ -229,8 +229,8 @@ class Simulator:
             problem = self.robots.check_geometry(scene, self.t)
             if problem:
                 raise SceneError("scene", f"at t = {self.t:g} s {problem}",
-                                 "keep the robots' current disks free in the new geometry, and "
-                                 "their goals reachable (or place the robots first)")
+                                 "keep the robots' current disks clear of the new walls and "
+                                 "their goals reachable, or place the robots elsewhere first")
         live = scene if self._pop is None else self._pop.view(scene, self._q)
         bad = violating_agents(live, self.t, self._q)
         if bad:

@@ -66,9 +66,7 @@ def geometry_problem(states: list[Any], scene: Scene, t: float) -> str:
         try:
             navigation_from_spec(spec, "goal", scene.geometry, grid,
                                  np.array([st.pose[:2]]))
-        except SceneError as err:
-            return (f"robot {st.robot.name} at {show(list(st.pose[:2]))} would have no way "
-                    f"to its goal {show(list(goal))} ({err.problem})").replace(
-                        "agent 0", f"robot {st.robot.name}").replace("wall_buffer",
-                                                                     "clearance")
+        except SceneError:
+            return (f"robot {st.robot.name} at {show(list(st.pose[:2]))} would have no way to "
+                    f"its goal {show(list(goal))} for its disk (radius {st.robot.radius:g} m)")
     return ""
