@@ -40,8 +40,8 @@ def recorded_commands(meta: RunMeta) -> Commands:
 
 
 def recorded_odometry(meta: RunMeta) -> Odometry:
-    """(segment, step) -> {robot name: (x, y, qz, qw)} of every recorded ``/NAME/odom`` (m and
-    the yaw's quaternion); empty for a scene without robots."""
+    """(segment, step) -> {robot name: (x, y, qz, qw)} of the first recorded ``/NAME/odom`` of
+    each step (m and the yaw's quaternion); empty for a scene without robots."""
     scene = meta.scene
     if scene is None or not scene.robots:
         return {}
@@ -53,9 +53,11 @@ def recorded_odometry(meta: RunMeta) -> Odometry:
         except ValueError as err:
             raise RecordingError(f"{meta.path}: {msg.where()}: {err}") from None
         key = (meta.segment_of(msg.log_time_ns), meta.step_of(odom.stamp_ns))
-        out.setdefault(key, {})[topics[msg.topic]] = (
+        # the first at a step: the pose the step produced (the node publishes the state again
+        # after placing a robot between two steps; the placement shows in the next step)
+        out.setdefault(key, {}).setdefault(topics[msg.topic], (
             float(odom.position[0]), float(odom.position[1]), float(odom.orientation[2]),
-            float(odom.orientation[3]))
+            float(odom.orientation[3])))
     return out
 
 
