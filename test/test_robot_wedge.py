@@ -80,6 +80,9 @@ def test_yaw_stays_wrapped_while_spinning():
                                          "kinematics": {"max_angular_speed": 1000.0,
                                                         "max_angular_acceleration": 1e7}}]})
     sim = Simulator(scene, dt=0.05, seed=0)
+    sim.robots.place("bot", (3.0, 3.0, 1e6 * math.pi + 3.0), sim.t, sim.positions, sim.radii)
+    assert -math.pi < sim.robots.state("bot").pose[2] <= math.pi
+    sim.robots.place("bot", (3.0, 3.0, 3.0), sim.t, sim.positions, sim.radii)
     sim.robots.command("bot", (0.0, 0.0, 1000.0))
     yaws = []
     for _ in range(50):

@@ -116,7 +116,8 @@ class Fleet:
         self.reset()
 
     def reset(self) -> None:
-        self.states = {r.name: RobotState(r, r.pose) for r in self.scene.robots}
+        self.states = {r.name: RobotState(r, (r.pose[0], r.pose[1], kinematics.wrap(r.pose[2])))
+                       for r in self.scene.robots}
         self.step_index = 0
 
     def snapshot(self) -> tuple:
@@ -178,8 +179,8 @@ class Fleet:
         if problem:
             raise SceneError("initialpose", problem, "place the robot in free space, clear of "
                              "people, walls and other robots")
-        st.pose, st.twist, st.command, st.held, st.raw = (x, y, yaw), (0.0,) * 3, (0.0,) * 3, \
-            (0.0,) * 3, False
+        st.pose = (x, y, kinematics.wrap(yaw))
+        st.twist, st.command, st.held, st.raw = (0.0,) * 3, (0.0,) * 3, (0.0,) * 3, False
 
     # -- one step ----------------------------------------------------------------------------
     def step(self, scheme: Scheme, t: float, q: np.ndarray, h: float, dB: np.ndarray | None,
