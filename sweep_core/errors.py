@@ -89,6 +89,7 @@ class InfeasibleError(SweepError):
         self.t = t
         self.agents = list(agents)
         self.detail = detail
+        self._given = fix
         self.fix = fix or "smaller radii or radius growth, more room, or fewer agents"
         shown = ", ".join(str(a) for a in self.agents[:12])
         more = "" if len(self.agents) <= 12 else f" and {len(self.agents) - 12} more"
@@ -98,6 +99,10 @@ class InfeasibleError(SweepError):
             f"no feasible configuration at t = {t:.6g} s: {what}; state kept at the last "
             f"accepted step (fix: {self.fix})"
         )
+
+    def __reduce__(self) -> tuple:
+        """Pickled with its arguments (an ensemble's worker sends it to the client)."""
+        return (type(self), (self.t, self.agents, self.detail, self._given))
 
 
 class RecordingError(SweepError):

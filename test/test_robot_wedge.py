@@ -6,6 +6,7 @@ short runs (cheap)."""
 from __future__ import annotations
 
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -104,6 +105,8 @@ def test_robot_overlap_failure_names_the_robots_and_no_radii_fix():
         sim.step()
     text = str(err.value)
     assert "robot a and robot b overlap" in text and "smaller radii" not in text, text
+    # an ensemble's worker pickles it for the client
+    assert str(pickle.loads(pickle.dumps(err.value))) == text
 
 
 def test_a_controller_returning_nan_is_refused_naming_robot_and_controller():
