@@ -82,19 +82,27 @@ class InfeasibleError(SweepError):
         t: time (s) of the step that could not be taken (t_{n+1}).
         agents: indices of the agents involved in the most violated constraints.
         detail: solver status or residual.
+        fix: what to do instead (default: the advice for a jam of agents).
     """
 
-    def __init__(self, t: float, agents: list[int], detail: str) -> None:
+    def __init__(self, t: float, agents: list[int], detail: str, fix: str = "") -> None:
         self.t = t
         self.agents = list(agents)
         self.detail = detail
+        self._given = fix
+        self.fix = fix or "smaller radii or radius growth, more room, or fewer agents"
         shown = ", ".join(str(a) for a in self.agents[:12])
         more = "" if len(self.agents) <= 12 else f" and {len(self.agents) - 12} more"
+        what = (f"{detail}" if fix and not self.agents else
+                f"agents [{shown}{more}] cannot be placed without overlap ({detail})")
         super().__init__(
-            f"no feasible configuration at t = {t:.6g} s: agents [{shown}{more}] cannot be "
-            f"placed without overlap ({detail}); state kept at the last accepted step "
-            "(fix: smaller radii or radius growth, more room, or fewer agents)"
+            f"no feasible configuration at t = {t:.6g} s: {what}; state kept at the last "
+            f"accepted step (fix: {self.fix})"
         )
+
+    def __reduce__(self) -> tuple:
+        """Pickled with its arguments (an ensemble's worker sends it to the client)."""
+        return (type(self), (self.t, self.agents, self.detail, self._given))
 
 
 class RecordingError(SweepError):

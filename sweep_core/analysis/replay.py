@@ -8,8 +8,10 @@ each recorded reset (``reset_*``), applies recorded ``noise_sigma`` changes (``p
 start, ``parameter_*`` live) and the maps the node received (``map_*``: the scene's walls
 rebuilt from the recorded packed map at its step, kept over later resets, as the node does),
 and compares the raw float64 centres of every recorded
-``/poses`` message with the simulator's, bit for bit. Steps that were not recorded (``sweep run
---record-every K``, node ticks of several steps) are simulated but not compared. The same
+``/poses`` message with the simulator's, bit for bit, and every robot's recorded ``/NAME/odom``
+(x, y and the yaw's quaternion) with its replayed pose encoded the same way. Steps that were
+not recorded (``sweep run --record-every K``, node ticks of several steps) are simulated but not
+compared. The same
 versions of the libraries in :data:`~sweep_core.io.versions.SHAPING` give the same floats on any
 x86-64 CPU (nothing that decides positions takes a CPU-dependent code path); the recorded
 versions and platform are checked and differences are reported. After a first difference the
@@ -32,8 +34,10 @@ from sweep_core.analysis.report import jsonable
 from sweep_core.analysis.robot_replay import (
     apply_commands,
     drive_by_recording,
+    odometry_difference,
     place_recorded,
     recorded_commands,
+    recorded_odometry,
 )
 from sweep_core.analysis.run import MapChange, RunMeta, load_run, require_replayable, scene_with_map
 from sweep_core.errors import InfeasibleError, RecordingError, SweepError
@@ -255,6 +259,7 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
     """
     meta = load_run(path)
     rep = _Replayer(meta)
+    odometry = recorded_odometry(meta)
     reader, finder = FrameReader(meta, agents=False), GapFinder(meta.record_every)
     notes = version_notes(meta) + platform_notes(meta)
     compared, last_step, last_t = 0, 0, 0.0
@@ -292,6 +297,11 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
                 div = Divergence(step, t, seg, i, q[i].tolist(), mine[i].tolist(),
                                  float(dist[i]), int(len(bad)), float(dist.max()))
                 _depart(div, step, t, div.max_distance_m)
+                continue
+            moved = odometry_difference(rep.sim, odometry.get((seg, step), {}))
+            if moved:
+                div = Divergence(step, t, seg, -1, [], [], math.inf, 0, math.inf, moved)
+                _depart(div, step, t, 0.0)
                 continue
             compared += 1
             last_step, last_t = step, t

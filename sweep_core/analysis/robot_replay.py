@@ -2,8 +2,12 @@
 ``/NAME/cmd_vel`` message (the command applied during the step that ends at its stamp) by
 segment and step, re-applied as recorded (no clipping: they were clipped when applied); and
 the node's placements of a robot (initialpose, metadata ``robot_pose_NNNNNN``: ``placement``
-{robot, pose}), made again before the step they were made before."""
+{robot, pose}), made again before the step they were made before; and the recorded
+``/NAME/odom``, which the replay compares with the robots' replayed poses bit for bit."""
 from __future__ import annotations
+
+import math
+import struct
 
 from sweep_core.analysis.run import RunMeta
 from sweep_core.errors import RecordingError
@@ -12,6 +16,8 @@ from sweep_core.io.recording.reader import read_recording
 from sweep_core.io.robot_topics import topic
 
 Commands = dict[tuple[int, int], dict[str, tuple[float, float, float]]]
+#: (segment, step) -> {robot name: (x, y, qz, qw)} of the recorded odometry
+Odometry = dict[tuple[int, int], dict[str, tuple[float, float, float, float]]]
 
 
 def recorded_commands(meta: RunMeta) -> Commands:
@@ -31,6 +37,47 @@ def recorded_commands(meta: RunMeta) -> Commands:
         out.setdefault(key, {})[topics[msg.topic]] = (
             float(twist.linear[0]), float(twist.linear[1]), float(twist.angular[2]))
     return out
+
+
+def recorded_odometry(meta: RunMeta) -> Odometry:
+    """(segment, step) -> {robot name: (x, y, qz, qw)} of the first recorded ``/NAME/odom`` of
+    each step (m and the yaw's quaternion); empty for a scene without robots."""
+    scene = meta.scene
+    if scene is None or not scene.robots:
+        return {}
+    topics = {topic(r.name, "odom"): r.name for r in scene.robots}
+    out: Odometry = {}
+    for msg in read_recording(meta.path, topics):
+        try:
+            odom = cdr.decode_odometry(msg.data)
+        except ValueError as err:
+            raise RecordingError(f"{meta.path}: {msg.where()}: {err}") from None
+        key = (meta.segment_of(msg.log_time_ns), meta.step_of(odom.stamp_ns))
+        # the first at a step: the pose the step produced (the node publishes the state again
+        # after placing a robot between two steps; the placement shows in the next step)
+        out.setdefault(key, {}).setdefault(topics[msg.topic], (
+            float(odom.position[0]), float(odom.position[1]), float(odom.orientation[2]),
+            float(odom.orientation[3])))
+    return out
+
+
+def odometry_difference(sim: object, recorded: dict[str, tuple[float, float, float, float]]
+                        ) -> str:
+    """'' when every robot's replayed pose encodes to the recorded odometry bit for bit (its
+    x, y and yaw quaternion as the recording encodes them), else which robot differs and
+    by how much."""
+    robots = getattr(sim, "robots", None)
+    for name, rec in recorded.items():
+        if robots is None or name not in robots.states:
+            return f"odometry of robot {name} recorded, but the replay has no such robot"
+        x, y, yaw = robots.states[name].pose
+        mine = (float(x), float(y), *cdr.yaw_quaternion(float(yaw))[2:])
+        if any(struct.pack("<d", a) != struct.pack("<d", b) for a, b in zip(rec, mine)):
+            dist = math.hypot(rec[0] - mine[0], rec[1] - mine[1])
+            return (f"robot {name}'s odometry differs: recorded ({rec[0]:.9g}, {rec[1]:.9g}), "
+                    f"replayed ({mine[0]:.9g}, {mine[1]:.9g}) ({dist:.3g} m apart; yaw "
+                    f"quaternion {'equal' if rec[2:] == mine[2:] else 'different'})")
+    return ""
 
 
 def drive_by_recording(sim: object) -> None:

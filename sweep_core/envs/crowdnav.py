@@ -92,6 +92,10 @@ class CrowdNavEnv(gymnasium.Env):
         self.name, self.index = name, names.index(name)
         spec = robots[self.index]
         field = f"robots[{self.index}]"
+        if not spec.get("enabled", True):
+            raise SceneError(f"{field}.enabled", f"is false: robot {name} is left out of the "
+                             "run, so the environment has nothing to drive",
+                             f"set {field}.enabled: true, or give another robot")
         if spec.get("goal") is None:
             raise SceneError(f"{field}.goal", "is missing: the environment drives to a goal",
                              f"give {field}.goal: [x, y]")
@@ -205,6 +209,9 @@ class CrowdNavEnv(gymnasium.Env):
 
     def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool,
                                          dict[str, Any]]:
+        if action is None:
+            raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, got None",
+                             "give an element of env.action_space")
         try:
             a = np.asarray(action, dtype=np.float64).reshape(-1)
         except (TypeError, ValueError):  # a string, a dict, complex numbers

@@ -38,6 +38,24 @@ NAME = re.compile(r"[a-z][a-z0-9_]*\Z")
 MAX_ROBOTS = 16
 #: most beams of one scan
 MAX_BEAMS = 20_000
+#: largest angular speed (rad/s) of a robot: the yaw is wrapped into (-pi, pi] every step and a
+#: step of the longest time step (1 s, io/limits.py) evaluates the heading at
+#: yaw + omega h / 2, within pi + 500 rad, where one ulp is 1.1e-13 rad; a fast wheeled robot
+#: turns at about 10 rad/s. At 1e308 rad/s the yaw overflowed and the arc's sine failed.
+MAX_ANGULAR_SPEED = 1e3
+#: smallest time step (s) a run takes (io/limits.py DT_MIN, which model may not import)
+_DT_MIN = 1e-5
+#: largest accelerations (m/s^2, rad/s^2): a change of the speed bound within the smallest
+#: time step; any larger limit clips nothing more
+MAX_ACCELERATION = checks.MAX_SPEED / _DT_MIN
+MAX_ANGULAR_ACCELERATION = MAX_ANGULAR_SPEED / _DT_MIN
+#: finite weights of a robot in the projection's metric: its column of the rows is scaled by
+#: 1 / sqrt(w), so w in [1e-6, 1e6] keeps those scales within 1e3 of the people's 1 (at
+#: w = 1e-16 the scale 1e8 made a feasible push fail); beyond, inf (prescribed) or 1 serve
+WEIGHT_RANGE = (1e-6, 1e6)
+#: scan rates (Hz): LaserScan's float32 scan_time 1 / rate and the steps between scans
+#: round(1 / (rate dt)) stay representable; above 1 / DT_MIN a scan is taken every step anyway
+SCAN_RATE_RANGE = (1e-3, 1.0 / _DT_MIN)
 _KEYS = {"name", "radius", "pose", "kinematics", "weight", "goal", "goal_radius", "controller",
          "scan", "enabled"}
 _KIN_KEYS = {"type", "max_speed", "max_angular_speed", "max_acceleration",
@@ -115,9 +133,22 @@ def _weight(value: Any, field: str) -> float:
         return math.inf
     if isinstance(value, float) and value == math.inf:
         return math.inf
-    return checks.number(value, field, positive=True,
-                         fix=f"set {field} to a number > 0 (1: pushed like a person) or inf "
-                             "(prescribed motion)")
+    lo, hi = WEIGHT_RANGE
+    fix = (f"set {field} to a number in [{lo:g}, {hi:g}] (1: pushed like a person) or inf "
+           "(prescribed motion)")
+    w = checks.number(value, field, positive=True, fix=fix)
+    if not lo <= w <= hi:
+        raise SceneError(field, f"{show(w)} is outside [{lo:g}, {hi:g}]: the projection scales "
+                         "the robot's rows by 1 / sqrt(weight), too far from the people's 1 to "
+                         "solve reliably", fix)
+    return w
+
+
+def _bounded(value: float, field: str, high: float, unit: str, why: str) -> float:
+    if value > high:
+        raise SceneError(field, f"{show(value)} {unit} is above {high:g} {unit} ({why})",
+                         f"set {field} to at most {high:g} {unit}")
+    return value
 
 
 def _scan(value: Any, field: str) -> ScanSpec:
@@ -134,10 +165,24 @@ def _scan(value: Any, field: str) -> ScanSpec:
                          "interval of at most one turn within [-2 pi, 2 pi]",
                          f"give {field}.angle_min <= angle_max, at most 2 pi apart")
     inc = checks.number(d.get("increment", math.pi / 180), f"{field}.increment", positive=True)
-    spec = ScanSpec(r0, r1, a0, a1, inc,
-                    checks.number(d.get("rate", 10.0), f"{field}.rate", positive=True),
-                    checks.number(d.get("noise_std", 0.0), f"{field}.noise_std",
-                                  nonnegative=True))
+    least = (a1 - a0) / (MAX_BEAMS - 1)
+    if (a1 - a0) / inc > MAX_BEAMS or inc > 2 * math.pi:
+        raise SceneError(f"{field}.increment", f"{show(inc)} rad is outside [{least:.3g}, "
+                         f"2 pi] rad: more than {MAX_BEAMS} beams over [{show(a0)}, {show(a1)}] "
+                         "rad, or more than a turn between beams",
+                         f"set {field}.increment to at least {least:.3g} rad and at most 2 pi")
+    rate = checks.number(d.get("rate", 10.0), f"{field}.rate", positive=True)
+    lo, hi = SCAN_RATE_RANGE
+    if not lo <= rate <= hi:
+        raise SceneError(f"{field}.rate", f"{show(rate)} Hz is outside [{lo:g}, {hi:g}] Hz "
+                         "(a scan every 1000 s at least; above, one every step anyway)",
+                         f"set {field}.rate to a rate in [{lo:g}, {hi:g}] Hz, e.g. 10")
+    noise = checks.number(d.get("noise_std", 0.0), f"{field}.noise_std", nonnegative=True)
+    if noise > r1:
+        raise SceneError(f"{field}.noise_std", f"{show(noise)} m is above range_max "
+                         f"{show(r1)} m", f"set {field}.noise_std to at most range_max (a "
+                         "laser's range noise is about 0.01 m)")
+    spec = ScanSpec(r0, r1, a0, a1, inc, rate, noise)
     if spec.beams > MAX_BEAMS:
         raise SceneError(f"{field}.increment", f"{show(inc)} rad gives {spec.beams} beams, more "
                          f"than {MAX_BEAMS}", f"set {field}.increment to at least "
@@ -164,6 +209,16 @@ def _robot(value: Any, field: str) -> tuple[Robot, dict]:
                                  positive=True)
               for key, default in (("max_speed", 1.0), ("max_angular_speed", 1.5),
                                    ("max_acceleration", 2.0), ("max_angular_acceleration", 4.0))}
+    checks.speed(limits["max_speed"], f"{field}.kinematics.max_speed", positive=True)
+    for key, high, unit, why in (
+            ("max_angular_speed", MAX_ANGULAR_SPEED, "rad/s", "the heading of a step of 1 s "
+             "would lose its precision; robots turn at about 10 rad/s"),
+            ("max_acceleration", MAX_ACCELERATION, "m/s^2", "the speed bound reached within "
+             "the smallest time step; a larger limit clips nothing more"),
+            ("max_angular_acceleration", MAX_ANGULAR_ACCELERATION, "rad/s^2", "the angular "
+             "speed bound reached within the smallest time step; a larger limit clips nothing "
+             "more")):
+        _bounded(limits[key], f"{field}.kinematics.{key}", high, unit, why)
     weight = _weight(d.get("weight", "inf"), f"{field}.weight")
     goal = None
     if d.get("goal") is not None:

@@ -225,6 +225,12 @@ class Simulator:
             raise SceneError("scene", f"has {scene.n_agents} agents (radii or radius law "
                              f"differing), the simulator {old.n_agents}",
                              "keep the agents and their radii; build a new Simulator for others")
+        if self.robots is not None:
+            problem = self.robots.check_geometry(scene, self.t)
+            if problem:
+                raise SceneError("scene", f"at t = {self.t:g} s {problem}",
+                                 "keep the robots' current disks clear of the new walls and "
+                                 "their goals reachable, or place the robots elsewhere first")
         live = scene if self._pop is None else self._pop.view(scene, self._q)
         bad = violating_agents(live, self.t, self._q)
         if bad:
@@ -307,6 +313,22 @@ class Simulator:
                 bar.close()
 
     def _advance(self, dB: np.ndarray | None) -> None:
+        """One step; a step that raises leaves everything as before it (people, robots, time,
+        the Brownian generator's state, the scheme's warm start and counters)."""
+        rng = self._rng.bit_generator.state
+        scheme = dict(self.scheme.__dict__)
+        fleet = None if self.robots is None else self.robots.snapshot()
+        try:
+            self._advance_once(dB)
+        except BaseException:
+            self._rng.bit_generator.state = rng
+            self.scheme.__dict__.clear()
+            self.scheme.__dict__.update(scheme)
+            if fleet is not None and self.robots is not None:
+                self.robots.restore(fleet)
+            raise
+
+    def _advance_once(self, dB: np.ndarray | None) -> None:
         h, t = self.dt, self.t
         t1 = (self._k + 1) * h
         scene = self._live()

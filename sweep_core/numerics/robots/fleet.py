@@ -44,6 +44,7 @@ from sweep_core.numerics.projection import Projection, project
 from sweep_core.numerics.robots import kinematics
 from sweep_core.numerics.robots.control import controllers_of, observe
 from sweep_core.numerics.robots.reaction import avoidance
+from sweep_core.numerics.robots.refusals import geometry_problem, goal_refusal
 from sweep_core.numerics.robots.scan import Scan, scan
 from sweep_core.numerics.robots.weighted import project_weighted
 from sweep_core.numerics.schemes import Scheme, StepResult
@@ -106,14 +107,33 @@ class Fleet:
                                  "max_speed")
         self.every = [max(1, round(1.0 / (r.scan.rate * dt))) if r.scan else 0
                       for r in scene.robots]
-        self.controllers: dict[str, Callable] = dict(controllers_of(scene))
+        try:
+            self.controllers: dict[str, Callable] = dict(controllers_of(scene))
+        except SceneError as err:
+            raise goal_refusal(scene, err) from err
         grid = map_from_spec(scene.spec["map"], "map", None) if scene.spec.get("map") else None
         self._blocked = None if grid is None else grid.is_blocked
         self.reset()
 
     def reset(self) -> None:
-        self.states = {r.name: RobotState(r, r.pose) for r in self.scene.robots}
+        self.states = {r.name: RobotState(r, (r.pose[0], r.pose[1], kinematics.wrap(r.pose[2])))
+                       for r in self.scene.robots}
         self.step_index = 0
+
+    def snapshot(self) -> tuple:
+        """What a step changes (the robots' states, the step count), for :meth:`restore`."""
+        return ({name: replace(st) for name, st in self.states.items()}, self.step_index)
+
+    def restore(self, saved: tuple) -> None:
+        """The fleet as :meth:`snapshot` saw it (a failed step is undone)."""
+        states, self.step_index = saved
+        for name, st in states.items():
+            self.states[name].__dict__.update(replace(st).__dict__)
+
+    def check_geometry(self, scene: Scene, t: float) -> str:
+        """What a robot's current disk would overlap in ``scene``'s walls, obstacles and map
+        at time t, or what of them would cut it off from its goal ('' when nothing)."""
+        return geometry_problem(list(self.states.values()), scene, t)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -159,8 +179,8 @@ class Fleet:
         if problem:
             raise SceneError("initialpose", problem, "place the robot in free space, clear of "
                              "people, walls and other robots")
-        st.pose, st.twist, st.command, st.held, st.raw = (x, y, yaw), (0.0,) * 3, (0.0,) * 3, \
-            (0.0,) * 3, False
+        st.pose = (x, y, kinematics.wrap(yaw))
+        st.twist, st.command, st.held, st.raw = (0.0,) * 3, (0.0,) * 3, (0.0,) * 3, False
 
     # -- one step ----------------------------------------------------------------------------
     def step(self, scheme: Scheme, t: float, q: np.ndarray, h: float, dB: np.ndarray | None,
@@ -172,8 +192,7 @@ class Fleet:
             st.stopped = False
             wanted = st.held
             if st.robot.name in self.controllers:
-                vx, vy, omega = self.controllers[st.robot.name](observe(st, t))
-                wanted = (float(vx), float(vy), float(omega))
+                wanted = self._ask(st.robot.name, observe(st, t))
             if st.raw:
                 st.command = wanted
             else:
@@ -186,24 +205,65 @@ class Fleet:
         r1 = self.scene.radii(t1)
         targets = [kinematics.arc(st.pose, st.command, h) for st in states]
         moving = [st.robot.prescribed and st.command != (0.0, 0.0, 0.0) for st in states]
-        for k, st in enumerate(states):  # a prescribed target must be clear of walls, robots
-            if moving[k] and self._target_blocked(k, states, targets, t1):
-                self._stop(st, targets, k)
-                moving[k] = False
+        self._settle(states, targets, moving, t1)
+        before = [replace(st) for st in states]
         try:
             proj = self._project(scheme, states, targets, t1, q, pred, r1)
+            self._finish(states, targets, proj, q, r1, t1, h, len(q))
         except InfeasibleError:
             if not any(moving):
                 raise
+            # a person pinned between a moving robot and a wall (the projection has no
+            # solution, and the solver does not say who caused it): every moving one stops
             for k, st in enumerate(states):
+                self._restore(st, before[k])
                 if moving[k]:
                     self._stop(st, targets, k)
             proj = self._project(scheme, states, targets, t1, q, pred, r1)
+            self._finish(states, targets, proj, q, r1, t1, h, len(q))
         scheme.warm = proj
-        n = len(q)
-        self._finish(states, targets, proj, q, r1, t1, h, n)
         self.step_index += 1
-        return StepResult(proj.y[:n].copy(), pred, proj)
+        return StepResult(proj.y[:len(q)].copy(), pred, proj)
+
+    def _settle(self, states: list[RobotState], targets: list, moving: list[bool],
+                t1: float) -> None:
+        """Stops, jointly, every moving prescribed robot whose target overlaps a wall, an
+        obstacle, a blocked map cell or another prescribed robot where that one ends the step
+        (its target, or its pose once stopped): rounds of stops until no moving target
+        conflicts. A stopped robot's pose is feasible (it was the last step's), so the rounds
+        end, at most one per robot; the outcome does not depend on the robots' order."""
+        while True:
+            stop = [k for k in range(len(states))
+                    if moving[k] and self._target_blocked(k, states, targets, t1)]
+            if not stop:
+                return
+            for k in stop:
+                self._stop(states[k], targets, k)
+                moving[k] = False
+
+    @staticmethod
+    def _restore(st: RobotState, saved: RobotState) -> None:
+        for name in ("pose", "twist", "command", "blocked", "stopped", "contact_ids",
+                     "contact_xy", "contact_impulse"):
+            setattr(st, name, getattr(saved, name))
+
+    def _ask(self, name: str, obs: object) -> Command:
+        """The command robot ``name``'s controller returns for ``obs``: three finite numbers,
+        else SceneError naming the robot and the controller (the step is not taken)."""
+        controller = self.controllers[name]
+        out = controller(obs)
+        try:
+            values = tuple(float(v) for v in out)
+        except (TypeError, ValueError):
+            values = ()
+        if len(values) != 3 or not all(math.isfinite(v) for v in values):
+            label = getattr(controller, "__name__", type(controller).__name__)
+            raise SceneError(f"robot {name}", f"its controller {show(label)} returned "
+                             f"{show(list(out) if isinstance(out, (tuple, list)) else out)}, "
+                             "not three finite numbers (vx, vy, omega)",
+                             f"make the controller of robot {name} return finite m/s and "
+                             "rad/s values")
+        return (values[0], values[1], values[2])
 
     def _stop(self, st: RobotState, targets: list, k: int) -> None:
         st.command = (0.0, 0.0, 0.0)
@@ -300,13 +360,30 @@ class Fleet:
         q_all = np.concatenate([y, centres])
         r_all = np.concatenate([r1, radii])
         g = gaps(self.scene.geometry, t1, q_all, r_all)
+        n = len(y)
+
+        def who(i: int) -> str:
+            return f"robot {states[i - n].robot.name}" if i >= n else f"agent {i}"
+
         if g.min_gap < -TOLERANCE:
-            raise InfeasibleError(t1, [], f"a robot overlaps by {-g.min_gap:.3g} m")
+            if g.min_pair <= g.min_single and g.worst_pair is not None:
+                i, j, _ = g.worst_pair
+                what = f"{who(int(i))} and {who(int(j))} overlap"
+                robot = who(int(j)) if int(j) >= n else who(int(i))
+            else:
+                i, kind, item, _ = g.worst_single  # type: ignore[misc]
+                what = (f"{who(int(i))} overlaps "
+                        f"{self.scene.geometry.describe(int(kind), int(item))}")
+                robot = who(int(i))
+            raise InfeasibleError(t1, [], f"{what} by {-g.min_gap:.3g} m", fix=(
+                f"the solver left {robot} overlapping: tighten the solver's tol or use a "
+                "smaller dt"))
         before = np.array([start[k][:2] for k in range(len(states))]).reshape(-1, 2)
         through, _ = crossings(self.scene.geometry, before, centres, radii)
         if len(through):
-            raise InfeasibleError(t1, [], f"robot {states[int(through[0])].robot.name} went "
-                                  "through a wall during the step")
+            name = states[int(through[0])].robot.name
+            raise InfeasibleError(t1, [], f"robot {name} went through a wall during the step",
+                                  fix=f"use a smaller dt, or a lower max_speed for robot {name}")
 
     def after_step(self, t: float, people: np.ndarray, radii: np.ndarray) -> None:
         """Scans due at this step (the step index counts steps taken; step 0 is the start)."""

@@ -7,7 +7,8 @@ over [0, h]:
 
     Rot(theta + omega h / 2) (vx, vy) h sinc(omega h / 2),   sinc(a) = sin(a) / a (1 at 0),
 
-the arc of a circle (a straight segment when omega = 0), exactly; theta_1 = theta + omega h.
+the arc of a circle (a straight segment when omega = 0), exactly; theta_1 = theta + omega h,
+wrapped into (-pi, pi].
 Sines and cosines come from the C library (scalar), so the bits do not depend on the CPU.
 """
 from __future__ import annotations
@@ -33,12 +34,14 @@ def arc(pose: tuple[float, float, float], command: tuple[float, float, float],
     mid = theta + half
     c, s = math.cos(mid), math.sin(mid)
     k = h * sinc(half)
-    return (x + k * (c * vx - s * vy), y + k * (s * vx + c * vy), theta + omega * h)
+    return (x + k * (c * vx - s * vy), y + k * (s * vx + c * vy), wrap(theta + omega * h))
 
 
 def wrap(angle: float) -> float:
-    """An angle in (-pi, pi] (rad)."""
-    return math.atan2(math.sin(angle), math.cos(angle))
+    """``angle`` (rad) moved by a whole number of turns into (-pi, pi]; an angle already
+    there is returned unchanged, bit for bit (IEEE remainder is exact)."""
+    a = math.remainder(angle, 2.0 * math.pi)
+    return math.pi if a <= -math.pi else a
 
 
 def clip(robot: Robot, command: tuple[float, float, float],

@@ -7,9 +7,11 @@ Each beam k leaves the robot's centre o along u_k = (cos a_k, sin a_k), a_k = ya
 k increment (cosines and sines from the C library, per beam, so the bits do not depend on the
 CPU's vector units); its range is the smallest s >= 0 with o + s u_k on a disk's circle
 (s = b - sqrt(b^2 - |o - c|^2 + R^2), b = <u, c - o>), a segment (solved by cross products)
-or a half-plane's line, +inf when that is beyond range_max. Noise: a Gaussian of noise_std m
-added to every finite range, drawn from a generator seeded by (run seed, robot index, step);
-a noisy range is kept within [range_min, range_max].
+or a half-plane's line. Noise: a Gaussian of noise_std m added to every return within
+range_max, drawn from a generator seeded by (run seed, robot index, step). Then, as REP 117
+says, a range (noisy or not) below range_min is -inf (something too close to measure) and one
+above range_max +inf (no return within range): every finite range lies in
+[range_min, range_max].
 """
 from __future__ import annotations
 
@@ -25,7 +27,8 @@ from sweep_core.model.robots import ScanSpec
 
 @dataclass(frozen=True)
 class Scan:
-    """One scan: ``ranges`` (B,) float64 m (+inf: nothing within range_max), taken at time
+    """One scan: ``ranges`` (B,) float64 m (+inf: nothing within range_max, -inf: a return
+    closer than range_min), taken at time
     ``t`` (s) and step ``step`` from pose (x, y, yaw); ``spec`` its settings."""
 
     t: float
@@ -108,6 +111,7 @@ def scan(spec: ScanSpec, pose: tuple[float, float, float], t: float, step: int,
                       hp_c, float(spec.range_max))
     if rng is not None and spec.noise_std > 0:
         hit = np.isfinite(ranges)
-        noisy = ranges[hit] + spec.noise_std * rng.standard_normal(int(hit.sum()))
-        ranges[hit] = np.clip(noisy, spec.range_min, spec.range_max)
+        ranges[hit] += spec.noise_std * rng.standard_normal(int(hit.sum()))
+    ranges[ranges < spec.range_min] = -np.inf  # REP 117: too close to measure
+    ranges[ranges > spec.range_max] = np.inf  # REP 117: no return within range
     return Scan(t, step, (float(pose[0]), float(pose[1]), float(pose[2])), ranges, spec)
