@@ -49,8 +49,8 @@ from sweep_core.analysis.speed import (
     Ready,
     SpeedStats,
     WindowSpeeds,
-    check_spacing,
     check_window,
+    choose_window,
     fits,
 )
 from sweep_core.analysis.speed import SPEED_BIN as SPEED_BIN  # re-exported
@@ -404,13 +404,10 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
         raise SweepError(f"--arrive-radius: must be a positive number of metres, "
                          f"got {arrive_radius!r}")
     given = speed_window is not None
-    window = check_window(speed_window) if given else DEFAULT_WINDOW_S
+    if given:
+        check_window(speed_window)
     meta = load_run(path)
-    if meta.dt is not None and meta.record_every:
-        interval = meta.dt * meta.record_every
-        if given:
-            check_spacing(window, interval)
-        window = max(window, 2.0 * interval)
+    window = choose_window(speed_window, meta.frame_interval)
     metrics = _Metrics(meta, line, arrive_radius, float(cell), window)
     robots = robot_metrics(meta, goal_radius, time_limit)
     reader, finder = FrameReader(meta), GapFinder(meta.record_every)

@@ -35,7 +35,7 @@ from sweep_core.analysis.roster import grow
 from sweep_core.errors import SweepError
 
 __all__ = ["DEFAULT_WINDOW_S", "Ready", "SpeedStats", "WindowSpeeds", "check_spacing",
-           "check_window", "fits", "window_speeds"]
+           "check_window", "choose_window", "fits", "window_speeds"]
 
 #: the default window (s): JPSreport's default frame_step (10 frames) at the 16 frames per
 #: second of the Jülich experiments' trajectories
@@ -76,6 +76,19 @@ def fits(window: float, times: np.ndarray, option: str = "--speed-window") -> No
     steps = np.diff(times)
     steps = steps[steps > 0]
     check_spacing(window, float(np.median(steps)) if len(steps) else 0.0, option)
+
+
+def choose_window(given: Any, interval: float | None, option: str = "--speed-window"
+                  ) -> float:
+    """The window (s) to use: ``given`` checked (:func:`check_window`, and not shorter than two
+    frame intervals of ``interval`` s when the recording says it), else the default widened to
+    two frame intervals."""
+    if given is not None:
+        window = check_window(given, option)
+        if interval:
+            check_spacing(window, interval, option)
+        return window
+    return max(DEFAULT_WINDOW_S, 2.0 * interval) if interval else DEFAULT_WINDOW_S
 
 
 @dataclass
