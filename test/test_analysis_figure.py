@@ -188,3 +188,17 @@ drift: {kind: exits, speed: 1.2, exits: [{goal: [7, 3]},
         assert "arrived at exits[0]" in texts and "arrived at exits[1]" in texts
     finally:
         plt.close(fig)
+
+
+def test_each_group_has_its_mean_windowed_speed(analysis):
+    pedpy = pytest.importorskip("pedpy")
+    from sweep_core.analysis.pedpy_export import read_trajectories
+    # dt 0.02 s: the 0.625 s window's ends are the frames 16 either side (0.32 s nearest 0.3125)
+    ped = pedpy.compute_individual_speed(
+        traj_data=read_trajectories(analysis.meta.path).to_pedpy(), frame_step=16,
+        speed_calculation=pedpy.SpeedCalculation.BORDER_SINGLE_SIDED)
+    groups = analysis.summary["per_group"]
+    for name, ids in (("east", [0, 1, 2]), ("west", [3, 4])):
+        want = float(ped[ped["id"].isin(ids)]["speed"].mean())
+        assert groups[name]["speed_mean_m_per_s"] == pytest.approx(want, rel=1e-9)
+        assert groups[name]["speed_window_s"] == 0.625
