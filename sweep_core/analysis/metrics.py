@@ -326,6 +326,8 @@ class _Metrics:
                 "net": self.net, "positive": self.positive, "negative": self.negative,
                 "per_s": flows["per_s"],
                 "steady_per_s": flows["steady_per_s"],
+                "counted": "per_s from the first to the last positive crossing, steady_per_s "
+                           "from the crossing at 10 % of them to the one at 90 %",
                 "specific_per_m_s": (flows["steady_per_s"] or flows["per_s"] or math.nan)
                 / width,
                 "evacuated": int(np.count_nonzero(np.isfinite(self.evacuation))),
