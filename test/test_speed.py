@@ -69,6 +69,11 @@ def test_windowed_speed_agrees_with_pedpy_on_the_exported_trajectories(drifting)
 
 def test_mean_speed_of_a_drifting_crowd_is_the_rice_mean(drifting):
     an = metrics.analyze(drifting, speed_window=WINDOW)
+    # 301 frames: 271 with the whole window (0.6 s), 30 one-sided (0.3 s) at the run's ends
+    frames = round(T_END / DT) + 1
+    both = frames - 2 * N_STEP
+    assert an.summary["speed"]["span_mean_s"] == pytest.approx(
+        (both * WINDOW + (frames - both) * WINDOW / 2) / frames)
     t, mean = an.table[:, 0], an.table[:, 6]
     inside = (t >= WINDOW / 2 - 1e-9) & (t <= t[-1] - WINDOW / 2 + 1e-9)  # two-sided windows
     measured = float(mean[inside].mean())

@@ -3,12 +3,15 @@ cross it in which direction."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
+from sweep_core.analysis.arrivals import stats, time_for
+from sweep_core.analysis.references import flow_reference
 from sweep_core.errors import SweepError
 
-__all__ = ["crossing_flows", "line_crossings", "line_width", "parse_line"]
+__all__ = ["crossing_flows", "flow_summary", "line_crossings", "line_width", "parse_line"]
 
 
 def parse_line(text: str) -> tuple[float, float, float, float]:
@@ -78,3 +81,36 @@ def crossing_flows(times: np.ndarray) -> dict[str, float | None]:
         a, b = int(STEADY_TRIM * n), int((1 - STEADY_TRIM) * n) - 1
         steady = (b - a) / float(t[b] - t[a]) if t[b] > t[a] else None
     return {"per_s": per_s, "steady_per_s": steady}
+
+
+def flow_summary(line: tuple[float, float, float, float], counts: tuple[int, int, int],
+                 crossings: np.ndarray, evacuation: np.ndarray, n: int) -> dict[str, Any]:
+    """The summary's ``flow`` section: the line, its width, the ``counts`` (net, positive,
+    negative), the flows of :func:`crossing_flows` from the times (s) of the positive
+    ``crossings``, the evacuation times (each agent's first positive crossing, s; NaN: never)
+    of ``n`` agents, and the experiments' flow for its width (``reference``)."""
+    flows = crossing_flows(crossings)
+    width = line_width(line)
+    net, positive, negative = counts
+    rate = flows["steady_per_s"] or flows["per_s"]
+    return {
+        "line": list(line),
+        "width_m": width,
+        "net": net, "positive": positive, "negative": negative,
+        "per_s": flows["per_s"],
+        "steady_per_s": flows["steady_per_s"],
+        "counted": "per_s from the first to the last positive crossing, steady_per_s from the "
+                   "crossing at 10 % of them to the one at 90 %",
+        "specific_per_m_s": rate / width if rate is not None else None,
+        "evacuated": int(np.count_nonzero(np.isfinite(evacuation))),
+        "t_first_s": stats(evacuation, np.min),
+        "t_50_s": time_for(evacuation, n, 0.5),
+        "t_90_s": time_for(evacuation, n, 0.9),
+        "t_all_s": time_for(evacuation, n, 1.0),
+        "precision": "float64 (/poses); crossings between recorded frames, positive along "
+                     "(y1 - y0, x0 - x1), timed at the frame after; per_s: (positive "
+                     "crossings - 1) / (last - first crossing); steady_per_s: the same between "
+                     "the crossings at 10 % and 90 % of them (sweep verify's bottleneck flow); "
+                     "specific: steady (else per_s) / width",
+        "reference": flow_reference(width, rate),
+    }

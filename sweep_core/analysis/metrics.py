@@ -37,10 +37,9 @@ from sweep_core.analysis.crowd import FundamentalDiagram, Tracks
 from sweep_core.analysis.density import MAX_CELLS as MAX_CELLS  # re-exported for the CLI
 from sweep_core.analysis.density import Hist2D
 from sweep_core.analysis.frames import Frame, FrameReader, GapFinder, progress_bar
-from sweep_core.analysis.lines import crossing_flows, line_width
+from sweep_core.analysis.lines import flow_summary
 from sweep_core.analysis.lines import line_crossings as line_crossings  # re-exported
 from sweep_core.analysis.lines import parse_line as parse_line  # re-exported for the CLI
-from sweep_core.analysis.references import flow_reference
 from sweep_core.analysis.robots import for_run as robot_metrics
 from sweep_core.analysis.roster import Roster, grow
 from sweep_core.analysis.run import NS, RunMeta, Schedule, load_run, scene_with_map
@@ -318,32 +317,8 @@ class _Metrics:
             },
         }
         if self.line is not None:
-            flows = crossing_flows(np.array(self.crossing_times))
-            width = line_width(self.line)
-            summary["flow"] = {
-                "line": list(self.line),
-                "width_m": width,
-                "net": self.net, "positive": self.positive, "negative": self.negative,
-                "per_s": flows["per_s"],
-                "steady_per_s": flows["steady_per_s"],
-                "counted": "per_s from the first to the last positive crossing, steady_per_s "
-                           "from the crossing at 10 % of them to the one at 90 %",
-                "specific_per_m_s": (flows["steady_per_s"] or flows["per_s"] or math.nan)
-                / width,
-                "evacuated": int(np.count_nonzero(np.isfinite(self.evacuation))),
-                "t_first_s": stats(self.evacuation, np.min),
-                "t_50_s": time_for(self.evacuation, n, 0.5),
-                "t_90_s": time_for(self.evacuation, n, 0.9),
-                "t_all_s": time_for(self.evacuation, n, 1.0),
-                "precision": "float64 (/poses); crossings between recorded frames, positive "
-                             "along (y1 - y0, x0 - x1), timed at the frame after; per_s: "
-                             "(positive crossings - 1) / (last - first crossing); "
-                             "steady_per_s: the same between the crossings at 10 % and 90 % "
-                             "of them (sweep verify's bottleneck flow); specific: steady (else "
-                             "per_s) / width",
-            }
-            summary["flow"]["reference"] = flow_reference(
-                width, flows["steady_per_s"] or flows["per_s"])
+            summary["flow"] = flow_summary(self.line, (self.net, self.positive, self.negative),
+                                           np.array(self.crossing_times), self.evacuation, n)
         if self.goal_seen:
             radii = sorted(self.tracker.radii)
             summary["arrivals"] = {

@@ -34,9 +34,9 @@ from sweep_core.analysis.drawing import (
     pyplot,
     view_of,
 )
-from sweep_core.analysis.frames import Frame, FrameReader, progress_bar
+from sweep_core.analysis.frames import Frame, progress_bar
 from sweep_core.analysis.run import RunMeta, Schedule, load_run, scene_with_map
-from sweep_core.analysis.speed import WindowSpeeds, choose_window, fits
+from sweep_core.analysis.speed import choose_window, fits, with_speeds
 from sweep_core.errors import SweepError
 from sweep_core.io import cdr
 from sweep_core.io.recording import read_recording, scan_recording
@@ -118,9 +118,8 @@ def frame_times(start: float, end: float, fps: float, speed: float) -> np.ndarra
 
 @dataclass
 class Survey:
-    """What a first pass over the frames finds: log times (ns) of the frames, the box the
-    agents and the scene take, the largest speed (m/s) over ``window`` s (None, and a largest
-    speed of 0, when speeds are not shown)."""
+    """A first pass over the frames: their log times (ns), the box the agents and the scene
+    take, the largest speed (m/s) over ``window`` s (None, 0: speeds not shown)."""
 
     log_ns: np.ndarray
     view: tuple[float, float, float, float]
@@ -128,32 +127,10 @@ class Survey:
     window: float | None = None
 
 
-def with_speeds(meta: RunMeta, window: float | None
-                ) -> Iterator[tuple[Frame, np.ndarray | None]]:
-    """The recording's frames in order, each with its agents' speeds (N,) m/s over ``window``
-    s (:mod:`sweep_core.analysis.speed`; NaN: none), or None without a window."""
-    reader = FrameReader(meta)
-    if window is None:
-        yield from ((fr, None) for fr in reader)
-        return
-    ws = WindowSpeeds(window)
-    for fr in reader:
-        n = len(fr.positions)
-        ag = fr.agents
-        ids = (np.rint(ag["id"].astype(np.float64)).astype(np.int64)
-               if ag is not None and "id" in ag and len(ag["id"]) == n else np.arange(n))
-        for r in ws.push(fr.stamp_ns / 1e9, ids, fr.positions, fr, meta.segment_of(fr.log_ns)):
-            yield r.payload, r.speed
-    for r in ws.finish():
-        yield r.payload, r.speed
-
-
 def survey(meta: RunMeta, progress: bool, window: float | None = None) -> Survey:
-    """The first pass (decodes the frames, keeps only their times, extents and, with a
-    ``window`` (s), the largest speed over it)."""
+    """The first pass: the frames' times, extents and (``window`` s) largest speed."""
     times: list[int] = []
-    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
-    vmax = 0.0
+    lo, hi, vmax = np.full(2, np.inf), np.full(2, -np.inf), 0.0
     bar = progress_bar(meta.frames or None, "frame", progress)
     bar.set_description("reading")
     for fr, speed in with_speeds(meta, window):
@@ -345,8 +322,8 @@ def render(recording: str, out: str | None = None, opts: RenderOptions | None = 
     opts.check()
     meta = load_run(recording)
     path, fmt = output_path(meta.path, out, has_encoder() if encoder is None else encoder)
-    window = (choose_window(opts.speed_window, meta.frame_interval)
-              if opts.colour == "speed" else None)
+    speeds = opts.colour == "speed"
+    window = choose_window(opts.speed_window, meta.frame_interval) if speeds else None
     sv = survey(meta, progress, window)
     if window is not None and opts.speed_window is not None:
         fits(window, (sv.log_ns - sv.log_ns[0]) / 1e9)

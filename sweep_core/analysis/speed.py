@@ -25,17 +25,20 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from sweep_core.analysis.crowd import Fundamental
+from sweep_core.analysis.frames import Frame, FrameReader
 from sweep_core.analysis.roster import grow
+from sweep_core.analysis.run import RunMeta
 from sweep_core.errors import SweepError
 
 __all__ = ["DEFAULT_WINDOW_S", "Ready", "SpeedStats", "WindowSpeeds", "check_spacing",
-           "check_window", "choose_window", "fits", "window_speeds"]
+           "check_window", "choose_window", "fits", "window_speeds", "with_speeds"]
 
 #: the default window (s): JPSreport's default frame_step (10 frames) at the 16 frames per
 #: second of the Jülich experiments' trajectories
@@ -209,6 +212,26 @@ class WindowSpeeds:
         return p, np.where(found, other.t, cur.t)
 
 
+def with_speeds(meta: RunMeta, window: float | None
+                ) -> Iterator[tuple[Frame, np.ndarray | None]]:
+    """The recording's frames in order, each with its agents' speeds (N,) m/s over ``window``
+    s (:mod:`sweep_core.analysis.speed`; NaN: none), or None without a window."""
+    reader = FrameReader(meta)
+    if window is None:
+        yield from ((fr, None) for fr in reader)
+        return
+    ws = WindowSpeeds(window)
+    for fr in reader:
+        n = len(fr.positions)
+        ag = fr.agents
+        ids = (np.rint(ag["id"].astype(np.float64)).astype(np.int64)
+               if ag is not None and "id" in ag and len(ag["id"]) == n else np.arange(n))
+        for r in ws.push(fr.stamp_ns / 1e9, ids, fr.positions, fr, meta.segment_of(fr.log_ns)):
+            yield r.payload, r.speed
+    for r in ws.finish():
+        yield r.payload, r.speed
+
+
 def window_speeds(times: np.ndarray, q: np.ndarray, window: float) -> np.ndarray:
     """Speeds (K, N) m/s of N agents present at all K frames (times (K,) s, centres (K, N, 2)
     m) over a centred window of ``window`` s: :class:`WindowSpeeds` on whole arrays."""
@@ -239,6 +262,7 @@ class SpeedStats:
         self.rows: list[tuple[float, float]] = []  # per frame: mean, max (m/s)
         self.hist = np.zeros(0, dtype=np.int64)
         self.total, self.count, self.max = 0.0, 0, 0.0
+        self.spans = 0.0  # sum of the times the speeds' displacements span (s)
         self.no_window = 0  # agent-frames without a speed (present at neither end)
         self.agent_sum = np.zeros(0)  # per agent id: sum of its speeds (m/s)
         self.agent_frames = np.zeros(0)  # ... and how many
@@ -260,6 +284,7 @@ class SpeedStats:
             self.rows[index(r)] = (float(v.mean()), float(v.max()))
             self.total += math.fsum(v)
             self.count += len(v)
+            self.spans += math.fsum(r.span[ok])
             self.max = max(self.max, float(v.max()))
             counts = np.bincount(np.floor(v / SPEED_BIN).astype(np.int64))
             self.hist = grow(self.hist, len(counts), 0)
@@ -280,6 +305,7 @@ class SpeedStats:
         some = self.count > 0
         return {
             "window_s": self.window,
+            "span_mean_s": self.spans / self.count if some else None,
             "mean_m_per_s": self.total / self.count if some else None,
             "max_m_per_s": self.max if some else None,
             "p10_m_per_s": _quantile(self.hist, 0.10),
@@ -287,10 +313,11 @@ class SpeedStats:
             "p90_m_per_s": _quantile(self.hist, 0.90),
             "samples": self.count,
             "without_window": self.no_window,
-            "precision": f"float64 (/poses): {WHAT} (window_s; one-sided where the agent or "
-                         "the recording starts or ends within it, as PedPy's "
-                         "compute_individual_speed), every agent of every frame; quantiles "
-                         f"to {SPEED_BIN / 2:g} m/s",
+            "precision": f"float64 (/poses): {WHAT} (window_s, between the recorded frames "
+                         "nearest its ends; span_mean_s: the time they span on average; "
+                         "one-sided where the agent or the recording starts or ends within "
+                         "it, as PedPy's compute_individual_speed), every agent of every "
+                         f"frame; quantiles to {SPEED_BIN / 2:g} m/s",
         }
 
     def group_mean(self, idx: np.ndarray) -> float | None:
