@@ -10,7 +10,7 @@ setup(
     version="0.2.2",
     packages=find_packages(include=["sweep_core", "sweep_core.*", "sweep_ros"]),
     package_data={"sweep_core": ["scenes/*.yaml", "scenes/maps/*", "scenes/rimea/*.yaml",
-                                 "verify/data/*.csv", "py.typed"]},
+                                 "analysis/data/*.csv", "py.typed"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),

@@ -30,12 +30,14 @@ BLOCK = re.compile(r"(<!-- example: (?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- /e
 
 #: the lines of ``sweep analyze``'s summary the README quotes
 ANALYZE_KEYS = ("status", "frames", "duration_s", "min_gap.min_m", "min_gap.between",
-                "touching.mean", "reaction.pressure_mean_m_per_s", "speed.mean_m_per_s",
-                "speed.p50_m_per_s", "flow.net", "flow.per_s", "arrivals.arrived",
-                "density.max_per_m2")
+                "touching.mean", "reaction.pressure_mean_m_per_s", "speed.window_s",
+                "speed.mean_m_per_s", "speed.p50_m_per_s", "flow.net", "flow.per_s",
+                "flow.steady_per_s", "flow.reference.flow_per_s",
+                "flow.reference.departure_pct", "arrivals.arrived", "density.max_per_m2")
 #: the shorter summary of the README's tour (the same run)
-TOUR_KEYS = ("status", "min_gap.min_m", "touching.mean", "flow.net", "flow.per_s",
-             "arrivals.arrived", "density.max_per_m2")
+TOUR_KEYS = ("status", "min_gap.min_m", "touching.mean", "speed.mean_m_per_s", "flow.net",
+             "flow.per_s", "flow.reference.departure_pct", "arrivals.arrived",
+             "density.max_per_m2")
 
 
 def sweep(*args: str, cwd: Path) -> str:

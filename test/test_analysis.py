@@ -98,13 +98,18 @@ def test_every_metric_matches_the_engine(run):
     assert np.allclose(tab[:, 4], react, rtol=1e-6, atol=1e-7)
     assert np.allclose(tab[:, 5], react / DT, rtol=1e-6, atol=1e-5)
 
-    # speeds (float32): |v| of every agent at every step but the first
-    v = np.array([np.linalg.norm(st.velocities, axis=1) for st in states[1:]])
-    assert np.allclose(tab[1:, 6], v.mean(axis=1), rtol=1e-6)
-    assert np.allclose(tab[1:, 7], v.max(axis=1), rtol=1e-6)
-    assert np.isnan(tab[0, 6])
-    assert s["speed"]["mean_m_per_s"] == pytest.approx(v.mean(), rel=1e-6)
-    assert s["speed"]["max_m_per_s"] == pytest.approx(v.max(), rel=1e-6)
+    # speeds: each agent's displacement between the states n = 31 steps either side (the
+    # nearest to t -+ 0.625 / 2 s), one-sided where the run starts or ends within that
+    assert s["speed"]["window_s"] == 0.625
+    q = np.array([st.positions for st in states])
+    k = np.arange(len(q))
+    m = 31
+    a, b = np.where(k >= m, k - m, k), np.where(k + m < len(q), k + m, k)
+    v = np.linalg.norm(q[b] - q[a], axis=2) / ((b - a) * DT)[:, None]
+    assert np.allclose(tab[:, 6], v.mean(axis=1), rtol=1e-9)
+    assert np.allclose(tab[:, 7], v.max(axis=1), rtol=1e-9)
+    assert s["speed"]["mean_m_per_s"] == pytest.approx(v.mean(), rel=1e-9)
+    assert s["speed"]["max_m_per_s"] == pytest.approx(v.max(), rel=1e-9)
     assert s["speed"]["samples"] == v.size
     for p in (10, 50, 90):
         ref = np.quantile(v, p / 100, method="inverted_cdf")
@@ -119,8 +124,12 @@ def test_every_metric_matches_the_engine(run):
     assert np.array_equal(tab[:, 8], net)
     fl = s["flow"]
     assert (fl["net"], fl["positive"], fl["negative"]) == (net[-1], up.sum(), down.sum())
-    assert fl["per_s"] == pytest.approx(net[-1] / T_END)
     t = np.array([st.t for st in states])
+    # the flow: positive crossings after the first over the time from the first to the last
+    times = np.sort(np.repeat(t[1:], up.sum(1)))
+    assert fl["per_s"] == pytest.approx((len(times) - 1) / (times[-1] - times[0]))
+    assert fl["width_m"] == pytest.approx(4.0)
+    assert fl["reference"]["note"].startswith("no reference: the line is 4 m wide")
     first_up = [t[1:][up[:, i]].min() if up[:, i].any() else np.nan for i in range(n)]
     assert np.allclose(np.sort(an.evacuation), np.sort(first_up), equal_nan=True)
     assert fl["evacuated"] == np.count_nonzero(np.isfinite(first_up))

@@ -74,7 +74,7 @@ def test_every_panel_is_there_with_its_labels(figure):
     for words in TITLES:
         panel(figure, words)
     assert panel(figure, "fundamental diagram").get_xlabel().startswith("local density (1/m²")
-    assert panel(figure, "fundamental diagram").get_ylabel() == "speed (m/s)"
+    assert panel(figure, "fundamental diagram").get_ylabel() == "speed over 0.625 s (m/s)"
     for words in ("arrivals", "speed and contacts"):
         assert panel(figure, words).get_xlabel() == "t (s)"
     assert panel(figure, "arrivals").get_ylabel() == "agents (cumulative)"
@@ -114,17 +114,35 @@ def test_time_axes_mark_commands_resets_and_maps(figure):
 
 def test_minimum_gap_is_a_distribution_with_touching_frames_apart(figure, analysis):
     ax = panel(figure, "minimum gap")
-    assert ax.get_xscale() == "linear" and ax.get_xlabel() == "minimum gap of a frame (mm)"
-    assert ax.get_ylabel() == "fraction of frames"
+    assert ax.get_ylabel() == "fraction of frames (bars sum to 1)"
     touching, overlap, positive = crowd.gap_distribution(analysis.table[:, 2])
-    heights = sum(p.get_height() for p in ax.patches)
-    assert heights == pytest.approx(len(positive) / len(analysis.table))
-    assert f"{touching / len(analysis.table):.0%} of frames touching" in "".join(
-        t.get_text() for t in ax.texts)
+    heights = [p.get_height() for p in ax.patches]
+    # every frame counted once: touching, overlapping and the gaps above rounding level
+    assert sum(heights) == pytest.approx(1.0)
+    total = touching + overlap + len(positive)
+    labels = [t.get_text() for t in ax.get_xticklabels()]
+    k = next(i for i, lab in enumerate(labels) if lab.startswith("touching"))
+    assert heights[k] == pytest.approx(touching / total)
     # rounding-level gaps are counted as touching, not drawn as distances
     gaps = np.array([5e-15, -4e-15, 0.0, 2e-9, -3e-9, 0.01])
     t, o, p = crowd.gap_distribution(gaps)
     assert (t, o, p.tolist()) == (3, 1, [2e-9, 0.01])
+    names, frac = plots.gap_classes(gaps)
+    assert frac.sum() == pytest.approx(1.0) and names[0].startswith("overlap")
+    assert frac[:3].tolist() == pytest.approx([1 / 6, 3 / 6, 1 / 6])  # overlap, touching, 2e-9
+    assert names[-1] == "1 to\n10 mm" and frac[-1] == pytest.approx(1 / 6)  # 0.01 m
+
+
+def test_the_counting_line_is_drawn_in_both_rooms(figure):
+    for words in ("trajectories", "density"):
+        (line,) = [ln for ln in panel(figure, words).get_lines()
+                   if ln.get_label() == "counting line"]
+        assert line.get_linewidth() >= 3 and line.get_xydata().tolist() == [[5, 0], [5, 3]]
+
+
+def test_the_fundamental_diagram_stands_beside_weidmanns(figure):
+    ax = panel(figure, "fundamental diagram")
+    assert "Weidmann 1993 (free speed 1.34 m/s)" in legend_texts(ax)
 
 
 def test_a_goal_command_in_a_scene_without_navigation_gets_its_contours(analysis):
@@ -170,3 +188,17 @@ drift: {kind: exits, speed: 1.2, exits: [{goal: [7, 3]},
         assert "arrived at exits[0]" in texts and "arrived at exits[1]" in texts
     finally:
         plt.close(fig)
+
+
+def test_each_group_has_its_mean_windowed_speed(analysis):
+    pedpy = pytest.importorskip("pedpy")
+    from sweep_core.analysis.pedpy_export import read_trajectories
+    # dt 0.02 s: the 0.625 s window's ends are the frames 16 either side (0.32 s nearest 0.3125)
+    ped = pedpy.compute_individual_speed(
+        traj_data=read_trajectories(analysis.meta.path).to_pedpy(), frame_step=16,
+        speed_calculation=pedpy.SpeedCalculation.BORDER_SINGLE_SIDED)
+    groups = analysis.summary["per_group"]
+    for name, ids in (("east", [0, 1, 2]), ("west", [3, 4])):
+        want = float(ped[ped["id"].isin(ids)]["speed"].mean())
+        assert groups[name]["speed_mean_m_per_s"] == pytest.approx(want, rel=1e-9)
+        assert groups[name]["speed_window_s"] == 0.625

@@ -104,3 +104,24 @@ def test_the_curve_against_a_key_notes_the_points_it_lacks(figures):
                  "min_gap.min_m at dt=0.01: at rounding level",
                  "min_gap.min_m at dt=0.04: no value: all 4 runs failed"):
         assert note in t
+
+
+def test_the_default_figure_has_values_when_evacuation_and_gaps_have_none(tmp_path, monkeypatch):
+    # no run reaches any evacuation fraction and every minimum gap is at rounding level: the
+    # figure against dt draws the windowed mean speed and the touching constraints instead
+    rows = [{"point": p, "run": r, "seed": r, "dt": dt, "status": "ok",
+             "arrivals.t_50_s": NAN, "min_gap.min_m": 3e-15, "speed.mean_m_per_s": 1.0 + r / 10,
+             "speed.window_s": 0.625, "touching.mean": 5.0 + r}
+            for p, dt in enumerate((0.01, 0.02)) for r in range(3)]
+    plt.close("all")
+    monkeypatch.setattr(plt, "close", lambda *a, **k: None)
+    files = plots.write_plots(tmp_path, pd.DataFrame(rows), ["dt"])
+    assert "vs_dt" in files
+    fig = find([plt.figure(n) for n in plt.get_fignums()], "against dt")
+    monkeypatch.undo()
+    labels = [ax.get_ylabel() for ax in fig.axes]
+    assert labels == ["speed.mean_m_per_s (over 0.625 s)", "touching.mean"]
+    for ax in fig.axes:  # every panel draws both grid points
+        (line,) = [ln for ln in ax.get_lines() if ln.get_marker() == "o"]
+        assert list(line.get_xdata()) == [0.01, 0.02]
+    plt.close("all")

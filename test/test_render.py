@@ -124,3 +124,19 @@ def test_the_recorded_navigation_field_is_read_per_group(recording):
     for _, x, y, t in grids:
         assert t.shape == (len(y), len(x)) and np.all(np.diff(x) > 0) and np.all(np.diff(y) > 0)
         assert np.nanmax(t) > 9.0  # from one end of the 20 m corridor to the other goal
+
+
+def test_speed_colours_show_the_windowed_speed(recording):
+    from sweep_core.analysis import metrics
+    from sweep_core.analysis.run import load_run
+    meta = load_run(str(recording))
+    sv = render.survey(meta, progress=False, window=0.2)
+    an = metrics.analyze(recording, speed_window=0.2)
+    # the colour scale's top is the largest windowed speed sweep analyze reports
+    assert sv.window == 0.2 and sv.max_speed == pytest.approx(an.summary["speed"]["max_m_per_s"])
+    frames = list(render.with_speeds(meta, 0.2))
+    assert len(frames) == an.summary["frames"]
+    assert np.allclose([np.nanmean(s) for _, s in frames], an.table[:, 6])
+    with pytest.raises(SweepError, match="--speed-window: must be a positive number"):
+        render.render(str(recording), str(recording.with_name("x.gif")),
+                      render.RenderOptions(colour="speed", speed_window=-1.0), progress=False)

@@ -14,7 +14,10 @@ Precision of each metric:
   with equality after a step's projection), flow through a line, arrival times, density map: from ``/poses``
   (float64, the engine's own numbers) with radii r_i(t) evaluated from the recorded scene in
   float64, so the minimum gap is the engine's ``State.min_gap`` bit for bit;
-* speeds and reaction (contact pressure): from ``/agents`` (float32, relative error about 6e-8).
+* speeds: from ``/poses`` (float64), each agent's displacement over a window centred on the
+  frame (:mod:`sweep_core.analysis.speed`; ``speed.window_s`` in the summary), on the recorded
+  simulation times;
+* reaction (contact pressure): from ``/agents`` (float32, relative error about 6e-8).
 
 Time is the log time of the messages (equal to simulation time for ``sweep run``; the node
 keeps it increasing over resets). A file cut short (SIGKILL) is read up to its last complete
@@ -30,22 +33,31 @@ from typing import Any
 import numpy as np
 
 from sweep_core.analysis.arrivals import ArrivalTracker, start_exits, stats, time_for
-from sweep_core.analysis.crowd import Fundamental, FundamentalDiagram, Tracks
+from sweep_core.analysis.crowd import FundamentalDiagram, Tracks
 from sweep_core.analysis.density import MAX_CELLS as MAX_CELLS  # re-exported for the CLI
 from sweep_core.analysis.density import Hist2D
 from sweep_core.analysis.frames import Frame, FrameReader, GapFinder, progress_bar
+from sweep_core.analysis.lines import flow_summary
 from sweep_core.analysis.lines import line_crossings as line_crossings  # re-exported
 from sweep_core.analysis.lines import parse_line as parse_line  # re-exported for the CLI
 from sweep_core.analysis.robots import for_run as robot_metrics
 from sweep_core.analysis.roster import Roster, grow
 from sweep_core.analysis.run import NS, RunMeta, Schedule, load_run, scene_with_map
+from sweep_core.analysis.speed import (
+    DEFAULT_WINDOW_S,
+    Ready,
+    SpeedStats,
+    WindowSpeeds,
+    check_window,
+    choose_window,
+    fits,
+)
+from sweep_core.analysis.speed import SPEED_BIN as SPEED_BIN  # re-exported
 from sweep_core.errors import RecordingError, SweepError
 from sweep_core.model.geometry import Geometry, gaps
 
 #: a constraint whose true value is at most this (m) counts as an active contact
 CONTACT_TOL = 1e-6
-#: width of the speed histogram bins (m/s); speed quantiles are exact to half of it
-SPEED_BIN = 1e-3
 
 @dataclass
 class Analysis:
@@ -76,18 +88,12 @@ class Analysis:
     #: centres at up to crowd.TRACK_FRAMES frames (K, N, 2) m, and their times (K,) s
     tracks: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 2)))
     track_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    #: local density against speed, every agent of every frame after step 0
+    #: local density against speed, every agent of every frame with a speed
     fundamental: FundamentalDiagram | None = None
     #: the robots' frames (:attr:`SocialMetrics.COLUMNS`), None without robots
     robots: np.ndarray | None = None
-
-
-def _quantile(hist: np.ndarray, p: float) -> float | None:
-    total = int(hist.sum())
-    if total == 0:
-        return None
-    i = int(np.searchsorted(np.cumsum(hist), p * total))
-    return (i + 0.5) * SPEED_BIN
+    #: the window (s) of every speed (:mod:`sweep_core.analysis.speed`)
+    speed_window: float = DEFAULT_WINDOW_S
 
 
 def _finite(x: float | None) -> float | None:
@@ -103,12 +109,15 @@ class _Metrics:
     """Accumulates the metrics frame by frame (one pass, bounded memory per agent and cell)."""
 
     def __init__(self, meta: RunMeta, line: tuple[float, float, float, float] | None,
-                 arrive_radius: float | None, cell: float) -> None:
+                 arrive_radius: float | None, cell: float, window: float) -> None:
         self.meta, self.line, self.arrive_radius = meta, line, arrive_radius
+        self.window = window
+        self.speeds = WindowSpeeds(window)
+        self.stats = SpeedStats(window)
+        self.crossing_times: list[float] = []  # every positive crossing of the line (s)
         self.schedule = Schedule(meta)
         self.geometry = meta.scene.geometry if meta.scene is not None else _empty_geometry()
         self.rows: list[tuple] = []
-        self.hist = np.zeros(0, dtype=np.int64)
         self.density = Hist2D(cell)
         self.n: int | None = None
         self.t0 = 0
@@ -116,18 +125,18 @@ class _Metrics:
         self.prev: tuple[int, np.ndarray] | None = None
         self.net, self.positive, self.negative = 0, 0, 0
         self.arrival = self.evacuation = np.zeros(0)
-        self.speed_sum, self.speed_count, self.speed_max = 0.0, 0, 0.0
         self.goal_seen = False
         self.tracker = ArrivalTracker(0, arrive_radius)
         self._map_geometry: dict[int, Geometry] = {}
         self.tracks = Tracks(meta.frames)
-        self.fundamental = Fundamental()
         # flows (sinks, sources): agents followed by id (roster.py)
         flows = meta.scene is not None and meta.scene.flows is not None
         self.roster = Roster(meta.scene, meta.path) if flows and meta.scene else None
         self.ids = self.prev_ids = np.zeros(0, dtype=np.int64)
 
-    def add(self, fr: Frame) -> None:
+    def add(self, fr: Frame) -> list[Ready]:
+        """One frame; returns the frames whose windowed velocities are now known (their
+        payload: (frame index, Frame, segment, step))."""
         meta, q = self.meta, fr.positions
         if self.n is None:
             self.n, self.t0 = len(q), fr.log_ns
@@ -150,19 +159,19 @@ class _Metrics:
         step = meta.step_of(fr.stamp_ns) if meta.dt is not None else -1
         geometry = self._geometry_at(seg, step)
         g = self._gaps(fr, step, geometry)
-        react_total, sp_mean, sp_max = self._agents(fr.agents, step)
+        react_total = self._reaction(fr.agents)
         if self.line is not None:
             self._flow(seg, q, t)
         if self.roster is None and self._arrivals(seg, step, q, t):
             self.goal_seen = True
         self.density.add(q)
         self.tracks.add(t, q, self.ids if self.roster is not None else None)
-        if fr.agents is not None and step != 0:
-            self.fundamental.add(q, np.hypot(fr.agents["vx"].astype(np.float64),
-                                             fr.agents["vy"].astype(np.float64)))
         dt = meta.dt
+        ids = self.ids if self.roster is not None else np.arange(len(q))
+        ready = self.speeds.push(fr.stamp_ns / NS, ids, q, (self.stats.frame(), fr, seg, step),
+                                 seg)
         self.rows.append((t, step, g.min_gap, g.contacts, react_total,
-                          react_total / dt if dt else math.nan, sp_mean, sp_max,
+                          react_total / dt if dt else math.nan, math.nan, math.nan,
                           self.net if self.line is not None else math.nan,
                           np.count_nonzero(np.isfinite(self.arrival)) if self.goal_seen
                           else math.nan))
@@ -173,6 +182,14 @@ class _Metrics:
                 a, kind, item, _ = g.worst_single
                 between = f"agent {a} and {geometry.describe(kind, item)}"
             self.worst = (g.min_gap, t, between)
+        self.stats.add(ready)
+        return ready
+
+    def finish(self) -> list[Ready]:
+        """The frames still waiting for their windows (the recording ended)."""
+        ready = self.speeds.finish()
+        self.stats.add(ready)
+        return ready
 
     def _geometry_at(self, seg: int, step: int) -> Geometry:
         """The walls a frame's state holds: the scene's, with the map the node received
@@ -199,26 +216,13 @@ class _Metrics:
              else np.zeros(len(fr.positions)))
         return gaps(self.geometry, 0.0, fr.positions, r, CONTACT_TOL)
 
-    def _agents(self, ag: dict[str, np.ndarray] | None, step: int) -> tuple[float, float, float]:
-        """Total reaction, mean and max speed of a frame (float32 /agents), NaN if unknown."""
+    @staticmethod
+    def _reaction(ag: dict[str, np.ndarray] | None) -> float:
+        """Total reaction of a frame (float32 /agents), NaN if unknown."""
         if ag is None:
-            return math.nan, math.nan, math.nan
-        f64 = {k: ag[k].astype(np.float64) for k in ("reaction_x", "reaction_y", "vx", "vy")}
-        react_total = float(np.hypot(f64["reaction_x"], f64["reaction_y"]).sum())
-        if step == 0 or not self.n:  # no step taken yet: velocities are zero by definition
-            return react_total, math.nan, math.nan
-        v = np.hypot(f64["vx"], f64["vy"])
-        if not len(v):  # no agent present (all left at sinks)
-            return react_total, math.nan, math.nan
-        self.speed_sum += float(v.sum())
-        self.speed_count += len(v)
-        self.speed_max = max(self.speed_max, float(v.max()))
-        counts = np.bincount(np.floor(v / SPEED_BIN).astype(np.int64))
-        if len(counts) > len(self.hist):
-            self.hist = np.concatenate([self.hist,
-                                        np.zeros(len(counts) - len(self.hist), np.int64)])
-        self.hist[:len(counts)] += counts
-        return react_total, float(v.mean()), float(v.max())
+            return math.nan
+        return float(np.hypot(ag["reaction_x"].astype(np.float64),
+                              ag["reaction_y"].astype(np.float64)).sum())
 
     def _flow(self, seg: int, q: np.ndarray, t: float) -> None:
         """Crossings of the line since the previous frame of the same segment (with flows:
@@ -234,6 +238,7 @@ class _Metrics:
             self.net += int(c.sum())
             first = who[(c > 0) & np.isnan(self.evacuation[who])]
             self.evacuation[first] = t
+            self.crossing_times += [t] * int(np.count_nonzero(c > 0))
         self.prev = (seg, q)
         self.prev_ids = self.ids
 
@@ -251,6 +256,7 @@ class _Metrics:
         if frames == 0:
             raise RecordingError(f"{meta.path}: no complete frame (poses) in the recording"
                                  + (f" ({reader.error})" if reader.error else ""))
+        table[:, 6:8] = self.stats.table()
         n, worst = self.n or 0, self.worst
         if self.roster is not None:  # every agent seen, the scene's and the entered
             n = self.roster.total
@@ -297,16 +303,7 @@ class _Metrics:
                 "precision": "float32 (/agents): sum over agents of |prediction - result|; "
                              "pressure = that / dt",
             },
-            "speed": {
-                "mean_m_per_s": self.speed_sum / self.speed_count if self.speed_count else None,
-                "max_m_per_s": self.speed_max if self.speed_count else None,
-                "p10_m_per_s": _quantile(self.hist, 0.10),
-                "p50_m_per_s": _quantile(self.hist, 0.50),
-                "p90_m_per_s": _quantile(self.hist, 0.90),
-                "samples": self.speed_count,
-                "precision": f"float32 (/agents): |v| of each agent's last step, step 0 "
-                             f"excluded; quantiles to {SPEED_BIN / 2:g} m/s",
-            },
+            "speed": self.stats.summary(),
             "flow": None,
             "arrivals": None,
             "per_exit": None,
@@ -320,18 +317,8 @@ class _Metrics:
             },
         }
         if self.line is not None:
-            summary["flow"] = {
-                "line": list(self.line),
-                "net": self.net, "positive": self.positive, "negative": self.negative,
-                "per_s": self.net / duration if duration > 0 else None,
-                "evacuated": int(np.count_nonzero(np.isfinite(self.evacuation))),
-                "t_first_s": stats(self.evacuation, np.min),
-                "t_50_s": time_for(self.evacuation, n, 0.5),
-                "t_90_s": time_for(self.evacuation, n, 0.9),
-                "t_all_s": time_for(self.evacuation, n, 1.0),
-                "precision": "float64 (/poses); crossings between recorded frames, positive "
-                             "along (y1 - y0, x0 - x1)",
-            }
+            summary["flow"] = flow_summary(self.line, (self.net, self.positive, self.negative),
+                                           np.array(self.crossing_times), self.evacuation, n)
         if self.goal_seen:
             radii = sorted(self.tracker.radii)
             summary["arrivals"] = {
@@ -348,22 +335,26 @@ class _Metrics:
             }
             summary["per_exit"] = self.tracker.per_exit()
             summary["per_group"] = self.tracker.per_group()
+            for name, idx in self.tracker.groups.items():
+                if summary["per_group"] is not None and name in summary["per_group"]:
+                    summary["per_group"][name]["speed_mean_m_per_s"] = self.stats.group_mean(idx)
+                    summary["per_group"][name]["speed_window_s"] = self.window
         labels = self.tracker.labels
         exits = [labels[k] if k >= 0 else None for k in self.tracker.exit.tolist()]
         arrival = self.arrival
         if self.roster is not None:  # by id: an arrival is leaving at a sink
             arrival = self.roster.report(summary)
             exits = [None] * len(arrival)
-        return Analysis(meta, summary, table, dens, origin, cell, self.hist, arrival,
+        return Analysis(meta, summary, table, dens, origin, cell, self.stats.hist, arrival,
                         self.evacuation, exits, t0_ns=self.t0, tracks=self.tracks.array(),
                         track_times=np.array(self.tracks.times),
-                        fundamental=self.fundamental.result())
+                        fundamental=self.stats.fundamental.result(), speed_window=self.window)
 
 
 def analyze(path: str | Path, line: tuple[float, float, float, float] | None = None,
             arrive_radius: float | None = None, cell: float = 0.5,
             progress: bool = False, goal_radius: float | None = None,
-            time_limit: float | None = None) -> Analysis:
+            time_limit: float | None = None, speed_window: float | None = None) -> Analysis:
     """Reads a recording and computes every metric (see the module docstring).
 
     Args:
@@ -378,6 +369,10 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
         goal_radius, time_limit: a robot has reached its goal within this distance (m; default
             the scene's), within this time (s from the first frame; default the scene's, else
             the whole recording): docs/social_metrics.md.
+        speed_window: the window (s) of every speed (:mod:`sweep_core.analysis.speed`);
+            default :data:`~sweep_core.analysis.speed.DEFAULT_WINDOW_S`, widened to two
+            recorded frame intervals when the frames lie further apart. A given window
+            longer than the recording or shorter than two frame intervals is refused.
     """
     if isinstance(cell, bool) or not isinstance(cell, (int, float)) or not (
             cell > 0 and math.isfinite(cell)):
@@ -385,20 +380,33 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
     if arrive_radius is not None and not (arrive_radius > 0 and math.isfinite(arrive_radius)):
         raise SweepError(f"--arrive-radius: must be a positive number of metres, "
                          f"got {arrive_radius!r}")
+    given = speed_window is not None
+    if given:
+        check_window(speed_window)
     meta = load_run(path)
-    metrics = _Metrics(meta, line, arrive_radius, float(cell))
+    window = choose_window(speed_window, meta.frame_interval)
+    metrics = _Metrics(meta, line, arrive_radius, float(cell), window)
     robots = robot_metrics(meta, goal_radius, time_limit)
     reader, finder = FrameReader(meta), GapFinder(meta.record_every)
     with progress_bar(meta.frames or None, "frame", progress) as bar:
         for fr in reader:
-            metrics.add(fr)
+            ready = metrics.add(fr)
             finder.add(fr, meta.segment_of(fr.log_ns), int(metrics.rows[-1][1]))
             if robots is not None:
-                robots.add(fr, meta.segment_of(fr.log_ns), int(metrics.rows[-1][1]))
+                for r in ready:  # people's velocities over the window, once it is complete
+                    robots.add(r.payload[1], r.payload[2], r.payload[3], r.v)
             bar.update()
+    for r in metrics.finish():
+        if robots is not None:
+            robots.add(r.payload[1], r.payload[2], r.payload[3], r.v)
+    if given and metrics.rows:
+        fits(window, np.array([row[0] for row in metrics.rows]))
     an = metrics.result(reader)
     if robots is not None:
         an.summary["robots"], an.robots = robots.summary(), robots.table()
+        for entry in an.summary["robots"].values():
+            if entry is not None:  # the people's velocities in ttc: over the speed window
+                entry["people_velocity_window_s"] = window
     # states the file lacks (gaps) or holds unreadably (skipped), each listed on stderr
     an.summary["gaps"] = finder.to_dict()
     an.summary["skipped_messages"] = reader.bad

@@ -23,6 +23,7 @@ from sweep_core.analysis.drawing import (
     view_of,
 )
 from sweep_core.analysis.metrics import Analysis
+from sweep_core.analysis.references import weidmann
 from sweep_core.analysis.run import NS
 from sweep_core.errors import SweepError
 from sweep_core.model.fields import NAVIGATION_KINDS, Field, Groups
@@ -34,12 +35,12 @@ __all__ = ["analysis_figure", "draw_travel_time", "named_navigation_fields", "pl
 
 #: travel-time contours drawn per navigation field
 CONTOURS = 12
-#: the figure's size (inches) and resolution (pixels per inch)
+#: the figure's width (inches; its height follows the room) and resolution (pixels per inch)
 SIZE, DPI = (14.0, 15.0), 72
 #: a room wider than this (width / height) gets the whole width of the figure
 WIDE = 1.8
-#: height (inches) of each lower panel
-PANEL_HEIGHT = 3.6
+#: height (inches) of each lower panel, and room for a legend below a room's panel
+PANEL_HEIGHT, LEGEND = 3.6, 0.7
 #: how each kind of event is drawn on the time axes: (colour, line style)
 EVENT_STYLE = {"command": ("C1", "--"), "reset": ("k", "-"), "map": ("C4", ":")}
 
@@ -146,6 +147,25 @@ def mark_events(ax: Any, marks: list[tuple[float, str, str]]) -> None:
         seen.add(kind)
 
 
+def draw_line(ax: Any, an: Analysis) -> None:
+    """The counting line of ``--line``, thick with a white edge, its ends marked and an arrow
+    in its positive direction (left to right looking from its first end to its second)."""
+    flow = an.summary["flow"]
+    if flow is None:
+        return
+    import matplotlib.patheffects as pe
+    x0, y0, x1, y1 = flow["line"]
+    edge = [pe.Stroke(linewidth=5.5, foreground="white"), pe.Normal()]
+    ax.plot([x0, x1], [y0, y1], color="#d62728", lw=3.0, solid_capstyle="butt", zorder=6,
+            path_effects=edge, marker="|", ms=12, mew=2.5, label="counting line")
+    length = max(float(np.hypot(x1 - x0, y1 - y0)), 1e-9)
+    nx, ny = (y1 - y0) / length, -(x1 - x0) / length
+    mx, my = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+    reach = 0.4 * length
+    ax.annotate("", xy=(mx + reach * nx, my + reach * ny), xytext=(mx, my), zorder=6,
+                arrowprops={"arrowstyle": "-|>", "color": "#d62728", "lw": 2.0})
+
+
 def _room(ax: Any, an: Analysis) -> None:
     """Equal axes on the box of the walls, obstacles and trajectories."""
     pts = an.tracks.reshape(-1, 2) if an.tracks.size else np.zeros((0, 2))
@@ -175,6 +195,7 @@ def _trajectories(ax: Any, an: Analysis) -> None:
                    label="start")
         ax.autoscale_view()
     draw_scene(ax, an.meta.scene)
+    draw_line(ax, an)
     _room(ax, an)
     handles = [Patch(color=group_colour(k), label=names[k] if k >= 0 else "others")
                for k in order] if names else []
@@ -199,12 +220,11 @@ def _density(fig: Any, ax: Any, an: Analysis) -> None:
         travel = draw_travel_time(ax, an.meta.scene, True, commanded[1],
                                   f"the field of command {commanded[0]}")
     flow = an.summary["flow"]
-    if flow is not None:
-        x_0, y_0, x_1, y_1 = flow["line"]
-        ax.plot([x_0, x_1], [y_0, y_1], color="r", lw=1.5)
+    draw_line(ax, an)
     fig.colorbar(im, ax=ax, label="agents / m² (time average)", shrink=0.7)
     _room(ax, an)
-    ax.set_title("density" + travel + (" (red: counting line)" if flow is not None else ""))
+    ax.set_title("density" + travel + (" (red: counting line, arrow: positive)"
+                                       if flow is not None else ""))
 
 
 def _cumulative(times: np.ndarray, t_end: float) -> tuple[np.ndarray, np.ndarray]:
@@ -235,6 +255,7 @@ def _arrivals(ax: Any, an: Analysis, marks: list) -> None:
         drawn = True
     if s["flow"] is not None:
         ax.plot(tab[:, 0], tab[:, 8], color="C3", lw=1.4, label="line: net crossings")
+        _reference_band(ax, s["flow"], t_end)
         for k, name in enumerate(names):
             ax.plot(*_cumulative(an.evacuation[groups == k], t_end), color=group_colour(k),
                     lw=1.0, ls="--", label=f"line: {name} crossed")
@@ -248,6 +269,20 @@ def _arrivals(ax: Any, an: Analysis, marks: list) -> None:
     ax.set_title("arrivals and flow per group and exit")
     if drawn or marks:
         ax.legend(loc="upper left", fontsize=7)
+
+
+def _reference_band(ax: Any, flow: dict, t_end: float) -> None:
+    """The experiments' flow for the line's width from its first crossing on: a band of the
+    tolerance sweep verify accepts around their line (references.flow_reference)."""
+    ref, t1 = flow.get("reference") or {}, flow.get("t_first_s")
+    if "flow_per_s" not in ref or t1 is None or t_end <= t1:
+        return
+    t = np.array([t1, t_end])
+    lo, hi = ref["band_per_s"]
+    ax.fill_between(t, (t - t1) * lo, (t - t1) * hi, color="0.6", alpha=0.35, lw=0,
+                    label=f"experiments at {ref['width_m']:.2g} m: {ref['flow_per_s']:.2f}/s "
+                          f"± {100 * (hi / ref['flow_per_s'] - 1):.0f} %")
+    ax.plot(t, (t - t1) * ref["flow_per_s"], color="0.35", lw=1.0, ls="--")
 
 
 def _fundamental(fig: Any, ax: Any, an: Analysis) -> None:
@@ -265,10 +300,14 @@ def _fundamental(fig: Any, ax: Any, an: Analysis) -> None:
         fig.colorbar(im, ax=ax, label="agent-frames")
         rho, mean = fd.mean_speed()
         ax.plot(rho[:top], mean[:top], "o-", color="C3", ms=3, lw=1.2, label="mean speed")
+        dens = np.linspace(max(float(fd.density_edges[0]), 0.2),
+                           min(float(fd.density_edges[top]), 5.4), 100)
+        ax.plot(dens, weidmann(dens), color="C0", lw=1.6,
+                label="Weidmann 1993 (free speed 1.34 m/s)")
         ax.legend(loc="upper right", fontsize=7)
     ax.set_xlabel("local density (1/m², agents within 1 m)")
-    ax.set_ylabel("speed (m/s)")
-    ax.set_title("fundamental diagram")
+    ax.set_ylabel(f"speed over {an.speed_window:g} s (m/s)")
+    ax.set_title("fundamental diagram beside Weidmann's")
 
 
 def _speeds(ax: Any, an: Analysis, marks: list) -> None:
@@ -276,7 +315,7 @@ def _speeds(ax: Any, an: Analysis, marks: list) -> None:
     ax.plot(tab[:, 0], tab[:, 6], lw=1.2, color="C0", label="mean speed")
     ax.plot(tab[:, 0], tab[:, 7], lw=0.7, color="C0", alpha=0.45, label="max speed")
     ax.set_xlabel("t (s)")
-    ax.set_ylabel("speed (m/s)")
+    ax.set_ylabel(f"speed over {an.speed_window:g} s (m/s)")
     ax2 = ax.twinx()
     ax2.plot(tab[:, 0], tab[:, 3], lw=1.0, color="C2")
     ax2.set_ylabel("touching constraints (gap <= 1e-6 m)", color="C2")
@@ -285,21 +324,48 @@ def _speeds(ax: Any, an: Analysis, marks: list) -> None:
     ax.set_title("speed and contacts over time")
 
 
+#: classes of the per-frame minimum gap (m) beyond touching: (upper bound, label)
+GAP_CLASSES = ((1e-6, "1e-9 to\n1e-6 m"), (1e-5, "1e-6 to\n1e-5 m"), (1e-4, "1e-5 to\n1e-4 m"),
+               (1e-3, "0.1 to\n1 mm"), (1e-2, "1 to\n10 mm"), (1e-1, "1 to\n10 cm"),
+               (np.inf, "above\n10 cm"))
+
+
+def gap_classes(gaps: np.ndarray) -> tuple[list[str], np.ndarray]:
+    """The per-frame minimum gaps (m) as a distribution over frames: labels and fractions
+    (summing to 1 over the frames with a gap) of overlapping, touching (|gap| at rounding
+    level) and each class of :data:`GAP_CLASSES` up to the largest gap."""
+    touching, overlap, positive = gap_distribution(gaps)
+    total = touching + overlap + len(positive)
+    labels = [f"overlap\n< -{ROUNDING_M:g} m", f"touching\n|gap| <= {ROUNDING_M:g} m"]
+    counts = [overlap, touching]
+    lower = ROUNDING_M
+    top = float(positive.max()) if len(positive) else 0.0
+    for upper, label in GAP_CLASSES:
+        if lower >= top and len(counts) > 2:
+            break
+        counts.append(int(np.count_nonzero((positive > lower) & (positive <= upper))))
+        labels.append(label)
+        lower = upper
+    frac = np.array(counts, dtype=np.float64) / max(total, 1)
+    if not overlap:  # no overlap: its class is left out
+        labels, frac = labels[1:], frac[1:]
+    return labels, frac
+
+
 def _gaps(ax: Any, an: Analysis) -> None:
-    touching, overlap, positive = gap_distribution(an.table[:, 2])
-    frames = len(an.table)
-    if len(positive):
-        mm = positive * 1e3
-        ax.hist(mm, bins=min(40, max(5, len(mm) // 5)), color="C0", alpha=0.8,
-                weights=np.full(len(mm), 1.0 / frames), label="frames with a gap")
-    ax.set_xlabel("minimum gap of a frame (mm)")
-    ax.set_ylabel("fraction of frames")
-    note = (f"{touching / frames:.0%} of frames touching\n(|gap| <= {ROUNDING_M:g} m: "
-            "rounding level, not a distance)")
-    if overlap:
-        note += f"\n{overlap} frames overlapping by more than {ROUNDING_M:g} m"
-    ax.text(0.97, 0.95, note, ha="right", va="top", transform=ax.transAxes, fontsize=8,
-            bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "0.7"})
+    labels, frac = gap_classes(an.table[:, 2])
+    colours = ["C3" if lab.startswith("overlap") else "0.45" if lab.startswith("touching")
+               else "C0" for lab in labels]
+    x = np.arange(len(labels))
+    ax.bar(x, frac, color=colours, width=0.8)
+    for k, f in enumerate(frac):
+        if f > 0:
+            ax.text(k, f, f"{f:.0%}" if f >= 0.01 else f"{f:.1%}", ha="center", va="bottom",
+                    fontsize=7)
+    ax.set_xticks(x, labels, fontsize=7)
+    ax.set_ylim(0, min(1.0, float(frac.max()) * 1.15 + 0.02))
+    ax.set_xlabel("minimum gap of a frame (touching: at rounding level, not a distance)")
+    ax.set_ylabel("fraction of frames (bars sum to 1)")
     ax.set_title("minimum gap: distribution over frames")
 
 
@@ -312,11 +378,13 @@ def analysis_figure(an: Analysis) -> Any:
     aspect = (x1 - x0) / (y1 - y0)
     wide = aspect > WIDE
     # a wide room takes the whole width, once for the trajectories and once for the density
-    room = min(max(SIZE[0] * 0.75 / aspect, 1.6), 6.0) if wide else 5.0
-    rows = (room + 0.9, room + 0.9) if wide else (room + 0.9,)
-    fig = plt.figure(figsize=(SIZE[0], sum(rows) + 2 * PANEL_HEIGHT + 0.8), dpi=DPI)
-    grid = fig.add_gridspec(len(rows) + 2, 2, height_ratios=rows + (PANEL_HEIGHT,) * 2,
-                            hspace=0.5, wspace=0.3)
+    # the room's panels as tall as their width and aspect need (legends below: LEGEND)
+    room = (min(max(SIZE[0] * 0.85 / aspect, 1.6), 6.0) if wide
+            else min(max(SIZE[0] * 0.4 / aspect, 2.5), 6.5))
+    rows = (room + LEGEND, room + LEGEND) if wide else (room + LEGEND,)
+    fig = plt.figure(figsize=(SIZE[0], sum(rows) + 2 * PANEL_HEIGHT + 0.5), dpi=DPI,
+                     layout="constrained")
+    grid = fig.add_gridspec(len(rows) + 2, 2, height_ratios=rows + (PANEL_HEIGHT,) * 2)
     title = f"{s['scene'] or Path(an.meta.path).name}: {s['agents']} agents, {s['duration_s']:g} s"
     if s["truncated"]:
         title += " (truncated recording)"

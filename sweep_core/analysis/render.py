@@ -34,8 +34,9 @@ from sweep_core.analysis.drawing import (
     pyplot,
     view_of,
 )
-from sweep_core.analysis.frames import Frame, FrameReader, progress_bar
+from sweep_core.analysis.frames import Frame, progress_bar
 from sweep_core.analysis.run import RunMeta, Schedule, load_run, scene_with_map
+from sweep_core.analysis.speed import choose_window, fits, with_speeds
 from sweep_core.errors import SweepError
 from sweep_core.io import cdr
 from sweep_core.io.recording import read_recording, scan_recording
@@ -66,7 +67,9 @@ GIF_BYTES = 1_000_000_000
 class RenderOptions:
     """fps: video frames per second; start, end: the window (s on the recording's clock, None:
     its end); speed: recorded seconds per video second; width, height: pixels (even; None:
-    from the scene's aspect); colour: one of :data:`COLOURINGS`."""
+    from the scene's aspect); colour: one of :data:`COLOURINGS`; speed_window: the window (s)
+    of the speeds the speed colouring shows (:mod:`sweep_core.analysis.speed`; None: its
+    default)."""
 
     fps: float = 10.0
     start: float = 0.0
@@ -75,6 +78,7 @@ class RenderOptions:
     width: int = 960
     height: int | None = None
     colour: str = "group"
+    speed_window: float | None = None
 
     def check(self) -> None:
         """SweepError naming the option, its value and the fix."""
@@ -114,36 +118,36 @@ def frame_times(start: float, end: float, fps: float, speed: float) -> np.ndarra
 
 @dataclass
 class Survey:
-    """What a first pass over the frames finds: log times (ns) of the frames, the box the
-    agents and the scene take, the largest speed (m/s)."""
+    """A first pass over the frames: their log times (ns), the box the agents and the scene
+    take, the largest speed (m/s) over ``window`` s (None, 0: speeds not shown)."""
 
     log_ns: np.ndarray
     view: tuple[float, float, float, float]
     max_speed: float
+    window: float | None = None
 
 
-def survey(meta: RunMeta, progress: bool) -> Survey:
-    """The first pass (decodes the frames, keeps only their times, extents and speeds)."""
+def survey(meta: RunMeta, progress: bool, window: float | None = None) -> Survey:
+    """The first pass: the frames' times, extents and (``window`` s) largest speed."""
     times: list[int] = []
-    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
-    vmax = 0.0
+    lo, hi, vmax = np.full(2, np.inf), np.full(2, -np.inf), 0.0
     bar = progress_bar(meta.frames or None, "frame", progress)
     bar.set_description("reading")
-    for fr in FrameReader(meta):
+    for fr, speed in with_speeds(meta, window):
         times.append(fr.log_ns)
         q = fr.positions[np.all(np.isfinite(fr.positions), axis=1)]
         if len(q):
             r = float(np.max(fr.agents["radius"])) if fr.agents is not None else 0.0
             lo, hi = np.minimum(lo, q.min(axis=0) - r), np.maximum(hi, q.max(axis=0) + r)
-        if fr.agents is not None and len(fr.agents["vx"]):
-            vmax = max(vmax, float(np.nanmax(np.hypot(fr.agents["vx"], fr.agents["vy"]))))
+        if speed is not None and np.any(np.isfinite(speed)):
+            vmax = max(vmax, float(np.nanmax(speed)))
         bar.update()
     bar.close()
     if not times:
         raise SweepError(f"{meta.path}: no frame could be read (fix: sweep recover it, or "
                          "record again)")
     pts = np.array([lo, hi]) if np.all(np.isfinite(lo)) else np.zeros((0, 2))
-    return Survey(np.array(times, dtype=np.int64), view_of(meta.scene, pts), vmax)
+    return Survey(np.array(times, dtype=np.int64), view_of(meta.scene, pts), vmax, window)
 
 
 def navigation_messages(meta: RunMeta) -> list[tuple[int, dict[str, np.ndarray]]]:
@@ -223,7 +227,8 @@ class Painter:
             self.norm = Normalize(0.0, self.vmax)
             bar = self.fig.add_axes(((w - BAR + 8) / w, BOTTOM / h, 12 / w,
                                      (h - TOP - BOTTOM) / h))
-            self.fig.colorbar(ScalarMappable(self.norm, "viridis"), cax=bar, label="speed (m/s)")
+            self.fig.colorbar(ScalarMappable(self.norm, "viridis"), cax=bar,
+                              label=f"speed over {sv.window or 0:g} s (m/s)")
         elif opts.colour == "group" and isinstance(self.names, list) and self.names:
             from matplotlib.patches import Patch
             handles = [Patch(color=group_colour(k), label=n) for k, n in enumerate(self.names)]
@@ -262,7 +267,7 @@ class Painter:
                                  alpha=0.5, zorder=1)
             self.nav.append(cs)
 
-    def draw_agents(self, fr: Frame) -> None:
+    def draw_agents(self, fr: Frame, speed: np.ndarray | None = None) -> None:
         from matplotlib.collections import EllipseCollection
         for a in self.dynamic:
             a.remove()
@@ -275,10 +280,10 @@ class Painter:
             r = scene.radii(fr.stamp_ns / 1e9)
         else:  # no radius known: small dots, 1 % of the view's width
             r = np.full(n, 0.01 * (self.view[1] - self.view[0]))
-        if self.opts.colour == "speed" and fr.agents is not None:
+        if self.opts.colour == "speed" and speed is not None:
             from matplotlib import colormaps
-            speed = np.hypot(fr.agents["vx"], fr.agents["vy"]).astype(float)
-            faces: Any = colormaps["viridis"](self.norm(speed))
+            faces: Any = colormaps["viridis"](self.norm(speed))  # NaN (no window): grey
+            faces[~np.isfinite(speed)] = (0.75, 0.75, 0.75, 1.0)
         elif self.opts.colour == "group" and self.names:
             if len(self.groups) != n:
                 self.groups, self.names = agent_groups(self.meta.scene, n)
@@ -317,7 +322,11 @@ def render(recording: str, out: str | None = None, opts: RenderOptions | None = 
     opts.check()
     meta = load_run(recording)
     path, fmt = output_path(meta.path, out, has_encoder() if encoder is None else encoder)
-    sv = survey(meta, progress)
+    speeds = opts.colour == "speed"
+    window = choose_window(opts.speed_window, meta.frame_interval) if speeds else None
+    sv = survey(meta, progress, window)
+    if window is not None and opts.speed_window is not None:
+        fits(window, (sv.log_ns - sv.log_ns[0]) / 1e9)
     clock = (sv.log_ns - sv.log_ns[0]) / 1e9
     end = float(clock[-1]) if opts.end is None else opts.end
     if opts.start > float(clock[-1]):
@@ -352,23 +361,24 @@ def _size(opts: RenderOptions, view: tuple[float, float, float, float]) -> tuple
     return w - w % 2, h - h % 2
 
 
-def _frames_at(meta: RunMeta, sv: Survey, times: np.ndarray) -> Iterator[tuple[int, Frame]]:
-    """(video frame index, the recorded frame it shows), in order."""
+def _frames_at(meta: RunMeta, sv: Survey, times: np.ndarray
+               ) -> Iterator[tuple[int, Frame, np.ndarray | None]]:
+    """(video frame index, the recorded frame it shows, its speeds or None), in order."""
     clock = (sv.log_ns - sv.log_ns[0]) / 1e9
     # the recorded frame each video frame shows: the last at or before its time
     pick = np.searchsorted(clock, times + 1e-9, side="right") - 1
     pick = np.maximum(pick, 0)
     k = 0
-    last = None
-    for j, fr in enumerate(FrameReader(meta)):
-        last = fr
+    last: tuple[Frame, np.ndarray | None] | None = None
+    for j, (fr, speed) in enumerate(with_speeds(meta, sv.window)):
+        last = (fr, speed)
         while k < len(pick) and pick[k] == j:
-            yield k, fr
+            yield k, fr, speed
             k += 1
         if k == len(pick):
             return
     while last is not None and k < len(pick):  # past the readable end: the last state
-        yield k, last
+        yield k, last[0], last[1]
         k += 1
 
 
@@ -383,7 +393,7 @@ def _paint(meta: RunMeta, sv: Survey, times: np.ndarray, painter: Painter,
     last_ns = int(sv.log_ns[-1])
     bar = progress_bar(len(times), "frame", progress)
     bar.set_description("rendering")
-    for _, fr in _frames_at(meta, sv, times):
+    for _, fr, speed in _frames_at(meta, sv, times):
         segment = meta.segment_of(fr.log_ns)
         step = meta.step_of(fr.stamp_ns) if meta.dt else 0
         t = fr.stamp_ns / 1e9
@@ -395,7 +405,7 @@ def _paint(meta: RunMeta, sv: Survey, times: np.ndarray, painter: Painter,
         painter.draw_scene(scenes[key], t, key)
         j = int(np.searchsorted(nav_ns, fr.log_ns, side="right")) - 1
         painter.draw_navigation(j, nav[j][1] if j >= 0 else None)
-        painter.draw_agents(fr)
+        painter.draw_agents(fr, speed)
         e = int(np.searchsorted(event_ns, fr.log_ns, side="right")) - 1
         status = meta.status if fr.log_ns >= last_ns else "running"
         line = f"t = {t:8.2f} s   step {step}"

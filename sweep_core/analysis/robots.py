@@ -43,10 +43,11 @@ class SocialMetrics:
         self.touched: list[list[np.ndarray]] = [[] for _ in specs]
         self.t0: int | None = None
 
-    def add(self, fr: Frame, segment: int, step: int) -> None:
+    def add(self, fr: Frame, segment: int, step: int, velocities: np.ndarray) -> None:
         """One frame (of step ``step``): people at ``fr.positions`` with the scene's radii at
-        that step (the float32 ``/agents`` radii without a scene), their velocities from
-        ``fr.agents``; frames after the first reset (``segment`` > 0) are not part of the
+        that step (the float32 ``/agents`` radii without a scene) and ``velocities`` (N, 2)
+        m/s, their displacements over the speed window (:mod:`sweep_core.analysis.speed`;
+        NaN: none); frames after the first reset (``segment`` > 0) are not part of the
         episode."""
         if segment > 0:
             return
@@ -60,9 +61,7 @@ class SocialMetrics:
         if self.t0 is None:
             self.t0 = fr.log_ns
         t = (fr.log_ns - self.t0) / 1e9
-        q = fr.positions
-        v = (np.column_stack([fr.agents["vx"], fr.agents["vy"]]).astype(np.float64)
-             if fr.agents is not None else np.full(q.shape, np.nan))
+        q, v = fr.positions, velocities
         for k, spec in enumerate(self.specs):
             state = self.odom[k].get(fr.log_ns)
             if state is None:

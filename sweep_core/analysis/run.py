@@ -117,6 +117,12 @@ class RunMeta:
         return (self.scene is not None and self.scene.flows is not None
                 and self.scene.flows.changes_population)
 
+    @property
+    def frame_interval(self) -> float | None:
+        """Seconds between recorded states, dt x record_every (None when the recording does
+        not say both)."""
+        return self.dt * self.record_every if self.dt and self.record_every else None
+
     def segment_of(self, log_ns: int) -> int:
         """0 before the first reset, k after the k-th."""
         return bisect.bisect_right(self.resets, log_ns)

@@ -68,12 +68,15 @@ def nearest(position: np.ndarray, velocity: np.ndarray, radius: float, people: n
     """One robot at one instant: the clearance (m) to the nearest of the people and the
     smallest time to collision (s) with any of them (:func:`time_to_collision`); inf, inf
     without people. ``position`` (2,) m, ``velocity`` (2,) m/s, ``people`` (N, 2) m,
-    ``radii`` (N,) m, ``velocities`` (N, 2) m/s (NaN: unknown, no time to collision)."""
+    ``radii`` (N,) m, ``velocities`` (N, 2) m/s (NaN: unknown, that person left out of the
+    time to collision; NaN when no velocity is known)."""
     if len(people) == 0:
         return math.inf, math.inf
     cl = clearance(position[None, :], np.array([radius]), people, radii)[0]
-    ttc = time_to_collision(people - position, velocities - velocity, radius + radii)
-    return float(cl.min()), float(np.nanmin(ttc)) if np.isfinite(velocities).all() else math.nan
+    known = np.all(np.isfinite(velocities), axis=1)
+    ttc = time_to_collision(people[known] - position, velocities[known] - velocity,
+                            radius + radii[known])
+    return float(cl.min()), float(ttc.min()) if len(ttc) else math.nan
 
 
 def wrap(angle: np.ndarray) -> np.ndarray:

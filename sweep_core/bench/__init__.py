@@ -5,6 +5,8 @@
     sweep bench recording [--sizes 1000 10000]
     sweep bench robots [--sizes 100 1000] [--beams 360 1440]
     sweep bench startup [--repeat 7]
+    sweep bench live [--sizes 1000]
+    sweep bench walking [--agents 60] [--t-end 10]
 
 ``STUDIES`` is the registry: each name maps to the module whose ``register(subparsers)`` adds
 that study's subcommand (the command line in :mod:`sweep_core.cli.bench` walks it). See
@@ -14,9 +16,9 @@ from __future__ import annotations
 
 from types import ModuleType
 
-from sweep_core.bench import accuracy_report, live, recording, robots, speed, startup
+from sweep_core.bench import accuracy_report, live, recording, robots, speed, startup, walking
 
 #: name of a study -> module with ``register(subparsers)``
 STUDIES: dict[str, ModuleType] = {"accuracy": accuracy_report, "speed": speed,
                                   "recording": recording, "robots": robots, "live": live,
-                                  "startup": startup}
+                                  "startup": startup, "walking": walking}

@@ -9,6 +9,7 @@ import json
 import sys
 
 from sweep_core.analysis import compare, metrics, replay, report
+from sweep_core.analysis.speed import DEFAULT_WINDOW_S
 from sweep_core.cli.commands import summary
 from sweep_core.io.recording.recover import hint
 from sweep_core.numerics import kernels
@@ -27,7 +28,8 @@ def _analyze(args: argparse.Namespace) -> int:
     line = metrics.parse_line(args.line) if args.line else None
     an = metrics.analyze(args.recording, line=line, arrive_radius=args.arrive_radius,
                           cell=args.cell, progress=not args.quiet,
-                          goal_radius=args.goal_radius, time_limit=args.time_limit)
+                          goal_radius=args.goal_radius, time_limit=args.time_limit,
+                          speed_window=args.speed_window)
     for line in an.problems:  # skipped chunks and messages, gaps: one line each
         print(line, file=sys.stderr)
     an.summary["outputs"] = report.write_outputs(an, plots=not args.no_plots)
@@ -99,6 +101,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--time-limit", type=float, default=None, metavar="S",
                    help="a robot's episode ends S s after the first frame (default: the "
                         "scene's time_limit, else the whole recording)")
+    p.add_argument("--speed-window", type=float, default=None, metavar="S",
+                   help="every speed is an agent's displacement over S s centred on the frame "
+                        f"(default {DEFAULT_WINDOW_S:g}: JPSreport's 10 frames at the Jülich "
+                        "experiments' 16 per second; at least two recorded frame intervals)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("--no-plots", action="store_true", help="no PNG (no matplotlib needed)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

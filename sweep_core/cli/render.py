@@ -28,7 +28,8 @@ def parse_size(text: str) -> tuple[int, int | None]:
 def _render(args: argparse.Namespace) -> int:
     width, height = parse_size(args.size)
     opts = render.RenderOptions(fps=args.fps, start=args.start, end=args.end, speed=args.speed,
-                                width=width, height=height, colour=args.colour)
+                                width=width, height=height, colour=args.colour,
+                                speed_window=args.speed_window)
     path, frames = render.render(args.recording, args.out, opts, progress=not args.quiet)
     print(f"{path}: {frames} frames at {args.fps:g} fps ({frames / args.fps:.3g} s)")
     return 0
@@ -58,5 +59,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "aspect); rounded down to even numbers (default 960)")
     p.add_argument("--colour", choices=render.COLOURINGS, default="group",
                    help="disk colours: by group (default), by speed, or none")
+    p.add_argument("--speed-window", type=float, default=None, metavar="S",
+                   help="with --colour speed: each agent's displacement over S s centred on "
+                        "the frame (default 0.625, as sweep analyze)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_render)

@@ -33,6 +33,9 @@ REACHED = {"flow.t_all_s": "every agent crossing the line",
            "arrivals.t_all_s": "every agent arriving", "arrivals.t_90_s": "90 % of the agents arriving",
            "arrivals.t_50_s": "50 % of the agents arriving"}
 MIN_GAP = "min_gap.min_m"
+#: metrics every completed run has (the windowed mean speed, the touching constraints), drawn
+#: against the varied keys beside the evacuation time and minimum gap
+ALWAYS = ("speed.mean_m_per_s", "touching.mean")
 #: at most this many grid points drawn in one histogram
 MAX_SERIES = 8
 
@@ -203,13 +206,35 @@ def against_figure(plt: Any, table: pd.DataFrame, key: str, keys: list[str], col
                     label="no value (see the notes)")
         ax.set_xticks(values if numeric else range(len(values)), [_fmt(v) for v in values])
         ax.set_xlabel(key)
-        ax.set_ylabel(col)
+        ax.set_ylabel(_axis_label(table, col))
         if (others and series) or lacking:
             ax.legend(fontsize="small")
     fig.suptitle(f"mean and 95 % interval (normal approximation) against {key}")
     fig.tight_layout()
     _notes(fig, notes)
     return fig
+
+
+def _axis_label(table: pd.DataFrame, col: str) -> str:
+    """A column's name, with the speed window (s) the runs' speeds were measured over."""
+    if col.startswith("speed.") and "speed.window_s" in table:
+        windows = sorted({float(w) for w in pd.to_numeric(table["speed.window_s"],
+                                                          errors="coerce").dropna()})
+        if windows:
+            return f"{col} (over {', '.join(f'{w:g}' for w in windows)} s)"
+    return col
+
+
+def default_columns(table: pd.DataFrame, keys: list[str]) -> list[str]:
+    """The columns drawn against the varied keys: the evacuation time, the minimum gap and
+    :data:`ALWAYS`, each only when some grid point has a value to draw."""
+    evac = evacuation_column(table)
+    out = []
+    for col in (evac, MIN_GAP, *ALWAYS):
+        if col is not None and col in table and any(
+                pv.drawable for pv in point_values(table, col, keys)):
+            out.append(col)
+    return out
 
 
 def _save(plt: Any, fig: Any, png: Path) -> None:
@@ -234,7 +259,7 @@ def write_plots(out: Path, table: pd.DataFrame, keys: list[str]) -> dict[str, st
         _save(plt, histogram_figure(plt, table, MIN_GAP, keys, "minimum gap over the run",
                                     "gap, m"), png)
         files["hist_min_gap"] = str(png)
-    cols = [c for c in (evac, MIN_GAP) if c is not None and c in table]
+    cols = default_columns(table, keys)
     if cols and (table["status"] == "ok").any():
         for key in keys:
             png = out / f"vs_{key.replace('/', '_')}.png"

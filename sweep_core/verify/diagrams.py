@@ -21,15 +21,16 @@ The departure from each experiment's own points is reported beside it.
 """
 from __future__ import annotations
 
-import csv
-import functools
 import math
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
 from sweep_core.analysis.pedpy_export import density_speed, line_flow, rectangle
+from sweep_core.analysis.references import experimental_line as experimental_line
+from sweep_core.analysis.references import experiments as experiments
+from sweep_core.analysis.references import line_flow_at as line_flow_at
+from sweep_core.analysis.references import source_flow as source_flow
 from sweep_core.model.ring import ring_corridor, weidmann
 from sweep_core.verify.base import Case, Test, Trace, Verdict
 from sweep_core.verify.figures import figure, save
@@ -180,14 +181,6 @@ def bottleneck_scene(width: float, headway: dict | None, people: int = PEOPLE) -
     return spec
 
 
-@functools.cache
-def experiments() -> tuple[tuple[str, float, float], ...]:
-    """(source, width m, flow 1/s) of the bundled experimental data, read once."""
-    text = resources.files("sweep_core").joinpath("verify/data/bottleneck_flow.csv").read_text()
-    rows = csv.DictReader(ln for ln in text.splitlines() if not ln.startswith("#"))
-    return tuple((r["source"], float(r["width_m"]), float(r["flow_per_s"])) for r in rows)
-
-
 def _cases_b(quick: bool) -> list[Case]:
     people = 60 if quick else PEOPLE
     return [Case(f"{law}/{w:g}", "bottleneck", 400.0,
@@ -211,44 +204,9 @@ def steady_flow(tr: Trace, width: float) -> float:
     return (b - a) / (t[b] - t[a]) if t[b] > t[a] else math.nan
 
 
-def source_flow(source: str, width: float) -> float:
-    """One experiment's flow (1/s) at a width (m): the mean of its points at each width,
-    interpolated linearly between widths. ``source`` as in the data ("seyfried2009",
-    "kretz2006")."""
-    by_width: dict[float, list[float]] = {}
-    for s, w, j in experiments():
-        if s == source:
-            by_width.setdefault(w, []).append(j)
-    if not by_width:
-        raise ValueError(f"no experimental bottleneck data from {source!r}; the sources are "
-                         f"{sorted({s for s, _, _ in experiments()})}")
-    ws = sorted(by_width)
-    return float(np.interp(width, ws, [math.fsum(by_width[w]) / len(by_width[w]) for w in ws]))
-
-
 def seyfried(width: float) -> float:
     """Seyfried et al. 2009's flow (1/s) at a width (m), interpolated linearly."""
     return source_flow("seyfried2009", width)
-
-
-def experimental_line() -> tuple[float, float]:
-    """(a (1/s), b (1/(m s))) of the least-squares line J = a + b w through every bundled
-    experimental point of width ``WIDTHS[0]``-``WIDTHS[-1]`` (both experiments: 18 points at
-    0.8-1.2 m), the linear growth of the flow with the width that the target is judged
-    against. Closed form with correctly rounded sums, so the same on every CPU."""
-    pts = [(w, j) for _, w, j in experiments() if WIDTHS[0] <= w <= WIDTHS[-1]]
-    n = len(pts)
-    w_mean = math.fsum(w for w, _ in pts) / n
-    j_mean = math.fsum(j for _, j in pts) / n
-    b = (math.fsum((w - w_mean) * (j - j_mean) for w, j in pts)
-         / math.fsum((w - w_mean) ** 2 for w, _ in pts))
-    return j_mean - b * w_mean, b
-
-
-def line_flow_at(width: float) -> float:
-    """The experiments' line (:func:`experimental_line`) at a width (m): flow J (1/s)."""
-    a, b = experimental_line()
-    return a + b * width
 
 
 def _judge_b(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
