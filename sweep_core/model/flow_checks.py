@@ -111,17 +111,33 @@ def check_sources(sources: Sequence[Any], sinks: Sequence[Region], geometry: Any
                              f"make {field}.radius smaller")
 
 
+def _closed_outlines(geometry: Any) -> np.ndarray:
+    """(S,) bool: the segment is a piece of a closed polyline wall (a room's outline)."""
+    kind = np.array(geometry.segment_kind or ("segment",) * len(geometry.segment_a))
+    wall = geometry.segment_index
+    out = np.zeros(len(kind), dtype=bool)
+    for w in np.unique(wall[kind == "polyline"]):
+        mine = np.flatnonzero((wall == w) & (kind == "polyline"))
+        first = mine[np.argmin(geometry.segment_part[mine])]
+        last = mine[np.argmax(geometry.segment_part[mine])]
+        out[mine] = bool(np.all(geometry.segment_a[first] == geometry.segment_b[last]))
+    return out
+
+
 def crossing_wall(region: Region, geometry: Any) -> int | None:
-    """The first static wall segment (not an obstacle's edge) that passes through the inside
-    of ``region`` (touching its outline is not crossing), or None: the pieces of each segment
-    between its meetings with the outline are tested at their midpoints, a piece inside the
-    region farther than 1e-9 m from its outline crosses it."""
+    """The first static piece of a closed polyline wall (a room's outline) that passes
+    through the inside of ``region`` (touching its outline is not crossing), or None: such a
+    region lies partly inside the room and partly outside it. The pieces of each segment
+    between its meetings with the region's outline are tested at their midpoints: a piece
+    inside the region farther than 1e-9 m from its outline crosses it. (A lone segment or an
+    open polyline across a region divides the room; :func:`check_source_ways` judges that.)"""
     a, b = geometry.segment_a, geometry.segment_b
     if not len(a):
         return None
     near = np.flatnonzero((np.minimum(a, b) < region.hi).all(axis=1)
                           & (np.maximum(a, b) > region.lo).all(axis=1)
-                          & (geometry.segment_polygon < 0) & (geometry.segment_motion < 0))
+                          & (geometry.segment_polygon < 0) & (geometry.segment_motion < 0)
+                          & _closed_outlines(geometry))
     p, q = region.points, np.roll(region.points, -1, axis=0)
     for s in near:
         d = b[s] - a[s]
