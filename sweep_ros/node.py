@@ -165,6 +165,12 @@ class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin
             result.reason = typed_reason(name, result.reason)
         return result
 
+    def _later_of_two(self, problem: str) -> None:
+        """A node of this name started before this one: this one stops (main's loop)."""
+        if self.duplicate is None:
+            self.duplicate = problem
+            self.get_logger().error(problem)
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
         started = time.monotonic()
@@ -180,8 +186,11 @@ class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin
                                  solver=params.solver_options(self._p))
         except SceneError as err:
             raise StartError([f"scene {self._p['scene'] or '(bundled default)'}: {err}"]) from err
+        #: why this node stops: a node of its name started before it (:class:`graph.SameName`)
+        self.duplicate: str | None = None
         if self._p["name_check_s"] > 0:  # 0: do not look
             graph.check_unique_name(self, started + self._p["name_check_s"])
+            self._same_name = graph.SameName(self, self._later_of_two)
         self._apply_sigma()
         # every kernel a step, a goal's navigation field or a map can call, compiled (first
         # run on this machine) or loaded now: no command waits for a compile once ready
