@@ -73,6 +73,13 @@ class SceneError(SweepError, ValueError):
         super().__init__(msg)
 
 
+class CostError(SceneError):
+    """A scene asks for more than a bound on what building it costs (agents a source emits,
+    sources, sinks, map cells and walls, grid nodes): refused before the cost is paid. A
+    recording whose scene asks for it is refused outright (a recording's metadata is data and
+    may claim anything)."""
+
+
 class InfeasibleError(SweepError):
     """The linearised feasible set of a step is empty or the projection failed.
 

@@ -6,9 +6,14 @@ so every answer here is "as seen now".
 """
 from __future__ import annotations
 
+import json
+import os
 import time
 from collections.abc import Callable
 from typing import Any
+
+from diagnostic_msgs.msg import KeyValue
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from sweep_ros.errors import StartError
 
@@ -44,6 +49,55 @@ def check_unique_name(node: Any, deadline: float) -> None:
             f"another node named {node.get_fully_qualified_name()} is running on this ROS "
             "domain; services and commands would reach both (fix: stop it, or give this one "
             "another name or namespace: --ros-args -r __node:=NAME or -r __ns:=/NS)"])
+
+
+#: the topic (relative to the node's name: one per fully qualified name) on which every node
+#: says when it started, latched: two nodes of one name hear each other whenever discovery
+#: joins them, however long it takes
+INSTANCE_TOPIC = "~/instance"
+
+
+class SameName:
+    """The node's start announced on :data:`INSTANCE_TOPIC` (diagnostic_msgs/KeyValue: key a
+    token unique to this process, value JSON ``{"started_ns", "pid"}``, reliable and
+    transient-local), and the announcements of others of its name heard: the later of two
+    (by wall-clock start, then token) calls ``on_later(problem)`` and stops; the earlier logs
+    an error naming the later one, which stops."""
+
+    def __init__(self, node: Any, on_later: Callable[[str], None]) -> None:
+        self.node, self.on_later = node, on_later
+        self.started_ns = time.time_ns()
+        self.token = f"{os.getpid()}-{os.urandom(8).hex()}"
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.seen: set[str] = set()
+        node.create_subscription(KeyValue, INSTANCE_TOPIC, self.take, QoSProfile(
+            depth=16, reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.publisher = node.create_publisher(KeyValue, INSTANCE_TOPIC, latched)
+        self.publisher.publish(KeyValue(key=self.token, value=json.dumps(
+            {"started_ns": self.started_ns, "pid": os.getpid()})))
+
+    def take(self, msg: KeyValue) -> None:
+        """An announcement: ours, one already judged, or another node of this name."""
+        if msg.key == self.token or msg.key in self.seen:
+            return
+        try:
+            other = int(json.loads(msg.value)["started_ns"])
+        except (ValueError, KeyError, TypeError, RecursionError):
+            return  # not a node's announcement
+        self.seen.add(msg.key)
+        name = self.node.get_fully_qualified_name()
+        if (other, msg.key) < (self.started_ns, self.token):
+            ago = (self.started_ns - other) / 1e9
+            self.on_later(f"another node named {name} is running on this ROS domain (started "
+                          f"{ago:.3g} s before this one); services and commands would reach "
+                          "both (fix: stop it, or give this one another name or namespace: "
+                          "--ros-args -r __node:=NAME or -r __ns:=/NS)")
+        else:
+            self.node.get_logger().error(
+                f"another node named {name} started on this ROS domain "
+                f"{(other - self.started_ns) / 1e9:.3g} s after this one; it stops")
 
 
 def foreign_goal_topics(node: Any, goal_topic: str, groups: tuple[str, ...]) -> list[str]:

@@ -76,10 +76,14 @@ def main(args: list[str] | None = None) -> int:
         # services, commands, parameters and diagnostics on this thread; steps on the node's
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        while not stop.event.is_set() and rclpy.ok() and node.crash is None:
+        while (not stop.event.is_set() and rclpy.ok() and node.crash is None
+               and node.duplicate is None):
             executor.spin_once(timeout_sec=0.1)
         if node.crash is not None:
             status, reason, code = "failed", node.crash, 1
+        elif node.duplicate is not None:
+            print(f"{NODE_NAME}: error: {node.duplicate}", file=sys.stderr)
+            status, reason, code = "failed", node.duplicate, 2
     except StartError as err:
         for problem in err.problems:
             print(f"{NODE_NAME}: error: {problem}", file=sys.stderr)

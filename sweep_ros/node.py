@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import threading
 import time
 from typing import Any
@@ -67,6 +68,7 @@ from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
 from rclpy.exceptions import InvalidTopicNameException, ParameterException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
@@ -111,9 +113,64 @@ CROWD_CMD_VEL = "crowd/cmd_vel"
 _RCLPY_PARAMS = ("use_sim_time", "start_type_description_service", "qos_overrides.")
 
 
+#: rclpy's refusal of a value of another type than the parameter's: the types as numbers
+#: ('3', the ParameterType code, on Python >= 3.11) or as enum names ('Type.DOUBLE')
+_WRONG_TYPE = re.compile(r"^Wrong parameter type, expected '(?:Type\.)?(\w+)' got "
+                         r"'(?:Type\.)?(\w+)'$")
+
+
+def type_name(code: str) -> str:
+    """A parameter type as users write it (double, string, integer, bool, ...) from rclpy's
+    code ('3') or enum name ('DOUBLE')."""
+    kind = Parameter.Type(int(code)) if code.isdigit() else Parameter.Type[code]
+    return kind.name.lower()
+
+
+def typed_reason(name: str, reason: str) -> str:
+    """rclpy's wrong-type refusal of parameter ``name`` said with type names and the fix;
+    any other reason unchanged."""
+    m = _WRONG_TYPE.match(reason)
+    if m is None:
+        return reason
+    try:
+        want, got = type_name(m.group(1)), type_name(m.group(2))
+    except (KeyError, ValueError):
+        return reason
+
+    def a(kind: str) -> str:
+        return ("an " if kind[0] in "aeiou" else "a ") + kind
+
+    fix = (f"give {a(want)} value" if (want, got) != ("double", "integer") else
+           "write the number with a decimal point, e.g. 1.0: 1 is an integer")
+    return f"{name}: is {a(want)} parameter, got {a(got)} value (fix: {fix})"
+
+
 class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin,
                 CommandsMixin, MapsMixin, ServicesMixin, RobotsMixin, Node):
     """Runs a sweep_core Simulator on a timer; see the module docstring."""
+
+    def set_parameters(self, parameter_list: list[Parameter]) -> list[Any]:
+        """rclpy's, with a refusal of a value of the wrong type said with type names (rclpy
+        gives the types' numeric codes): the SetParameters service and ros2 param set."""
+        results = super().set_parameters(parameter_list)
+        for p, r in zip(parameter_list, results):
+            if not r.successful:
+                r.reason = typed_reason(p.name, r.reason)
+        return results
+
+    def set_parameters_atomically(self, parameter_list: list[Parameter]) -> Any:
+        """rclpy's, with the refusal said as by :meth:`set_parameters`."""
+        result = super().set_parameters_atomically(parameter_list)
+        if not result.successful:
+            name = parameter_list[0].name if len(parameter_list) == 1 else "a parameter"
+            result.reason = typed_reason(name, result.reason)
+        return result
+
+    def _later_of_two(self, problem: str) -> None:
+        """A node of this name started before this one: this one stops (main's loop)."""
+        if self.duplicate is None:
+            self.duplicate = problem
+            self.get_logger().error(problem)
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
@@ -130,8 +187,11 @@ class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin
                                  solver=params.solver_options(self._p))
         except SceneError as err:
             raise StartError([f"scene {self._p['scene'] or '(bundled default)'}: {err}"]) from err
+        #: why this node stops: a node of its name started before it (:class:`graph.SameName`)
+        self.duplicate: str | None = None
         if self._p["name_check_s"] > 0:  # 0: do not look
             graph.check_unique_name(self, started + self._p["name_check_s"])
+            self._same_name = graph.SameName(self, self._later_of_two)
         self._apply_sigma()
         # every kernel a step, a goal's navigation field or a map can call, compiled (first
         # run on this machine) or loaded now: no command waits for a compile once ready

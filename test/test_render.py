@@ -90,7 +90,7 @@ def test_without_an_encoder_the_default_output_is_a_gif(recording):
     assert path == os.path.splitext(str(recording))[0] + ".gif" and n == 3
     with Image.open(path) as im:
         assert im.n_frames == 3 and im.size == (160, 160)
-    with pytest.raises(SweepError, match=r"3001 GIF frames of 960 x 540 px need 1.6 GB"):
+    with pytest.raises(SweepError, match=r"3001 GIF frames of 960 x 540 px need 3.1 GB"):
         render.render(str(recording), str(recording.with_name("long.gif")),
                       render.RenderOptions(fps=2000, width=960, height=540), progress=False)
     assert not recording.with_name("long.gif").exists()

@@ -22,7 +22,7 @@ import numpy as np
 from sweep_core.analysis.drawing import pyplot, save_figure
 from sweep_core.analysis.frames import Frame, FrameReader, progress_bar
 from sweep_core.analysis.report import OTHER, jsonable, output_paths, write_table
-from sweep_core.analysis.roster import Roster
+from sweep_core.analysis.roster import Roster, agent_ids, id_bound
 from sweep_core.analysis.run import NS, RunMeta, load_run
 from sweep_core.errors import RecordingError, SweepError
 from sweep_core.io.outputs import check_output
@@ -167,12 +167,10 @@ def sameness(ma: RunMeta, mb: RunMeta) -> Sameness:
     return Sameness(scene, seed, path, noisy, shared, pathwise)
 
 
-def _ids(fr: Frame, path: str, t: float) -> np.ndarray:
-    """A frame's agent ids (from /agents), or a RecordingError saying they are missing."""
-    if fr.agents is None or "id" not in fr.agents or len(fr.agents["id"]) != len(fr.positions):
-        raise RecordingError(f"{path}: the frame at t = {t:g} s has no readable /agents ids, "
-                             "which a scene with flows needs (fix: record /agents)")
-    return np.rint(fr.agents["id"].astype(np.float64)).astype(np.int64)
+def _ids(fr: Frame, meta: RunMeta, t: float, top: int) -> np.ndarray:
+    """A frame's agent ids (from /agents), or a RecordingError saying they are missing or
+    are no ids below ``top`` (:func:`agent_ids`)."""
+    return agent_ids(fr.agents, len(fr.positions), t, meta.path, top)
 
 
 def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
@@ -187,6 +185,8 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
                                  "least one recorded step)")
     # with flows (agents entering, leaving) the agents two frames share are matched by id
     by_id = any(m.scene is not None and m.scene.flows is not None for m in (ma, mb))
+    # the ids a run of either recorded scene can give
+    most = max((id_bound(m.scene) for m in (ma, mb) if m.scene is not None), default=0)
     if by_id:
         notes.append("agents matched by their /agents ids (flows: agents enter and leave)")
     ra, rb = FrameReader(ma, agents=by_id), FrameReader(mb, agents=by_id)
@@ -212,7 +212,7 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
             t = fa.log_ns / NS
             qa, qb, who = fa.positions, fb.positions, None
             if by_id:
-                who, qa, qb = Roster.common(_ids(fa, ma.path, t), qa, _ids(fb, mb.path, t), qb)
+                who, qa, qb = Roster.common(_ids(fa, ma, t, most), qa, _ids(fb, mb, t, most), qb)
                 top = int(who.max(initial=-1)) + 1
                 if top > len(per):
                     per = np.concatenate([per, np.zeros(top - len(per))])

@@ -22,12 +22,43 @@ def grow(a: np.ndarray, n: int, fill: float = np.nan) -> np.ndarray:
     return np.concatenate([a, np.full(n - len(a), fill, dtype=a.dtype)])
 
 
+def id_bound(scene: Scene) -> int:
+    """One more than the largest id an agent of ``scene`` can have: its initial agents and
+    every agent its sources can emit."""
+    flows = scene.flows
+    return scene.n_agents + sum(len(s.times) for s in (flows.sources if flows else ()))
+
+
+def agent_ids(agents: dict[str, np.ndarray] | None, n: int, t: float, path: str,
+              top: int) -> np.ndarray:
+    """The ids (n,) of a frame's n agents at t (s), from its ``/agents`` columns: distinct
+    whole numbers below ``top`` (:func:`id_bound`: what a run of the scene can number), else a
+    RecordingError (a recording's ids size the arrays kept by id: never taken on trust)."""
+    if agents is None or "id" not in agents or len(agents["id"]) != n:
+        raise RecordingError(f"{path}: the frame at t = {t:g} s has no readable /agents ids, "
+                             "which a scene with flows needs to follow its agents (fix: "
+                             "record /agents, as sweep run does)")
+    raw = agents["id"].astype(np.float64)
+    bad = ~(np.isfinite(raw) & (raw >= 0) & (raw < top) & (raw == np.rint(raw)))
+    ids = np.where(bad, -1, raw).astype(np.int64)
+    if np.any(bad) or len(np.unique(ids)) != n:
+        what = (f"id {raw[np.argmax(bad)]:g} is not a whole number in [0, {top})" if np.any(bad)
+                else "two agents have one id")
+        raise RecordingError(f"{path}: the frame at t = {t:g} s: /agents {what}, the ids a "
+                             "run of the recorded scene gives (its agents and what its "
+                             "sources emit) (fix: use a recording made by sweep run or "
+                             "sweep_node)")
+    return ids
+
+
 class Roster:
     """Entry and leaving times by id (module docstring) of a recording of ``scene``."""
 
     def __init__(self, scene: Scene, path: str) -> None:
         self.scene, self.path = scene, path
         self.n0 = scene.n_agents
+        #: one more than the largest id the scene's agents can have
+        self.top = id_bound(scene)
         self.entered_at = np.zeros(0)
         self.left_at = np.zeros(0)
         self.present = np.zeros(0, dtype=np.int64)
@@ -41,11 +72,7 @@ class Roster:
 
     def ids(self, agents: dict[str, np.ndarray] | None, n: int, t: float) -> np.ndarray:
         """The ids (n,) of a frame's agents at t (s), from its ``/agents`` columns."""
-        if agents is None or "id" not in agents or len(agents["id"]) != n:
-            raise RecordingError(f"{self.path}: the frame at t = {t:g} s has no readable "
-                                 "/agents ids, which a scene with flows needs to follow its "
-                                 "agents (fix: record /agents, as sweep run does)")
-        return np.rint(agents["id"].astype(np.float64)).astype(np.int64)
+        return agent_ids(agents, n, t, self.path, self.top)
 
     def add(self, ids: np.ndarray, t: float) -> None:
         """Marks the agents ``ids`` present at t (s): new ones entered, missing ones left."""

@@ -12,7 +12,7 @@ from dataclasses import fields as dc_fields
 from pathlib import Path
 from typing import Any
 
-from sweep_core.errors import RecordingError, SweepError, show
+from sweep_core.errors import CostError, RecordingError, SweepError, show
 from sweep_core.io import cdr
 from sweep_core.io.metadata import describe_status
 from sweep_core.io.recording import ChannelInfo, scan_recording
@@ -221,6 +221,9 @@ def load_run(path: str | Path) -> RunMeta:
             data = scene_data(raw["scene"], source="the recorded scene")
             older = recorded_headway(data)  # a speed law recorded before some keys existed
             scene = Scene.from_dict(data if older is None else older, files=False)
+        except CostError as err:  # refused outright: nothing of it is rebuilt
+            raise RecordingError(f"{info.path}: the recorded scene (metadata sweep_ros.scene) "
+                                 f"is refused: {err}") from err
         except SweepError as err:
             problems.append(f"the recorded scene does not load: {err}")
     dt = _number(raw, "dt", float, problems)

@@ -15,6 +15,8 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from sweep_core import checks
 from sweep_core.cli.commands import summary
 from sweep_core.errors import OutputError, SweepError
@@ -93,9 +95,10 @@ def _run(args: argparse.Namespace) -> int:
     checks.number(args.live_rate, "--live-rate", nonnegative=True)
     if args.path_dt:
         paths.substeps(dt, args.path_dt)  # refused before the recording is created
-    most = scene.n_agents + (scene.flows.entering if scene.flows is not None else 0)
-    limits.check_run_size(most, dt, t_end, args.record_every,
-                          path_dt=args.path_dt or None, frame_id=args.frame_id, force=args.force)
+    sources = scene.flows.sources if scene.flows is not None else ()
+    limits.check_run_size(scene.n_agents, dt, t_end, args.record_every,
+                          path_dt=args.path_dt or None, frame_id=args.frame_id, force=args.force,
+                          entries=np.concatenate([s.times for s in sources]) if sources else None)
     inputs = scene_files(args.scene, scene)
     out = check_output(args.out, inputs)
     if out.exists() and not args.overwrite:
@@ -117,7 +120,17 @@ def _run(args: argparse.Namespace) -> int:
     meta = run_metadata(scene, sim, t_end, args.record_every)
     meta["path_dt"] = repr(args.path_dt) if args.path_dt else ""
 
+    stale = [summary_out]  # the summary of an earlier run to this --out, until this one runs
+
     def tally(s: Simulator) -> None:
+        if stale:  # the recording is open (locked) and its first state taken: the summary
+            # left by an earlier run would describe another recording
+            try:
+                stale.pop().unlink(missing_ok=True)
+            except OSError as err:
+                raise OutputError(str(summary_out), f"the summary of an earlier run cannot be "
+                                  f"removed ({err.strerror})", "remove it or give another "
+                                  "--out") from err
         if s.state.step:
             stats["steps"] += 1
             stats["min_gap"] = min(stats["min_gap"], s.state.min_gap)
@@ -287,7 +300,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--force", action="store_true",
                         help=f"run even beyond {limits.MAX_STEPS:g} steps or a recording of "
                              f"more than {limits.MAX_RECORDING_BYTES / 1e9:g} GB (estimated "
-                             "uncompressed: 88 bytes per agent per recorded step)")
+                             "uncompressed: 88 bytes per agent present per recorded step, an "
+                             "entering agent counted from its source time on)")
     parser.add_argument("--marker-rate", type=float, default=markers.MARKER_RATE_HZ,
                         metavar="HZ",
                         help="record /markers (people as disks, robots) at HZ of simulated "

@@ -65,10 +65,27 @@ class RunSize:
     recording_bytes: int
 
 
+def recording_bytes(n_agents: int, frames: int, every_s: float,
+                    entries: np.ndarray | None = None, frame_id: str = "map") -> int:
+    """Bytes (uncompressed) of ``frames`` states recorded every ``every_s`` s from t = 0 of a
+    run of ``n_agents`` initial agents, and of the agents entering at their sources: an agent
+    counts from its source time on (``entries``, s; it enters then or later, never before),
+    as if it never left (sinks are not counted: an upper bound)."""
+    if entries is None or not len(entries):
+        return frames * frame_bytes(n_agents, frame_id)
+    base = frame_bytes(n_agents, frame_id)
+    per_agent = frame_bytes(n_agents + 1, frame_id) - base
+    t = np.arange(frames, dtype=np.float64) * every_s
+    entered = int(np.searchsorted(np.sort(entries), t * (1 + 1e-12), side="right").sum())
+    return frames * base + entered * per_agent
+
+
 def check_run_size(n_agents: int, dt: float, t_end: float, record_every: int = 1, *,
                    path_dt: float | None = None, frame_id: str = "map",
-                   force: bool = False) -> RunSize:
-    """The size of a run of ``t_end`` s at ``dt`` s recording every ``record_every``-th step.
+                   force: bool = False, entries: np.ndarray | None = None) -> RunSize:
+    """The size of a run of ``t_end`` s at ``dt`` s recording every ``record_every``-th step,
+    with ``n_agents`` initial agents and agents entering at the times ``entries`` (s; a
+    source's times, :func:`recording_bytes`).
 
     Raises:
         SceneError: unless ``force``, when the run takes more than :data:`MAX_STEPS` steps (or
@@ -78,7 +95,10 @@ def check_run_size(n_agents: int, dt: float, t_end: float, record_every: int = 1
     """
     steps = int(round(t_end / dt))
     frames = steps // record_every + 1
-    size = RunSize(steps, frames, frames * frame_bytes(n_agents, frame_id))
+    # frames counted one by one up to MAX_STEPS + 1 of them (a forced longer run: scaled)
+    counted = min(frames, MAX_STEPS + 1)
+    size = RunSize(steps, frames, recording_bytes(n_agents, counted, record_every * dt,
+                                                  entries, frame_id) * frames // counted)
     if force:
         return size
     if steps > MAX_STEPS:
@@ -94,13 +114,15 @@ def check_run_size(n_agents: int, dt: float, t_end: float, record_every: int = 1
                              f"a larger --path-dt (>= {t_end / MAX_STEPS:g} s), a shorter "
                              "--t-end, or --force")
     if size.recording_bytes > MAX_RECORDING_BYTES:
-        room = MAX_RECORDING_BYTES // frame_bytes(n_agents, frame_id) - 1  # frames after 0
+        room = MAX_RECORDING_BYTES * frames // size.recording_bytes - 1  # frames after 0
         fix = "fewer agents or --force"
+        more = (f" and up to {len(entries)} entering at sources" if entries is not None
+                and len(entries) else "")
         if room > 0:
             k = max(record_every + 1, math.ceil(steps / room))
             fix = f"--record-every {k} or more, a shorter --t-end, or --force"
         raise SceneError("--record-every", f"{record_every} records {frames:g} states of "
-                         f"{n_agents} agents, about {_fmt_bytes(size.recording_bytes)} "
+                         f"{n_agents} agents{more}, about {_fmt_bytes(size.recording_bytes)} "
                          f"uncompressed, more than the limit {_fmt_bytes(MAX_RECORDING_BYTES)}",
                          fix)
     return size

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from sweep_core.errors import SceneError, show
-from sweep_core.model.geometry import single_rows
+from sweep_core.model.geometry import SEGMENT, single_rows
 from sweep_core.model.outlines import points_in_polygon
 from sweep_core.model.regions import Region
 from sweep_core.model.travel import node_index, reach_grid
@@ -94,6 +94,14 @@ def check_sources(sources: Sequence[Any], sinks: Sequence[Region], geometry: Any
                 raise SceneError(f"{field}.region", f"lies inside flows.sinks[{m}]: every agent "
                                  "the source emits would leave at its first step",
                                  f"move {field}.region out of flows.sinks[{m}]")
+        wall = crossing_wall(src.region, geometry)
+        if wall is not None:
+            what = geometry.describe(SEGMENT, wall)
+            raise SceneError(f"{field}.region", f"is crossed by {what}: part of it lies on "
+                             "the wall's far side (outside the room), where the source would "
+                             "place agents that stay there",
+                             f"keep {field}.region on one side of {geometry.path(SEGMENT, wall)}"
+                             ", inside the room")
         if has_room(src.region, src.r_high, geometry) is False:
             big = "radius" if src.r_high == src.r_low else "largest radius"
             raise SceneError(f"{field}.region", f"has no point {show(src.r_high)} m (the "
@@ -101,6 +109,57 @@ def check_sources(sources: Sequence[Any], sinks: Sequence[Region], geometry: Any
                              "that radius could never enter there, nor any after it",
                              f"move {field}.region into the free space, make it larger, or "
                              f"make {field}.radius smaller")
+
+
+def _closed_outlines(geometry: Any) -> np.ndarray:
+    """(S,) bool: the segment is a piece of a closed polyline wall (a room's outline)."""
+    kind = np.array(geometry.segment_kind or ("segment",) * len(geometry.segment_a))
+    wall = geometry.segment_index
+    out = np.zeros(len(kind), dtype=bool)
+    for w in np.unique(wall[kind == "polyline"]):
+        mine = np.flatnonzero((wall == w) & (kind == "polyline"))
+        first = mine[np.argmin(geometry.segment_part[mine])]
+        last = mine[np.argmax(geometry.segment_part[mine])]
+        out[mine] = bool(np.all(geometry.segment_a[first] == geometry.segment_b[last]))
+    return out
+
+
+def crossing_wall(region: Region, geometry: Any) -> int | None:
+    """The first static piece of a closed polyline wall (a room's outline) that passes
+    through the inside of ``region`` (touching its outline is not crossing), or None: such a
+    region lies partly inside the room and partly outside it. The pieces of each segment
+    between its meetings with the region's outline are tested at their midpoints: a piece
+    inside the region farther than 1e-9 m from its outline crosses it. (A lone segment or an
+    open polyline across a region divides the room; :func:`check_source_ways` judges that.)"""
+    a, b = geometry.segment_a, geometry.segment_b
+    if not len(a):
+        return None
+    near = np.flatnonzero((np.minimum(a, b) < region.hi).all(axis=1)
+                          & (np.maximum(a, b) > region.lo).all(axis=1)
+                          & (geometry.segment_polygon < 0) & (geometry.segment_motion < 0)
+                          & _closed_outlines(geometry))
+    p, q = region.points, np.roll(region.points, -1, axis=0)
+    for s in near:
+        d = b[s] - a[s]
+        e = q - p
+        den = d[0] * e[:, 1] - d[1] * e[:, 0]
+        w = p - a[s]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (w[:, 0] * e[:, 1] - w[:, 1] * e[:, 0]) / den
+            u = (w[:, 0] * d[1] - w[:, 1] * d[0]) / den
+        cut = t[(den != 0) & (u >= 0) & (u <= 1) & (t > 0) & (t < 1)]
+        ts = np.unique(np.concatenate([[0.0, 1.0], cut]))
+        mid = a[s] + 0.5 * (ts[:-1] + ts[1:])[:, None] * d
+        inner = region.contains(mid)
+        if np.any(inner):
+            # inside and off the outline: the distance to the outline's edges
+            ab = e
+            rel = mid[inner][:, None, :] - p[None]
+            f = np.clip(np.einsum("mkc,kc->mk", rel, ab) / np.einsum("kc,kc->k", ab, ab), 0, 1)
+            gap = np.hypot(*(rel - f[..., None] * ab[None]).transpose(2, 0, 1)).min(axis=1)
+            if np.any(gap > 1e-9):
+                return int(s)
+    return None
 
 
 #: grid nodes tested for lying inside a source's region at a time: the test stops at the first

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from sweep_core import checks
-from sweep_core.errors import SceneError, show
+from sweep_core.errors import CostError, SceneError, show
 from sweep_core.model.exit_choice import ExitChoice, exit_choice_from_spec
 from sweep_core.model.fields import Field, Groups
 from sweep_core.model.flow_checks import check_source_ways, check_sources
@@ -224,7 +224,7 @@ def _source(value: Any, field: str, names: tuple[str, ...], recorded: bool) -> S
                              f"set {field}.count to the number of agents the source emits")
         count = checks.integer(value["count"], f"{field}.count", low=1)
         if count > MAX_SOURCE_COUNT:
-            raise SceneError(f"{field}.count", f"{count} is above {MAX_SOURCE_COUNT}",
+            raise CostError(f"{field}.count", f"{count} is above {MAX_SOURCE_COUNT}",
                              f"set {field}.count to at most {MAX_SOURCE_COUNT}")
         start = checks.number(value.get("start", 0.0), f"{field}.start", nonnegative=True)
         times = start + np.arange(count) / rate
@@ -235,7 +235,8 @@ def _source(value: Any, field: str, names: tuple[str, ...], recorded: bool) -> S
                              "give the times alone (each entry is one agent)")
         raw = value["times"]
         if not isinstance(raw, list) or not raw or len(raw) > MAX_SOURCE_COUNT:
-            raise SceneError(f"{field}.times", f"must be a non-empty list of at most "
+            raise (CostError if isinstance(raw, list) and raw else SceneError)(
+            f"{field}.times", f"must be a non-empty list of at most "
                              f"{MAX_SOURCE_COUNT} times, got {show(raw)}",
                              f"write {field}.times as [t0, t1, ...] (s)")
         times = np.array([checks.number(t, f"{field}.times[{k}]", nonnegative=True)
@@ -279,8 +280,10 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
     its drift (a Groups field gives the group names and speeds), agents.speed (m/s) and noise
     intensities sigma (N,); ``positions`` (N, 2) m, when given, are checked to have a way to
     their journey's first target. ``recorded``: the scene of a recording, which ran, checked
-    as it was when recorded: the bounds on counts, speeds and the speed law's repulsion, the
-    sources' room and sinks and the journeys' ways (added since) are not applied to it."""
+    as it was when recorded: the bounds on speeds and the speed law's repulsion, the sources'
+    room and sinks and the journeys' ways are not applied to it. The bounds on what it costs
+    to rebuild (counts of sinks, sources and each source's agents) are applied to every
+    scene: a recording's metadata is data, and may claim anything."""
     if raw is None:
         return None
     checks.mapping(raw, "flows", allowed={"speeds", "delays", "sinks", "sources", "journeys",
@@ -300,11 +303,11 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
         delays = draw_from_spec(raw["delays"], "flows.delays", n_agents, positive=False)
         spec["delays"] = delays.to_spec()
     sinks = []
-    for k, s in enumerate(_listed(raw, "sinks", None if recorded else MAX_SINKS)):
+    for k, s in enumerate(_listed(raw, "sinks", MAX_SINKS)):
         sinks.append(region_from_spec(s, f"flows.sinks[{k}]"))
     spec["sinks"] = [s.spec for s in sinks]
     sources = [_source(s, f"flows.sources[{k}]", names, recorded)
-               for k, s in enumerate(_listed(raw, "sources", None if recorded else MAX_SOURCES))]
+               for k, s in enumerate(_listed(raw, "sources", MAX_SOURCES))]
     spec["sources"] = [s.spec for s in sources]
     if not recorded:
         check_sources(sources, sinks, geometry)
@@ -378,7 +381,7 @@ def _listed(raw: dict, key: str, most: int | None = None) -> list:
     out = checks.items(raw.get(key), f"flows.{key}",
                        f"write flows.{key} as a list, one '- ...' per item")
     if most is not None and len(out) > most:
-        raise SceneError(f"flows.{key}", f"has {len(out)} items, more than {most}",
+        raise CostError(f"flows.{key}", f"has {len(out)} items, more than {most}",
                          f"give at most {most} (a region may be a polygon: join neighbouring "
                          "ones)")
     return out

@@ -35,7 +35,8 @@ from typing import Any
 import numpy as np
 
 from sweep_core import checks
-from sweep_core.errors import SceneError, show
+from sweep_core.errors import CostError, SceneError, show
+from sweep_core.model.budget import check_navigation_cost
 from sweep_core.model.drift import field_from_spec, scene_drift
 from sweep_core.model.fields import DEFAULT_SPEED, Field
 from sweep_core.model.flows import Flows, flows_from_spec
@@ -46,6 +47,7 @@ from sweep_core.model.maps import map_from_spec, read_bounded
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec
 from sweep_core.model.robots import CrowdReaction, Robot, reaction_from_spec, robots_from_spec
 from sweep_core.model.spawn import spawn
+from sweep_core.model.travel import node_budget
 from sweep_core.model.user import check_constraint, constraint_name
 from sweep_core.model.yaml_files import YAMLError, dump_yaml, load_yaml, yaml_fix, yaml_problem
 
@@ -179,7 +181,8 @@ class Scene:
         """Validate a scene dict (see the module docstring) and build the scene; base: the
         directory relative file names in it (a map) are read from (default: the working
         directory); ``files=False``: no file is read (a map must be in its packed form)."""
-        return _build(data, name, base, files)
+        with node_budget():
+            return _build(data, name, base, files)
 
 
 def scene_data(text: str, source: str = "the scene") -> Any:
@@ -226,6 +229,10 @@ def _build(data: Any, default_name: str, base: Path | None = None, files: bool =
         if "positions" in agents or "radius" in agents:
             raise SceneError("agents.spawn", "is given with agents.positions or agents.radius",
                              "give either spawn or positions and radius")
+        if not files:
+            raise CostError("agents.spawn", "is in a recorded scene, which carries its agents' "
+                             "positions (the draw is never made again from a recording)",
+                             "use a recording made by sweep run or sweep_node")
         positions, radius = spawn(agents["spawn"], "agents.spawn", geometry, grid)
         agents = {**agents, "positions": positions.tolist(), "radius": radius.tolist()}
     checks.mapping(agents, "agents", required={"positions", "radius"})
@@ -253,6 +260,7 @@ def _build(data: Any, default_name: str, base: Path | None = None, files: bool =
                              f"{positions[a, 1]:g}] is in a blocked (occupied or unknown) cell "
                              f"of the map{more}", "place agents in the map's free cells")
 
+    check_navigation_cost(data, geometry, grid, positions)
     drift, spec["drift"], groups = scene_drift(data.get("drift"), agents.get("groups"), n,
                                                geometry, grid, positions, speed)
     if groups is not None:

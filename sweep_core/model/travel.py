@@ -7,6 +7,9 @@ Shapes: x (W,), y (H,) node coordinates (m); arrays over the grid are (H, W) (ro
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Any
 
 import numpy as np
@@ -14,7 +17,7 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from sweep_core.errors import SceneError, show
+from sweep_core.errors import CostError, SceneError, show
 from sweep_core.model.geometry import Geometry, single_rows
 from sweep_core.model.maps import OccupancyMap
 from sweep_core.model.targets import Target
@@ -22,6 +25,13 @@ from sweep_core.model.targets import Target
 #: most grid nodes a navigation field may have (building one takes about 1.2 s and 0.5 GB at
 #: this size)
 MAX_NODES = 1_000_000
+#: most grid nodes of all the navigation fields one scene builds (its drift, its groups'
+#: drifts, every journey leg, every exit of an exit choice): a field holds about 40 bytes a
+#: node and its solve takes about 3 us a node (measured: 64 legs of 0.8 million nodes each
+#: took 70 s and 2 GB before this bound)
+MAX_SCENE_NODES = 4_000_000
+#: the nodes charged so far while a scene is built (None: no scene is being built)
+_CHARGED: ContextVar[list[int] | None] = ContextVar("scene_nodes", default=None)
 #: the steps of the grid graph for each choice of ``neighbours``, in cells (with their
 #: opposites)
 STENCILS = {
@@ -93,11 +103,38 @@ def grid_nodes(geometry: Geometry, grid: OccupancyMap | None, positions: np.ndar
     count = int(size[0]) * int(size[1])
     if count > MAX_NODES:
         need = cell * math.sqrt(count / MAX_NODES) * 1.01
-        raise SceneError(f"{field}.cell", f"{cell:g} m makes a grid of {int(size[0])} x "
+        raise CostError(f"{field}.cell", f"{cell:g} m makes a grid of {int(size[0])} x "
                          f"{int(size[1])} = {count} nodes over the scene's "
                          f"[{lo[0]:g}, {hi[0]:g}] x [{lo[1]:g}, {hi[1]:g}] m, more than "
                          f"{MAX_NODES}", f"set {field}.cell to at least {need:.3g} m")
+    charge_nodes(count, field, cell)
     return lo[0] + cell * np.arange(size[0]), lo[1] + cell * np.arange(size[1])
+
+
+@contextmanager
+def node_budget() -> Iterator[None]:
+    """Within it, every grid :func:`grid_nodes` lays out counts against the scene's
+    :data:`MAX_SCENE_NODES` (a scene's build: :mod:`sweep_core.model.scene`)."""
+    token = _CHARGED.set([0])
+    try:
+        yield
+    finally:
+        _CHARGED.reset(token)
+
+
+def charge_nodes(count: int, field: str, cell: float) -> None:
+    """Count ``count`` grid nodes of ``field`` (cell m) against the scene's budget, before
+    they are allocated; raise SceneError naming ``field`` when the scene's fields together
+    would pass :data:`MAX_SCENE_NODES` (outside :func:`node_budget`: nothing counted)."""
+    charged = _CHARGED.get()
+    if charged is None:
+        return
+    charged[0] += count
+    if charged[0] > MAX_SCENE_NODES:
+        raise CostError(f"{field}.cell", f"{cell:g} m brings the grid nodes of the scene's "
+                         f"navigation fields to {charged[0]}, more than {MAX_SCENE_NODES} "
+                         "(drift, groups, journey legs and exits together)",
+                         f"set {field}.cell coarser, or use fewer navigation fields")
 
 
 def _free(geometry: Geometry, grid: OccupancyMap | None, q: np.ndarray, buffer: float,
