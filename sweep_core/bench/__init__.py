@@ -4,6 +4,7 @@
     sweep bench speed [--sizes 100 1000 ...]
     sweep bench recording [--sizes 1000 10000]
     sweep bench robots [--sizes 100 1000] [--beams 360 1440]
+    sweep bench social [--seeds 10] [--scenes robot_crowd crowdnav] [--controllers ...]
 
 ``STUDIES`` is the registry: each name maps to the module whose ``register(subparsers)`` adds
 that study's subcommand (the command line in :mod:`sweep_core.cli.bench` walks it). See
@@ -13,8 +14,8 @@ from __future__ import annotations
 
 from types import ModuleType
 
-from sweep_core.bench import accuracy_report, recording, robots, speed
+from sweep_core.bench import accuracy_report, recording, robots, social, speed
 
 #: name of a study -> module with ``register(subparsers)``
 STUDIES: dict[str, ModuleType] = {"accuracy": accuracy_report, "speed": speed,
-                                  "recording": recording, "robots": robots}
+                                  "recording": recording, "robots": robots, "social": social}
