@@ -190,3 +190,27 @@ def test_bench_social_refuses_bad_options(args, option, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and option in err[0]
     assert not (tmp_path / "o").exists()
+
+
+def test_the_analysis_figure_draws_the_robot(tmp_path):
+    import matplotlib.pyplot as plt
+
+    from sweep_core.analysis import metrics, plots
+    from sweep_core.analysis.robot_plots import ROBOT_COLOUR
+    scene = tmp_path / "s.yaml"
+    scene.write_text(
+        "agents: {positions: [[2.0, 0.0]], radius: 0.25}\n"
+        "walls: [{kind: segment, a: [-2, -3], b: [12, -3]}, {kind: segment, a: [-2, 3], "
+        "b: [12, 3]}]\nnoise: {sigma: 0.0}\n"
+        "robots: [{name: bot, radius: 0.3, pose: [0, 0, 0], goal: [8, 0], controller: none}]\n")
+    out = tmp_path / "r.mcap"
+    assert main(["run", str(scene), "--t-end", "1.0", "--dt", "0.05", "--out", str(out),
+                 "--quiet"]) == 0
+    an = metrics.analyze(str(out))
+    fig = plots.analysis_figure(an)
+    ax = next(a for a in fig.axes if a.get_title().startswith("trajectories"))
+    robot_lines = [ln for ln in ax.get_lines() if ln.get_color() == ROBOT_COLOUR]
+    assert any(ln.get_label() == "robot bot" for ln in robot_lines)  # its path
+    assert any(ln.get_marker() == "*" for ln in robot_lines)  # its goal
+    assert len(ax.collections) >= 2  # the heading arrows beside the people's tracks
+    plt.close(fig)
