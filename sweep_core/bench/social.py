@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
@@ -127,12 +127,24 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     print(f"{len(runs)} runs on {args.workers} processes", flush=True)
     rows: list[dict[str, Any]] = []
+
+    def said(row: dict[str, Any]) -> None:
+        rows.append(row)
+        t = row["time_to_goal_s"]
+        print(f"[{len(rows)}/{len(runs)}] {row['scene']} {row['controller']} seed "
+              f"{row['seed']}: {'goal at ' + format(t, '.2f') + ' s' if t else 'goal not reached'}"
+              f", contacts {row['robot_contacts']} robot-on-person, {row['person_contacts']} "
+              f"person-on-robot ({row['wall_s']:.0f} s)", flush=True)
+
     if args.workers == 1:
         for r in runs:
-            rows.append(simulate(r))
+            said(simulate(r))
     else:
         with ProcessPoolExecutor(max_workers=args.workers) as pool:
-            rows = list(pool.map(simulate, runs))
+            for fut in as_completed([pool.submit(simulate, r) for r in runs]):
+                said(fut.result())
+    order = {(r.scene, r.controller, r.seed): k for k, r in enumerate(runs)}
+    rows.sort(key=lambda row: order[(row["scene"], row["controller"], row["seed"])])
     wall = time.perf_counter() - start
     summary = summarise(rows)
     write_csv(out / "runs.csv", rows, RUN_COLUMNS)
