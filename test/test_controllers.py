@@ -25,7 +25,7 @@ LIMITS = {"type": "diff_drive", "max_speed": 1.0, "max_angular_speed": 1.5,
 
 def _robot(controller, **extra) -> dict:
     return {"name": "bot", "radius": 0.3, "pose": [0.0, 0.0, 0.0], "kinematics": LIMITS,
-            "goal": [8.0, 0.0], "goal_radius": 0.3, "controller": controller, **extra}
+            "goal": [8.0, 0.0], "goal_radius": 0.3, "controller": controller} | extra
 
 
 def _scene(controller, people=((5.0, 0.0),), drift=None, **extra) -> Scene:
@@ -78,9 +78,11 @@ def test_controller_needs_a_goal_and_keeps_its_parameters():
     assert _scene("social_force").spec["robots"][0]["controller"] == "social_force"
 
 
+@pytest.mark.parametrize("kind", ["diff_drive", "holonomic"])
 @pytest.mark.parametrize("controller", ["orca", "social_force"])
-def test_commands_respect_the_limits_and_the_fleet_never_clips_them(controller):
-    scene = _scene(controller, people=((2.0, 0.4), (3.0, -0.5), (4.0, 0.2)))
+def test_commands_respect_the_limits_and_the_fleet_never_clips_them(controller, kind):
+    scene = _scene(controller, people=((2.0, 0.4), (3.0, -0.5), (4.0, 0.2)),
+                   kinematics={**LIMITS, "type": kind})
     sim = Simulator(scene, dt=0.02, seed=0)
     robot = scene.robots[0]
     st = sim.robots.state("bot")
@@ -88,9 +90,11 @@ def test_commands_respect_the_limits_and_the_fleet_never_clips_them(controller):
     for _ in range(150):
         sim.step()
         v, vy, w = st.command
-        assert abs(v) <= robot.max_speed + 1e-12 and vy == 0.0
+        assert math.hypot(v, vy) <= robot.max_speed + 1e-12
+        assert vy == 0.0 or kind == "holonomic"
         assert abs(w) <= robot.max_angular_speed + 1e-12
-        assert abs(v - last[0]) <= robot.max_acceleration * 0.02 + 1e-12
+        for k in (0, 1):
+            assert abs(st.command[k] - last[k]) <= robot.max_acceleration * 0.02 + 1e-12
         assert abs(w - last[2]) <= robot.max_angular_acceleration * 0.02 + 1e-12
         last = st.command
     assert st.clipped == 0  # the controller's own commands were feasible as given
