@@ -35,6 +35,7 @@ setup(
         "imageio-ffmpeg==0.8.1",
         "numba>=0.60",
         "cvxopt>=1.3",
+        "pyrvo==0.4.3",
     ],
     # sweep verify and sweep export (PedPy needs Python >= 3.11); the Gymnasium environment;
     # sweep run --live (the Foxglove WebSocket server)

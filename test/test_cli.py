@@ -39,7 +39,7 @@ def test_run_records_every_step_and_reports(tmp_path, capsys):
     rosbags = pytest.importorskip("rosbags.highlevel")
     with rosbags.AnyReader([out]) as reader:
         conns = {c.topic: c for c in reader.connections}
-        assert set(conns) == {"/poses", "/agents"}
+        assert set(conns) == {"/poses", "/agents", "/walls", "/markers"}
         poses = [reader.deserialize(raw, conns["/poses"].msgtype)
                  for _, _, raw in reader.messages(connections=[conns["/poses"]])]
     assert len(poses) == 51

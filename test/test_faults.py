@@ -114,8 +114,11 @@ def test_signal_closes_the_recording_and_writes_the_status(tmp_path, sig):
     counts = _standard_counts(out)
     summary = json.loads(out.with_suffix(".summary.json").read_text())
     assert summary["status"] == "interrupted" and summary["error"] == name
-    # every step was recorded, from step 0 to the last one taken
-    assert counts == {"/poses": summary["steps"] + 1, "/agents": summary["steps"] + 1}
+    # every step was recorded, from step 0 to the last one taken; the walls once, the markers
+    # at 10 Hz of simulated time (every 100th state at dt 0.001)
+    steps = summary["steps"]
+    assert counts == {"/poses": steps + 1, "/agents": steps + 1, "/walls": 1,
+                      "/markers": steps // 100 + 1}
     status = read_metadata(out)["sweep_status"]
     assert status == {"status": "interrupted", "error": name, "steps": str(summary["steps"]),
                       "t_s": repr(summary["t_end_s"])}
@@ -266,7 +269,8 @@ def test_failed_run_says_why_in_the_recording_and_the_summary(tmp_path, capsys):
     assert summary["error"].startswith("no feasible configuration at t = 0.12 s")
     status = read_metadata(out)["sweep_status"]
     assert status["status"] == "failed" and status["error"] == summary["error"]
-    assert _standard_counts(out) == {"/poses": 12, "/agents": 12}  # closed properly
+    # closed properly: 12 states, the walls once, the markers at 10 Hz (states 0 and 10)
+    assert _standard_counts(out) == {"/poses": 12, "/agents": 12, "/walls": 1, "/markers": 2}
     assert main(["analyze", str(out), "--no-plots", "--quiet"]) == 0
     assert "failed (no feasible configuration at t = 0.12 s" in capsys.readouterr().out
 

@@ -1,6 +1,7 @@
 """The figure of ``sweep analyze`` (matplotlib, Agg): six labelled panels (:func:`analysis_figure`).
 
-Top, in the room's own aspect (equal axes): the trajectories coloured by group, and the density
+Top, in the room's own aspect (equal axes): the trajectories coloured by group (and the robots:
+path, heading, contacts, :mod:`.robot_plots`), and the density
 map with the travel-time contours of the navigation fields (legends outside the room). Bottom:
 the agents who arrived and crossed the counting line per group and per exit; the run's
 fundamental diagram (local density against speed); speeds and touching constraints; the
@@ -24,6 +25,7 @@ from sweep_core.analysis.drawing import (
 )
 from sweep_core.analysis.metrics import Analysis
 from sweep_core.analysis.references import weidmann
+from sweep_core.analysis.robot_plots import draw_robots
 from sweep_core.analysis.run import NS
 from sweep_core.errors import SweepError
 from sweep_core.model.fields import NAVIGATION_KINDS, Field, Groups
@@ -196,6 +198,7 @@ def _trajectories(ax: Any, an: Analysis) -> None:
         ax.autoscale_view()
     draw_scene(ax, an.meta.scene)
     draw_line(ax, an)
+    draw_robots(ax, an)
     _room(ax, an)
     handles = [Patch(color=group_colour(k), label=names[k] if k >= 0 else "others")
                for k in order] if names else []

@@ -82,10 +82,21 @@ class StopOnSignal:
             raise Interrupted(self.signum)
 
 
+def default_t_end(scene: Scene) -> float:
+    """The simulated time (s) of ``sweep run`` without ``--t-end``: 10 s, or the scene's
+    horizon when it has one and a robot whose controller drives it to a goal (an episode is
+    meant to last until the robot arrives)."""
+    if scene.horizon is not None and any(r.goal is not None and r.controller != "none"
+                                         for r in scene.robots):
+        return scene.horizon
+    return 10.0
+
+
 def _run(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene)
     dt = limits.check_dt(args.dt, "--dt")
-    t_end = checks.number(args.t_end, "--t-end", nonnegative=True)
+    t_end = checks.number(args.t_end if args.t_end is not None else default_t_end(scene),
+                          "--t-end", nonnegative=True)
     solver = SolverOptions.from_values(args.eps_abs, args.max_iter, exact_vars=args.exact_vars,
                                        tol=args.tol, max_rounds=args.max_rounds,
                                        method=args.method, backend=args.backend)
@@ -253,7 +264,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help="scene YAML, or the name of a bundled scene when no such file "
                              "exists (sweep scenes lists them; default: room_door, a room "
                              "with a door, 200 agents)")
-    parser.add_argument("--t-end", type=float, default=10.0, help="simulated time, s (default 10)")
+    parser.add_argument("--t-end", type=float, default=None,
+                        help="simulated time, s (default 10; a scene whose robot drives to a "
+                             "goal: the scene's horizon when it gives one)")
     parser.add_argument("--dt", type=float, default=0.01,
                         help=f"time step, s, in [{limits.DT_MIN:g}, {limits.DT_MAX:g}] as the "
                              "node's dt parameter (default 0.01)")

@@ -29,10 +29,10 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
+from sweep_core.model.controller_spec import controller_from_spec
 from sweep_core.model.geometry import Geometry, gaps
 
 KINEMATICS = ("diff_drive", "holonomic")
-CONTROLLERS = ("none", "pursuit")
 REACTIONS = ("none", "avoid")
 NAME = re.compile(r"[a-z][a-z0-9_]*\Z")
 MAX_ROBOTS = 16
@@ -111,10 +111,17 @@ class Robot:
     goal_radius: float
     controller: str
     scan: ScanSpec | None
+    #: the controller's parameters (model/controller_spec.py), every one, as (name, value)
+    controller_params: tuple[tuple[str, float], ...] = ()
 
     @property
     def prescribed(self) -> bool:
         return math.isinf(self.weight)
+
+    @property
+    def params(self) -> dict[str, float]:
+        """The controller's parameters by name."""
+        return dict(self.controller_params)
 
 
 @dataclass(frozen=True)
@@ -225,21 +232,17 @@ def _robot(value: Any, field: str) -> tuple[Robot, dict]:
         g = checks.point(d["goal"], f"{field}.goal")
         goal = (float(g[0]), float(g[1]))
     goal_radius = checks.length(d.get("goal_radius", 0.5), f"{field}.goal_radius", positive=True)
-    controller = d.get("controller", "none")
-    if controller not in CONTROLLERS:
-        raise SceneError(f"{field}.controller", f"unknown controller {show(controller)}",
-                         f"use one of {list(CONTROLLERS)}")
-    if controller == "pursuit" and goal is None:
-        raise SceneError(f"{field}.goal", "missing: controller pursuit drives to a goal",
-                         f"add {field}.goal: [x, y], or set {field}.controller: none")
     scan = _scan(d["scan"], f"{field}.scan") if d.get("scan") is not None else None
+    controller, params, controller_spec = controller_from_spec(
+        d.get("controller", "none"), f"{field}.controller", goal is not None,
+        None if scan is None else scan.range_max)
     robot = Robot(name, radius, (float(pose[0]), float(pose[1]), float(pose[2])), kind,
                   weight=weight, goal=goal, goal_radius=goal_radius, controller=controller,
-                  scan=scan, **limits)
+                  scan=scan, controller_params=tuple(params.items()), **limits)
     spec: dict = {"name": name, "radius": radius, "pose": pose.tolist(),
                   "kinematics": {"type": kind, **limits},
                   "weight": "inf" if math.isinf(weight) else weight,
-                  "goal_radius": goal_radius, "controller": controller}
+                  "goal_radius": goal_radius, "controller": controller_spec}
     if goal is not None:
         spec["goal"] = list(goal)
     if scan is not None:

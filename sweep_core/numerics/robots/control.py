@@ -1,6 +1,7 @@
 """Robot controllers without ROS: what a controller sees (:class:`Observation`), what it is
 (:class:`Controller`, any callable of an observation returning (vx, vy, omega) in the robot's
-frame, m/s and rad/s; the fleet clips it to the limits), and the bundled :class:`Pursuit`.
+frame, m/s and rad/s; the fleet clips it to the limits), and the bundled :class:`Pursuit`
+(the planners that see people are in :mod:`.planners`).
 
 ``Pursuit`` follows a geodesic field to the goal (computed once, round the walls, obstacles and
 map cells, keeping ``wall_buffer`` = the robot's radius + 0.1 m from them): it turns towards the
@@ -13,16 +14,17 @@ inside the goal radius.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
 
+from sweep_core.model.controller_spec import sensor_range
 from sweep_core.model.geodesic import navigation_from_spec
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.robots import Robot
 from sweep_core.model.scene import Scene
-from sweep_core.numerics.robots.kinematics import wrap
+from sweep_core.numerics.robots.kinematics import clip, wrap
 from sweep_core.numerics.robots.scan import Scan
 
 
@@ -30,7 +32,12 @@ from sweep_core.numerics.robots.scan import Scan
 class Observation:
     """What a controller sees at time ``t`` (s): the robot's ``pose`` (x, y, yaw) m, rad
     (exact odometry), ``twist`` (vx, vy, omega) of the last step in its frame, its latest
-    ``scan`` (or None), its ``goal`` (x, y) or None, ``goal_radius`` and ``radius`` (m)."""
+    ``scan`` (or None), its ``goal`` (x, y) or None, ``goal_radius`` and ``radius`` (m);
+    ``people`` (M, 2) m and ``people_radii`` (M,) m: the people whose disks come within the
+    controller's sensor range of the robot's centre (empty for a controller that sees the scan
+    only), in the order of the simulator's arrays; ``command`` the command applied over the
+    last step (robot frame; None: ``twist``) and ``dt`` the step (s; 0: unknown, no
+    acceleration limit applied by the controller)."""
 
     t: float
     pose: tuple[float, float, float]
@@ -39,16 +46,67 @@ class Observation:
     goal: tuple[float, float] | None
     goal_radius: float
     radius: float
+    people: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
+    people_radii: np.ndarray = field(default_factory=lambda: np.empty(0))
+    command: tuple[float, float, float] | None = None
+    dt: float = 0.0
 
 
 class Controller(Protocol):
     def __call__(self, obs: Observation) -> tuple[float, float, float]: ...
 
 
-def observe(state: Any, t: float) -> Observation:
-    """The observation of a fleet's ``RobotState`` at time t (s)."""
+def observe(state: Any, t: float, people: np.ndarray | None = None,
+            radii: np.ndarray | None = None, dt: float = 0.0) -> Observation:
+    """The observation of a fleet's ``RobotState`` at time t (s): of ``people`` (N, 2) m with
+    ``radii`` (N,) m, those whose disk comes within the controller's ``sensor_range`` (m) of
+    the robot's centre (none for a controller without one); ``dt`` the step (s)."""
     r = state.robot
-    return Observation(t, state.pose, state.twist, state.scan, r.goal, r.goal_radius, r.radius)
+    reach = sensor_range(r.params)
+    seen, seen_r = np.empty((0, 2)), np.empty(0)
+    if people is not None and radii is not None and len(people) and math.isfinite(reach):
+        d = np.hypot(people[:, 0] - state.pose[0], people[:, 1] - state.pose[1]) - radii
+        near = d <= reach
+        seen, seen_r = people[near], radii[near]
+    return Observation(t, state.pose, state.twist, state.scan, r.goal, r.goal_radius, r.radius,
+                       seen, seen_r, state.command, dt)
+
+
+def goal_field(scene: Scene, robot: Robot) -> Any:
+    """The geodesic field to the robot's goal at its max_speed, round the walls, obstacles and
+    map cells with ``wall_buffer`` = its radius + 0.1 m, built once (the global plan of every
+    bundled controller)."""
+    if robot.goal is None:
+        raise ValueError(f"robot {robot.name} has no goal to pursue")
+    grid = map_from_spec(scene.spec["map"], "map", None) if scene.spec.get("map") else None
+    index = scene.robots.index(robot)
+    return navigation_from_spec(
+        {"kind": "geodesic", "goal": list(robot.goal), "speed": robot.max_speed,
+         "wall_buffer": robot.radius + 0.1}, f"robots[{index}].goal", scene.geometry, grid,
+        np.array([robot.pose[:2]]))
+
+
+def feasible(robot: Robot, wanted: tuple[float, float, float], obs: Observation
+             ) -> tuple[float, float, float]:
+    """``wanted`` (vx, vy, omega) clipped to the robot's kinematic limits (speed, angular
+    speed and, when ``obs.dt`` > 0, acceleration against the last applied command), so that
+    the fleet applies it unchanged."""
+    last = obs.command if obs.command is not None else obs.twist
+    if obs.dt > 0:
+        return clip(robot, wanted, last, obs.dt)[0]
+    return _speed_only(robot, wanted)
+
+
+def _speed_only(robot: Robot, wanted: tuple[float, float, float]
+                ) -> tuple[float, float, float]:
+    vx, vy, omega = wanted
+    if robot.kinematics == "diff_drive":
+        vy = 0.0
+    speed = math.hypot(vx, vy)
+    if speed > robot.max_speed:
+        vx, vy = vx * robot.max_speed / speed, vy * robot.max_speed / speed
+    w = robot.max_angular_speed
+    return (vx, vy, min(max(omega, -w), w))
 
 
 class Pursuit:
@@ -57,14 +115,7 @@ class Pursuit:
     def __init__(self, scene: Scene, robot: Robot, *, turn_gain: float = 2.0,
                  slow_distance: float = 0.6, stop_margin: float = 0.05,
                  cone: float = math.pi / 4) -> None:
-        if robot.goal is None:
-            raise ValueError(f"robot {robot.name} has no goal to pursue")
-        grid = map_from_spec(scene.spec["map"], "map", None) if scene.spec.get("map") else None
-        index = scene.robots.index(robot)
-        self.field = navigation_from_spec(
-            {"kind": "geodesic", "goal": list(robot.goal), "speed": robot.max_speed,
-             "wall_buffer": robot.radius + 0.1}, f"robots[{index}].goal", scene.geometry, grid,
-            np.array([robot.pose[:2]]))
+        self.field = goal_field(scene, robot)
         self.robot = robot
         self.turn_gain = turn_gain
         self.slow_distance = slow_distance
@@ -102,8 +153,3 @@ class Pursuit:
 def wrap_all(angles: np.ndarray) -> np.ndarray:
     """Angles (rad) in [-pi, pi)."""
     return (angles + math.pi) % (2 * math.pi) - math.pi
-
-
-def controllers_of(scene: Scene) -> dict[str, Controller]:
-    """The controllers the scene names (``controller: pursuit``), by robot name."""
-    return {r.name: Pursuit(scene, r) for r in scene.robots if r.controller == "pursuit"}

@@ -42,7 +42,8 @@ from sweep_core.model.robots import Robot, overlap
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.projection import Projection, project
 from sweep_core.numerics.robots import kinematics
-from sweep_core.numerics.robots.control import controllers_of, observe
+from sweep_core.numerics.robots.control import observe
+from sweep_core.numerics.robots.planners import controllers_of
 from sweep_core.numerics.robots.reaction import avoidance
 from sweep_core.numerics.robots.refusals import geometry_problem, goal_refusal
 from sweep_core.numerics.robots.scan import Scan, scan
@@ -91,7 +92,8 @@ class Fleet:
     noise. ``controllers`` maps a robot's name to a callable of a
     :class:`~sweep_core.numerics.robots.control.Observation` returning its command, asked at the
     start of every step in place of the held command; it starts with the scene's own
-    (``controller: pursuit``); clear it to drive the robots by :meth:`command` alone."""
+    (``controller:``, :mod:`.planners`); clear it to drive the robots by :meth:`command`
+    alone."""
 
     def __init__(self, scene: Scene, dt: float, seed: int) -> None:
         self.scene = scene
@@ -192,7 +194,7 @@ class Fleet:
             st.stopped = False
             wanted = st.held
             if st.robot.name in self.controllers:
-                wanted = self._ask(st.robot.name, observe(st, t))
+                wanted = self._ask(st.robot.name, observe(st, t, q, self.scene.radii(t), h))
             if st.raw:
                 st.command = wanted
             else:

@@ -1,0 +1,306 @@
+"""The bundled local planners that steer round people, beside :class:`~.control.Pursuit`
+(docs/robots.md): :class:`Orca` and :class:`SocialForce`, and :func:`controllers_of`, the
+controllers a scene names.
+
+What they see: the robot's own pose and last command (exact odometry), and the people whose
+disks come within ``sensor_range`` m of its centre (:func:`.control.observe`), positions and
+radii; their velocities are estimated by the planner itself (:class:`Tracker`: each person
+matched to the nearest one of the previous observation, the velocity smoothed over
+``TRACK_TIME`` s). Walls, obstacles and map cells are known (the map a robot navigates by): the
+preferred velocity follows the geodesic field to the goal round them (:func:`.control.
+goal_field`), and the wall segments and circle obstacles within the sensor range are obstacles
+of the planner.
+
+Both turn a wished velocity u (m/s, map frame) into a command (:func:`to_command`): holonomic
+(u in the robot's frame, turning towards u); diff_drive (turn rate ``turn_gain`` times the
+heading error, speed |u| cos(error), never backwards, 0 beyond 90 degrees of error), clipped to
+the robot's speed, angular speed and acceleration limits against its last command, so the
+fleet applies it unchanged.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pyrvo
+
+from sweep_core.model.robots import Robot
+from sweep_core.model.scene import Scene
+from sweep_core.numerics.robots.control import (
+    Controller,
+    Observation,
+    Pursuit,
+    feasible,
+    goal_field,
+)
+from sweep_core.numerics.robots.kinematics import wrap
+
+#: the time (s) over which a tracked person's velocity is smoothed
+TRACK_TIME = 0.5
+#: farthest a person may move between two observations and keep its track (m)
+GATE = 0.5
+#: sides of the polygon circumscribing a circle obstacle for ORCA
+CIRCLE_SIDES = 12
+#: the time step (s) ORCA's collision case assumes when the observation gives none
+DEFAULT_STEP = 0.05
+
+
+class Tracker:
+    """Velocities (m/s) of the people a robot sees, from their positions alone: each person of
+    an observation takes the track of the nearest person of the previous one when they are
+    each other's nearest and within :data:`GATE` m; a track's velocity v moves towards the
+    displacement over the elapsed time dt by the factor 1 - exp(-dt / TRACK_TIME); a new
+    track starts at rest."""
+
+    def __init__(self) -> None:
+        self.t: float | None = None
+        self.xy = np.empty((0, 2))
+        self.v = np.empty((0, 2))
+
+    def update(self, t: float, xy: np.ndarray) -> np.ndarray:
+        """(M, 2) velocities of the people at ``xy`` (M, 2) m seen at time t (s)."""
+        v = np.zeros_like(xy)
+        if self.t is not None and t > self.t and len(xy) and len(self.xy):
+            dt = t - self.t
+            d = np.hypot(xy[:, None, 0] - self.xy[None, :, 0], xy[:, None, 1] - self.xy[None, :, 1])
+            j = np.argmin(d, axis=1)
+            back = np.argmin(d, axis=0)
+            ok = (back[j] == np.arange(len(xy))) & (d[np.arange(len(xy)), j] <= GATE)
+            a = 1.0 - math.exp(-dt / TRACK_TIME)
+            step = (xy[ok] - self.xy[j[ok]]) / dt
+            v[ok] = self.v[j[ok]] + a * (step - self.v[j[ok]])
+        self.t, self.xy, self.v = t, xy.copy(), v
+        return v
+
+
+def braking(robot: Robot, u: np.ndarray, obs: Observation, margin: float) -> np.ndarray:
+    """``u`` (2,) m/s scaled down so that its speed towards every person seen, <e_j, u> (e_j
+    the unit vector from the robot to person j), is at most sqrt(2 a (c_j - margin)), a the
+    robot's max_acceleration and c_j its clearance to j (m): the speed from which it can
+    still stop before coming within ``margin`` m of a person standing still."""
+    if not len(obs.people):
+        return u
+    rel = obs.people - np.array(obs.pose[:2])
+    d = np.maximum(np.hypot(*rel.T), 1e-12)
+    towards = (rel @ u) / d
+    gap = np.maximum(d - obs.radius - obs.people_radii - margin, 0.0)
+    bound = np.sqrt(2.0 * robot.max_acceleration * gap)
+    over = towards > bound
+    if not over.any():
+        return u
+    return u * float(np.min(bound[over] / towards[over]))
+
+
+def to_command(robot: Robot, u: np.ndarray, obs: Observation, turn_gain: float,
+               margin: float) -> tuple[float, float, float]:
+    """The command (vx, vy, omega) that follows the wished velocity ``u`` (2,) m/s (module
+    docstring), within the robot's limits."""
+    yaw = obs.pose[2]
+    speed = float(math.hypot(u[0], u[1]))
+    heading = math.atan2(u[1], u[0]) if speed > 1e-9 else yaw
+    error = wrap(heading - yaw)
+    omega = turn_gain * error if speed > 1e-9 else 0.0
+    c, s = math.cos(yaw), math.sin(yaw)
+    if robot.kinematics == "holonomic":
+        u = braking(robot, u, obs, margin)
+        wanted = (c * u[0] + s * u[1], -s * u[0] + c * u[1], omega)
+    else:
+        forward = speed * max(0.0, math.cos(error))
+        ahead = braking(robot, np.array([forward * c, forward * s]), obs, margin)
+        wanted = (float(np.hypot(*ahead)), 0.0, omega)
+    return feasible(robot, (float(wanted[0]), float(wanted[1]), float(wanted[2])), obs)
+
+
+def world_velocity(obs: Observation) -> np.ndarray:
+    """(2,) the robot's velocity over the last step in the map frame (m/s)."""
+    vx, vy, _ = obs.twist
+    c, s = math.cos(obs.pose[2]), math.sin(obs.pose[2])
+    return np.array([c * vx - s * vy, s * vx + c * vy])
+
+
+class _Planner:
+    """What both planners share: the goal field, the tracker, the walls near the robot."""
+
+    def __init__(self, scene: Scene, robot: Robot) -> None:
+        self.scene, self.robot = scene, robot
+        self.params = robot.params
+        self.field = goal_field(scene, robot)
+        self.tracker = Tracker()
+
+    def preferred(self, obs: Observation) -> np.ndarray | None:
+        """(2,) the field's velocity at the robot (m/s), None inside the goal radius."""
+        x, y, _ = obs.pose
+        if obs.goal is not None and math.hypot(obs.goal[0] - x, obs.goal[1] - y) <= \
+                obs.goal_radius:
+            return None
+        return np.asarray(self.field(obs.t, np.array([[x, y]]))[0], dtype=np.float64)
+
+    def segments(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
+        """Wall segments (S, 2), (S, 2) m of the geometry at obs.t within the sensor range."""
+        g = self.scene.geometry.at(obs.t)
+        a, b = g.segment_a.reshape(-1, 2), g.segment_b.reshape(-1, 2)
+        if not len(a):
+            return a, b
+        p = np.array(obs.pose[:2])
+        e = b - a
+        ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
+        s = np.clip(np.einsum("ij,ij->i", p - a, e) / ee, 0.0, 1.0)
+        d = np.hypot(*(a + s[:, None] * e - p).T)
+        near = d <= self.params["sensor_range"]
+        return a[near], b[near]
+
+    def circles(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
+        """Circle obstacles (centres (C, 2), radii (C,)) at obs.t within the sensor range."""
+        g = self.scene.geometry.at(obs.t)
+        c, r = g.circle_center.reshape(-1, 2), g.circle_radius
+        d = np.hypot(*(c - np.array(obs.pose[:2])).T) - r
+        near = d <= self.params["sensor_range"]
+        return c[near], r[near]
+
+
+class Orca(_Planner):
+    """Optimal reciprocal collision avoidance (van den Berg, Guy, Lin & Manocha 2011, through
+    the RVO2 library's Python bindings, ``pyrvo``): the velocity nearest the preferred one
+    (the goal field's) outside every person's velocity obstacle truncated at ``time_horizon``
+    s, half the avoidance left to the person (reciprocity), the robot's radius grown by
+    ``safety_margin`` m; a person it already overlaps (by that margin) is left within one step.
+    Walls and circle obstacles (circumscribed polygons) within the sensor range are ORCA's
+    static obstacles (horizon time_horizon / 2). Positions are taken relative to the robot (the
+    library computes in single precision)."""
+
+    def __call__(self, obs: Observation) -> tuple[float, float, float]:
+        pref = self.preferred(obs)
+        v_people = self.tracker.update(obs.t, obs.people)
+        if pref is None:
+            return feasible(self.robot, (0.0, 0.0, 0.0), obs)
+        p = self.params
+        o = np.array(obs.pose[:2])
+        sim = pyrvo.RVOSimulator()
+        sim.set_time_step(obs.dt if obs.dt > 0 else DEFAULT_STEP)
+        horizon = p["time_horizon"]
+        for a, b in zip(*self.segments(obs), strict=True):
+            sim.add_obstacle([tuple(a - o), tuple(b - o)])
+        for c, r in zip(*self.circles(obs), strict=True):
+            k = np.arange(CIRCLE_SIDES) * 2 * math.pi / CIRCLE_SIDES
+            big = r / math.cos(math.pi / CIRCLE_SIDES)
+            sim.add_obstacle([(float(c[0] - o[0] + big * math.cos(t)),
+                               float(c[1] - o[1] + big * math.sin(t))) for t in k])
+        sim.process_obstacles()
+        v0 = world_velocity(obs)
+        me = sim.add_agent((0.0, 0.0), p["sensor_range"] + 2.0, int(p["neighbours"]), horizon,
+                           horizon / 2, obs.radius + p["safety_margin"], self.robot.max_speed,
+                           (float(v0[0]), float(v0[1])))
+        sim.set_agent_pref_velocity(me, (float(pref[0]), float(pref[1])))
+        rel = obs.people - o
+        near = np.argsort(np.hypot(*rel.T) - obs.people_radii, kind="stable")[
+            :int(p["neighbours"])]
+        for xy, r, v in zip(rel[near], obs.people_radii[near], v_people[near], strict=True):
+            k = sim.add_agent((float(xy[0]), float(xy[1])), 0.0, 0, horizon, horizon / 2,
+                              float(r), 1e3, (float(v[0]), float(v[1])))
+            sim.set_agent_pref_velocity(k, (float(v[0]), float(v[1])))
+        sim.do_step()
+        u = np.array(sim.get_agent_velocity(me).to_tuple(), dtype=np.float64)
+        return to_command(self.robot, u, obs, p["turn_gain"], p["stop_margin"])
+
+
+class SocialForce(_Planner):
+    """The social force model (Helbing & Molnar 1995) driving the robot: its acceleration is
+    (u0 - v) / ``relaxation`` (u0 the goal field's velocity, v the robot's) plus, from every
+    person j seen, the gradient of ``strength`` range exp((R + r_j - b_j) / ``range``) with
+    the elliptical distance b_j = sqrt((|d| + |d - y|)^2 - |y|^2) / 2 of Johansson, Helbing &
+    Shukla 2007 (d from j to the robot, y = (v_j - v) ``anticipation``: j's step relative to
+    the robot, so that people closing in repel sooner; b = |d| for y = 0), weighted by
+    lambda + (1 - lambda) (1 + cos phi_j) / 2 (lambda = ``anisotropy``, phi_j the angle between
+    the robot's heading and the direction to j), a person ahead (cos phi_j > 0) pushing also
+    ``side`` cos phi_j times as much to the robot's right; plus from every wall segment and
+    circle obstacle seen ``wall_strength`` exp(-gap / ``wall_range``) along its normal (gap:
+    surface to surface). v is the model's own velocity (the robot's at the first call), and
+    the wished velocity v plus dt times that acceleration, at most max_speed, becomes the next
+    v."""
+
+    def __call__(self, obs: Observation) -> tuple[float, float, float]:
+        pref = self.preferred(obs)
+        v_people = self.tracker.update(obs.t, obs.people)
+        if pref is None:
+            self.u = np.zeros(2)
+            return feasible(self.robot, (0.0, 0.0, 0.0), obs)
+        p = self.params
+        o = np.array(obs.pose[:2])
+        # the model's own velocity, integrated from the robot's first velocity on (the robot
+        # tracks it; a diff_drive robot lags it while it turns)
+        v = world_velocity(obs) if self.u is None else self.u
+        force = (pref - v) / p["relaxation"]
+        if len(obs.people):
+            force = force + self.people_force(obs, o, v, v_people)
+        a, b = self.segments(obs)
+        if len(a):
+            e = b - a
+            ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
+            s = np.clip(np.einsum("ij,ij->i", o - a, e) / ee, 0.0, 1.0)
+            rel = o - (a + s[:, None] * e)
+            d = np.maximum(np.hypot(*rel.T), 1e-9)
+            mag = p["wall_strength"] * np.exp(-(d - obs.radius) / p["wall_range"])
+            force = force + (mag[:, None] * rel / d[:, None]).sum(axis=0)
+        c, r = self.circles(obs)
+        if len(c):
+            rel = o - c
+            d = np.maximum(np.hypot(*rel.T), 1e-9)
+            mag = p["wall_strength"] * np.exp(-(d - r - obs.radius) / p["wall_range"])
+            force = force + (mag[:, None] * rel / d[:, None]).sum(axis=0)
+        step = obs.dt if obs.dt > 0 else DEFAULT_STEP
+        u = v + step * force
+        speed = float(np.hypot(*u))
+        if speed > self.robot.max_speed:
+            u = u * (self.robot.max_speed / speed)
+        self.u = u
+        return to_command(self.robot, u, obs, p["turn_gain"], p["stop_margin"])
+
+
+    u: np.ndarray | None = None
+
+    def people_force(self, obs: Observation, o: np.ndarray, v: np.ndarray,
+                     v_people: np.ndarray) -> np.ndarray:
+        """(2,) m/s^2: the people's repulsion (class docstring) on the robot at ``o`` moving at
+        ``v``; ``v_people`` (M, 2) the tracked velocities."""
+        p = self.params
+        d = o - obs.people  # (M, 2) from each person to the robot
+        y = (v_people - v) * p["anticipation"]  # the person's step relative to the robot
+        dn = np.maximum(np.hypot(*d.T), 1e-9)
+        dy = d - y
+        dyn = np.maximum(np.hypot(*dy.T), 1e-9)
+        yn = np.hypot(*y.T)
+        b = 0.5 * np.sqrt(np.maximum((dn + dyn) ** 2 - yn ** 2, 1e-18))
+        grad = ((dn + dyn) / (4.0 * np.maximum(b, 1e-9)))[:, None] * (
+            d / dn[:, None] + dy / dyn[:, None])
+        heading = np.array([math.cos(obs.pose[2]), math.sin(obs.pose[2])])
+        n = d / dn[:, None]
+        cos_phi = -(n @ heading)
+        lam = p["anisotropy"]
+        w = lam + (1.0 - lam) * (1.0 + cos_phi) / 2.0
+        mag = p["strength"] * np.exp((obs.radius + obs.people_radii - b) / p["range"]) * w
+        # people ahead also push it to its right (the side convention that breaks the
+        # head-on symmetry): the push turned by +90 degrees, weighted by side * max(0, cos phi)
+        turn = np.column_stack([-grad[:, 1], grad[:, 0]])
+        side = p["side"] * np.maximum(cos_phi, 0.0)
+        return np.asarray((mag[:, None] * (grad + side[:, None] * turn)).sum(axis=0))
+
+
+def controller_for(scene: Scene, robot: Robot) -> Controller | None:
+    """The bundled controller the robot's ``controller:`` names (None for ``none``)."""
+    if robot.controller == "pursuit":
+        return Pursuit(scene, robot, **robot.params)
+    if robot.controller == "orca":
+        return Orca(scene, robot)
+    if robot.controller == "social_force":
+        return SocialForce(scene, robot)
+    return None
+
+
+def controllers_of(scene: Scene) -> dict[str, Controller]:
+    """The controllers the scene names, by robot name."""
+    out = {}
+    for r in scene.robots:
+        c = controller_for(scene, r)
+        if c is not None:
+            out[r.name] = c
+    return out
