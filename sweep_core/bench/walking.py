@@ -124,6 +124,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "truth and PedPy (a freely drifting crowd)")
     p.add_argument("--agents", type=int, default=60, help="agents (default 60)")
     p.add_argument("--t-end", type=float, default=10.0, help="simulated seconds (default 10)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the Brownian path (default 0)")
     p.add_argument("--csv", default="bench_walking.csv", help="CSV file to write")
     p.set_defaults(func=run)
