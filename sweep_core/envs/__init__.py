@@ -6,6 +6,8 @@ Importing this package registers ``sweep/CrowdNav-v0`` (:class:`CrowdNavEnv`)::
     import sweep_core.envs  # noqa: F401  (registers the environment)
 
     env = gymnasium.make("sweep/CrowdNav-v0", scene="my_scene.yaml")
+    envs = gymnasium.make_vec("sweep/CrowdNav-v0", num_envs=32,
+                              vectorization_mode="vector_entry_point")  # envs/vector.py
 """
 from __future__ import annotations
 
@@ -19,7 +21,8 @@ __all__ = ["CrowdNavEnv", "ENV_ID", "has_vector", "make_single", "make_vector"]
 ENV_ID = "sweep/CrowdNav-v0"
 
 if ENV_ID not in gymnasium.registry:
-    gymnasium.register(id=ENV_ID, entry_point="sweep_core.envs.crowdnav:CrowdNavEnv")
+    gymnasium.register(id=ENV_ID, entry_point="sweep_core.envs.crowdnav:CrowdNavEnv",
+                       vector_entry_point="sweep_core.envs.vector:make")
 
 
 def make_single(**kwargs: object) -> gymnasium.Env:
