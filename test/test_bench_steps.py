@@ -43,7 +43,7 @@ def test_engine_row_is_a_ratio_of_medians() -> None:
     assert math.isclose(row["ratio"], row["sweep_median_ms"] / row["other_median_ms"])
 
 
-@pytest.mark.parametrize(("option", "value"), [("--run-steps", "0"), ("--repeat-runs", "-1"),
+@pytest.mark.parametrize(("option", "value"), [("--run-steps", "0"), ("--run-steps", "-1"),
                                                ("--env-steps", "0"), ("--num-envs", "0"),
                                                ("--num-envs", "100000")])
 def test_steps_options_refused(capsys: pytest.CaptureFixture[str], tmp_path: object,
@@ -54,3 +54,10 @@ def test_steps_options_refused(capsys: pytest.CaptureFixture[str], tmp_path: obj
     assert rc == 2 and err.startswith("sweep: error: ") and "\n" not in err, err
     assert option in err and value in err, err
     assert not csv.exists()
+
+
+def test_recorded_row_pairs_each_recorded_step_with_an_engine_step() -> None:
+    row = steps.recorded_vs_engine("crowdnav", 4)
+    assert row["note"].startswith("steps 21-24,")  # four recorded steps measured
+    assert row["sweep_median_ms"] > 0 and row["other_median_ms"] > 0
+    assert math.isclose(row["ratio"], row["sweep_median_ms"] / row["other_median_ms"])

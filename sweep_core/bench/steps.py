@@ -18,9 +18,10 @@ step by step in one loop, so a load on the machine falls on both alike. Median a
 the measured steps; ratio = engine / ORCA, median over median.
 
 Recorded run: ``record_run`` (what ``sweep run`` does: ``/poses``, ``/agents`` and the robot's
-topics every step, MCAP to a temporary file) against the same simulator's steps unrecorded,
-blocks of ``--run-steps`` steps alternated ``--repeat`` times; ms per step (mean over a block,
-median over the blocks).
+topics every step, MCAP to a temporary file; a step is the time between two of its ``on_state``
+calls: the step, its recording and the loop) against an identical simulator's unrecorded step,
+taken inside each ``on_state`` call, so the two alternate step by step (``--run-steps`` of
+each; median and p90).
 
 Environment: ``gymnasium.make("sweep/CrowdNav-v0")`` stepped with a fixed forward command,
 resets included (steps per second over ``--env-steps`` steps); and the vectorised environment
@@ -169,33 +170,40 @@ def engine_vs_orca(name: str, steps: int | None = None) -> dict[str, Any]:
     return row
 
 
-def recorded_vs_engine(name: str, steps: int, repeat: int) -> dict[str, Any]:
-    """One row: ``record_run``'s ms per step against the same simulator's unrecorded steps,
-    blocks of ``steps`` steps alternated ``repeat`` times (mean per block, median over blocks)."""
+def recorded_vs_engine(name: str, steps: int) -> dict[str, Any]:
+    """One row: ``record_run``'s step (the step, its recording and the run loop: the time
+    between two of its ``on_state`` calls) against an identical simulator's unrecorded step,
+    taken inside each ``on_state`` call: the two interleaved step by step."""
     dt, warmup, _ = STEP_SCENES[name]
     scene = load_scene(name)
-    plain, recorded = [], []
+    recorded_sim, plain_sim = Simulator(scene, dt=dt, seed=0), Simulator(scene, dt=dt, seed=0)
+    recorded_sim.step(warmup)
+    plain_sim.step(warmup)
+    recorded: list[float] = []
+    plain: list[float] = []
+    last: list[float] = []
+
+    def interleave(_: Simulator) -> None:
+        now = time.perf_counter()
+        if last:
+            recorded.append(now - last[0])
+        start = time.perf_counter()
+        plain_sim.step()
+        plain.append(time.perf_counter() - start)
+        last[:] = [time.perf_counter()]
+
+    t_end = recorded_sim.t + steps * dt
     with tempfile.TemporaryDirectory(prefix="sweep_bench_") as tmp:
-        for k in range(repeat):
-            sim = Simulator(scene, dt=dt, seed=k)
-            sim.step(warmup)
-            start = time.perf_counter()
-            sim.step(steps)
-            plain.append((time.perf_counter() - start) / steps)
-            sim = Simulator(scene, dt=dt, seed=k)
-            sim.step(warmup)
-            t_end = sim.t + steps * dt * (1 - 1e-9)
-            out = Path(tmp) / f"run{k}.mcap"
-            run = record_run(sim, t_end, out, run_metadata(scene, sim, t_end, 1))
-            if run.status != "completed":
-                raise RuntimeError(f"the recorded run of {name} {run.status}: {run.error}")
-            recorded.append(run.wall_s / max(run.steps, 1))
-            out.unlink()
+        run = record_run(recorded_sim, t_end, Path(tmp) / "run.mcap",
+                         run_metadata(scene, recorded_sim, t_end, 1), on_state=interleave)
+    if run.status != "completed":
+        raise RuntimeError(f"the recorded run of {name} {run.status}: {run.error}")
     row = {"measure": "sweep run step", "scene": name,
            "agents": scene.n_agents + len(scene.spec.get("robots") or []),
-           "other": "engine step", "note": f"{repeat} blocks of {steps} steps, dt {dt:g} s"}
+           "other": "engine step",
+           "note": f"steps {warmup + 1}-{warmup + len(recorded)}, dt {dt:g} s"}
     row["sweep_median_ms"], row["sweep_p90_ms"] = _stats(recorded)
-    row["other_median_ms"], row["other_p90_ms"] = _stats(plain)
+    row["other_median_ms"], row["other_p90_ms"] = _stats(plain[:len(recorded)])
     row["ratio"] = row["sweep_median_ms"] / row["other_median_ms"]
     return row
 
@@ -249,8 +257,7 @@ _SHOWN = (("measure", 22), ("scene", 12), ("agents", 6), ("sweep_median_ms", 9),
 
 def run(args: argparse.Namespace) -> int:
     """The study (module docstring): prints the table, writes the CSV."""
-    options.count(args.run_steps, "--run-steps", example="100")
-    options.count(args.repeat_runs, "--repeat-runs", example="3")
+    options.count(args.run_steps, "--run-steps", example="200")
     options.count(args.env_steps, "--env-steps", example="2000")
     options.counts([args.num_envs], "--num-envs", high=1024, example="32")
     options.csv_path(args.csv)
@@ -272,7 +279,7 @@ def run(args: argparse.Namespace) -> int:
     for name in STEP_SCENES:
         show(engine_vs_orca(name))
     for name in STEP_SCENES:
-        show(recorded_vs_engine(name, args.run_steps, args.repeat_runs))
+        show(recorded_vs_engine(name, args.run_steps))
     for row in env_rates(args.env_steps, args.num_envs):
         show(row)
     write_csv(Path(args.csv), rows, COLUMNS)
@@ -282,12 +289,9 @@ def run(args: argparse.Namespace) -> int:
 
 def add_options(p: argparse.ArgumentParser) -> None:
     """The options of the ``steps`` scene set on ``sweep bench speed``."""
-    p.add_argument("--run-steps", type=int, default=100, metavar="STEPS",
-                   help="steps: with --scenes steps, steps per block of the recorded run "
-                        "against the engine (default 100)")
-    p.add_argument("--repeat-runs", type=int, default=3, metavar="K",
-                   help="steps: blocks of the recorded run and of the engine alternated "
-                        "(default 3)")
+    p.add_argument("--run-steps", type=int, default=200, metavar="STEPS",
+                   help="steps: with --scenes steps, steps of the recorded run measured, each "
+                        "beside an unrecorded step (default 200)")
     p.add_argument("--env-steps", type=int, default=2000, metavar="STEPS",
                    help="steps: environment steps timed, single and vectorised (default 2000)")
     p.add_argument("--num-envs", type=int, default=32, metavar="K",
