@@ -41,6 +41,7 @@ def test_engine_row_is_a_ratio_of_medians() -> None:
     assert row["agents"] == 11
     assert row["sweep_median_ms"] > 0 and row["other_median_ms"] > 0
     assert math.isclose(row["ratio"], row["sweep_median_ms"] / row["other_median_ms"])
+    assert row["sweep_cpu_median_ms"] > 0 and "CPU time" in row["note"]
 
 
 @pytest.mark.parametrize(("option", "value"), [("--run-steps", "0"), ("--run-steps", "-1"),

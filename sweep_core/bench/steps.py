@@ -15,7 +15,9 @@ loop setting each agent's preferred velocity (towards the scene's goal at its sp
 robot towards its goal at its top speed; robot_crowd's people, who only mill about, a seeded
 random velocity of 0.3 m/s rms) followed by ``doStep`` at the same dt. The two are interleaved
 step by step in one loop, so a load on the machine falls on both alike. Median and p90 over
-the measured steps; ratio = engine / ORCA, median over median.
+the measured steps; ratio = engine / ORCA, median over median; the same of the process's CPU
+time (``cpu_ratio``, in the note), which leaves out the time a loaded machine keeps the
+process waiting for a core.
 
 Recorded run: ``record_run`` (what ``sweep run`` does: ``/poses``, ``/agents`` and the robot's
 topics every step, MCAP to a temporary file; a step is the time between two of its ``on_state``
@@ -52,7 +54,8 @@ from sweep_core.numerics.simulator import Simulator
 STEP_SCENES = {"crowdnav": (0.1, 20, 300), "robot_crowd": (0.01, 20, 300),
                "room_door": (0.01, 20, 180)}
 COLUMNS = ("measure", "scene", "agents", "sweep_median_ms", "sweep_p90_ms",
-           "other", "other_median_ms", "other_p90_ms", "ratio", "note")
+           "other", "other_median_ms", "other_p90_ms", "ratio", "sweep_cpu_median_ms",
+           "other_cpu_median_ms", "cpu_ratio", "note")
 #: rms speed (m/s) of the random preferred velocities of robot_crowd's people under ORCA
 MILLING = 0.3
 
@@ -148,15 +151,17 @@ def engine_vs_orca(name: str, steps: int | None = None) -> dict[str, Any]:
     if orca is not None:
         for _ in range(warmup):
             orca.step()
-    ours, theirs = [], []
+    ours, theirs, ours_cpu, theirs_cpu = [], [], [], []
     for _ in range(measured):
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         sim.step()
         ours.append(time.perf_counter() - start)
+        ours_cpu.append(time.process_time() - cpu)
         if orca is not None:
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.process_time()
             orca.step()
             theirs.append(time.perf_counter() - start)
+            theirs_cpu.append(time.process_time() - cpu)
     agents = scene.n_agents + len(scene.spec.get("robots") or [])
     row = {"measure": "engine step", "scene": name, "agents": agents, "other": "ORCA (pyrvo)",
            "note": f"dt {dt:g} s, steps {warmup + 1}-{warmup + measured}"}
@@ -167,6 +172,11 @@ def engine_vs_orca(name: str, steps: int | None = None) -> dict[str, Any]:
     else:
         row["other_median_ms"], row["other_p90_ms"] = _stats(theirs)
         row["ratio"] = row["sweep_median_ms"] / row["other_median_ms"]
+        # the process's CPU time: what a loaded machine's waiting for a core leaves out
+        mine, other = _stats(ours_cpu)[0], _stats(theirs_cpu)[0]
+        row.update(sweep_cpu_median_ms=mine, other_cpu_median_ms=other,
+                   cpu_ratio=mine / other if other > 0 else math.nan)
+        row["note"] += (f"; CPU time: {mine:.3f} / {other:.3f} ms = {row['cpu_ratio']:.1f}")
     return row
 
 
