@@ -88,7 +88,8 @@ class CrowdNavVectorEnv(VectorEnv):
             raise SceneError("num_envs", f"{k} environments need about {need / 1e9:.2g} GB "
                              f"({one / 1e6:.2g} MB each), more than half the "
                              f"{have / 1e9:.2g} GB available", f"num_envs={most} or fewer")
-        self.envs = [first] + [CrowdNavEnv(scene=scene, **kwargs) for _ in range(k - 1)]
+        # built afresh: the measured one's generator was seeded (reset(seed=None) draws anew)
+        self.envs = [CrowdNavEnv(scene=scene, **kwargs) for _ in range(k)]
         self.num_envs = k
         self.single_observation_space = first.observation_space
         self.single_action_space = first.action_space
