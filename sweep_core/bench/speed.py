@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from sweep_core.bench import options
+from sweep_core.bench import options, steps
 from sweep_core.bench.evacuation import DT as EVACUATION_DT
 from sweep_core.bench.evacuation import evacuation
 from sweep_core.bench.tables import write_csv
@@ -267,6 +267,14 @@ def _cell(value: Any, width: int) -> str:
 
 def run(args: argparse.Namespace) -> int:
     options.speed(args)
+    if "steps" in args.scenes:  # the small and medium scenes beside ORCA (bench/steps.py)
+        rest = [s for s in args.scenes if s != "steps"]
+        csv = args.csv if not rest else str(Path(args.csv).with_name(
+            Path(args.csv).stem + "_steps.csv"))
+        steps.run(argparse.Namespace(**{**vars(args), "csv": csv}))
+        if not rest:
+            return 0
+        args.scenes = rest
     args.backend = projection.SolverOptions.from_values(backend=args.backend).backend
     baseline = not args.no_baseline
     missing = cromosim_missing() if baseline else "baselines off"
@@ -372,8 +380,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 4000, 10000], metavar="N",
                    help="agent counts of the scenes (default 100 1000 4000 10000)")
     shown = [s for s in SCENES if s != "evacuation_mixed"]  # run with "evacuation"
-    p.add_argument("--scenes", nargs="+", default=shown, choices=shown,
-                   help="hex: hexagonal jam pushed to its centre; disordered: polydisperse "
+    p.add_argument("--scenes", nargs="+", default=shown, choices=[*shown, "steps"],
+                   help="steps: the engine step of the bundled crowdnav, robot_crowd and "
+                        "room_door beside ORCA's (pyrvo), sweep run's recorded step and the "
+                        "CrowdNav environment's steps/s (not in the default set); "
+                        "hex: hexagonal jam pushed to its centre; disordered: polydisperse "
                         "jam (radii 0.20-0.27 m, sigma 0.08, dt 0.02); free: free flow; "
                         "evacuation: equal radii 0.25 m jammed at the 1.2 m door of a 23 m "
                         "room (dt 0.02, sigma 0.05; its own sizes, warm-up and steps), "
@@ -404,5 +415,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--timeout", type=float, default=30.0, metavar="S",
                    help="wall-clock limit of one proxsuite (or cromosim) solve, s; the first "
                         "solve past it ends that column for the N and scene (default 30)")
+    steps.add_options(p)
     p.add_argument("--csv", default="bench_speed.csv", help="CSV file to write")
     p.set_defaults(func=run)

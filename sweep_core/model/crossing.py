@@ -6,7 +6,10 @@ step's end; an agent whose centre jumped through a thin wall in one step ends on
 with a positive distance, which that check alone cannot tell from a feasible position. The
 straight path [q0_i, q1_i] of each centre is therefore tested against every static wall
 segment (walls, polyline pieces, polygon edges, map walls) with exact orientation signs
-(:func:`sweep_core.model.outlines.segments_meet`): a path that meets a segment is a crossing
+(compiled float orientations behind Shewchuk's error filter,
+:func:`sweep_core.model.wall_kernels.paths_meet_exactly`, and
+:func:`sweep_core.model.outlines.segments_meet`'s rational arithmetic for the pairs the filter
+cannot vouch for): a path that meets a segment is a crossing
 (a feasible centre never comes within its radius of a wall). Moving obstacles' edges are not
 tested: their relative path is not a straight segment. The candidate pairs are those the
 post-step check found near the end positions, plus a search for the agents that moved farther
@@ -18,7 +21,7 @@ import numpy as np
 
 from sweep_core.model.geometry import Gaps, Geometry
 from sweep_core.model.neighbours import segments_within
-from sweep_core.model.outlines import segments_meet
+from sweep_core.model.wall_kernels import paths_meet_exactly
 
 #: agent x segment pairs up to which candidates are found by direct bounding-box comparison
 DENSE_PAIRS = 1 << 16
@@ -52,8 +55,7 @@ def crossings(geom: Geometry, q0: np.ndarray, q1: np.ndarray, r1: np.ndarray,
     keep = static[k] & (step[i] > 0)
     i, k = i[keep], k[keep]
     p0, p1, a, b = q0[i], q1[i], geom.segment_a[k], geom.segment_b[k]
-    # bounding boxes overlap (exact comparisons), then the exact test
-    box = np.all((np.minimum(p0, p1) <= np.maximum(a, b))
-                 & (np.minimum(a, b) <= np.maximum(p0, p1)), axis=1)
-    hit = np.flatnonzero(box)[segments_meet(p0[box], p1[box], a[box], b[box])]
+    # bounding boxes overlap (exact comparisons), then the orientations in float where the
+    # error filter vouches for their signs (compiled), exactly for the rest
+    hit = paths_meet_exactly(p0, p1, a, b)
     return i[hit], k[hit]

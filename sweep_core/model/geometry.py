@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
 from sweep_core.model.neighbours import pairs_within, segments_within
 from sweep_core.model.outlines import points_in_polygon
 from sweep_core.model.user import constraint_name, evaluate
+from sweep_core.model.wall_kernels import near_rows
 
 # codes of single-row kinds, in the order of scene.geometry
 HALFPLANE, SEGMENT, CIRCLE, USER = 0, 1, 2, 3
@@ -216,11 +218,7 @@ def single_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: f
     geom = geom.at(t)
     n_seg = len(geom.segment_a)
     if n_seg == 0 or len(q) * n_seg <= DENSE_SEGMENTS:
-        out = []
-        for g, nrm, foot in single_values(geom, t, q, r):
-            a, k = np.nonzero(g <= reach)
-            out.append((a, k, g[a, k], nrm[a, k], foot[a, k]))
-        return out
+        return _dense_rows(geom, t, q, r, reach)
     empty = np.empty(0, dtype=np.intp)
     plain = replace(geom, segment_a=np.empty((0, 2)), segment_b=np.empty((0, 2)),
                     segment_index=empty, segment_polygon=empty, segment_part=empty,
@@ -242,6 +240,54 @@ def single_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: f
     keep = g <= reach
     out[SEGMENT] = (a[keep], k[keep], g[keep], e[keep], np.einsum("mc,mc->m", e, foot)[keep])
     return out
+
+
+def _dense_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: float
+                ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """:func:`single_rows` evaluated against every item: half-planes, segments and circles in
+    one compiled pass (:func:`~sweep_core.model.wall_kernels.near_rows`, the bits of
+    :func:`single_values`), user constraints through :func:`single_values`' own code."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    r = np.ascontiguousarray(r, dtype=np.float64)
+    hc = geom.halfplane_offset + geom.halfplane_velocity * t
+    inside = (inside_polygons(q, geom) if np.any(geom.segment_polygon >= 0)
+              else _NO_POLYGON)
+    room = len(q) * (len(hc) + len(geom.segment_a) + len(geom.circle_radius))
+    agent, item = np.empty(room, dtype=np.intp), np.empty(room, dtype=np.intp)
+    g, nrm, foot = np.empty(room), np.empty((room, 2)), np.empty(room)
+    counts = np.zeros(3, dtype=np.intp)
+    c = np.ascontiguousarray  # one compiled signature whatever the arrays' strides
+    near_rows(q, r, float(reach), c(geom.halfplane_normal, dtype=np.float64),
+              c(hc, dtype=np.float64), c(geom.segment_a, dtype=np.float64),
+              c(geom.segment_b, dtype=np.float64), c(inside), c(geom.circle_center,
+              dtype=np.float64), c(geom.circle_radius, dtype=np.float64), agent, item, g, nrm,
+              foot, counts)
+    out = []
+    start = 0
+    for c in counts.tolist():
+        part = slice(start, start + c)
+        out.append((agent[part], item[part], g[part], nrm[part], foot[part]))
+        start += c
+    if geom.user:
+        gu, nu, fu = single_values(replace(geom, **_NO_ITEMS), t, q, r)[USER]
+        a, k = np.nonzero(gu <= reach)
+        out.append((a, k, gu[a, k], nu[a, k], fu[a, k]))
+    else:
+        none = np.empty(0, dtype=np.intp)
+        out.append((none, none, np.empty(0), np.empty((0, 2)), np.empty(0)))
+    return out
+
+
+_NO_POLYGON = np.zeros((0, 0), dtype=np.bool_)
+_EMPTY = np.empty(0, dtype=np.intp)
+#: a geometry's fields that leave only its user constraints
+_NO_ITEMS: dict[str, Any] = {"halfplane_normal": np.empty((0, 2)), "halfplane_offset": np.empty(0),
+             "halfplane_velocity": np.empty(0), "halfplane_index": _EMPTY,
+             "segment_a": np.empty((0, 2)), "segment_b": np.empty((0, 2)),
+             "segment_index": _EMPTY, "segment_polygon": _EMPTY, "segment_part": _EMPTY,
+             "segment_kind": (), "segment_motion": _EMPTY,
+             "circle_center": np.empty((0, 2)), "circle_radius": np.empty(0),
+             "circle_index": _EMPTY, "circle_motion": _EMPTY}
 
 
 def _segment_values(geom: Geometry, q: np.ndarray, a: np.ndarray, k: np.ndarray
@@ -304,13 +350,25 @@ def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
         # the smallest value over all (agent, item): searched within a reach that doubles
         # until something is found (what is not found is larger than what is)
         reach = max(contact_tol, 2.0 * float(r.max(initial=0.0)), 1e-3)
-        while True:
-            rows = single_rows(geom, t, q, r, reach)
-            if any(len(a) for a, _, _, _, _ in rows) or reach > 1e12:
-                break
-            reach *= 8.0
-        near = rows[SEGMENT][0], rows[SEGMENT][1]
-        for kind, (a, k, g, _, _) in enumerate(rows):
+        here = geom.at(t)
+        if not here.user and (len(here.segment_a) == 0
+                              or len(q) * len(here.segment_a) <= DENSE_SEGMENTS):
+            # every value at once (compiled), then the reach the doubling below would stop at
+            # and the rows within it, in the same order
+            every = [(a, k, g) for a, k, g, _, _ in _dense_rows(here, t, q, r, math.inf)]
+            low = min((float(g.min()) for _, _, g in every if len(g)), default=math.inf)
+            while not (low <= reach or reach > 1e12):
+                reach *= 8.0
+            found = [(a[g <= reach], k[g <= reach], g[g <= reach]) for a, k, g in every]
+        else:
+            while True:
+                rows = single_rows(here, t, q, r, reach)
+                if any(len(a) for a, _, _, _, _ in rows) or reach > 1e12:
+                    break
+                reach *= 8.0
+            found = [(a, k, g) for a, k, g, _, _ in rows]
+        near = found[SEGMENT][0], found[SEGMENT][1]
+        for kind, (a, k, g) in enumerate(found):
             if len(g) == 0:
                 continue
             contacts += int(np.count_nonzero(g <= contact_tol))

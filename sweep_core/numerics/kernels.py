@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 from numba.core.registry import CPUDispatcher
 
-from sweep_core.model import neighbours
+from sweep_core.model import neighbours, wall_kernels
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import csm, entry, exit_choice, headway, schemes
 from sweep_core.numerics.projection import dual
@@ -31,7 +31,7 @@ from sweep_core.numerics.robots import scan as robot_scan
 from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
-MODULES: tuple[ModuleType, ...] = (neighbours, dual, schemes, robot_scan)
+MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"

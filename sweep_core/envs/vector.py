@@ -1,0 +1,186 @@
+"""``gymnasium.make_vec("sweep/CrowdNav-v0", num_envs=K, vectorization_mode="vector_entry_point")``:
+K independent crowds stepped by one call.
+
+Each of the K environments is a :class:`~sweep_core.envs.crowdnav.CrowdNavEnv` of the same
+scene and arguments, so environment i's episodes are those of the single environment reset
+with the same seed, bit for bit: the same observations, rewards and infos. ``reset(seed=s)``
+seeds environment i with s + i (Gymnasium's convention for vector environments), or with
+``seed[i]`` for a list of K seeds. Autoreset is Gymnasium's next-step mode
+(``metadata["autoreset_mode"]``): the step after environment i's episode ended resets it (its
+action ignored) and returns its first observation, reward 0 and not done.
+
+Observations are the single observation's arrays stacked (``odom`` (K, 6), ``scan`` (K, B),
+``goal`` (K, 2)); rewards, terminations and truncations (K,); infos as Gymnasium's vector
+environments combine them (each key an array over the K environments, ``_key`` the mask of
+those that have it; ``metrics`` at the end of an episode).
+"""
+from __future__ import annotations
+
+import os
+import tracemalloc
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from sweep_core import checks
+from sweep_core.envs.crowdnav import DEFAULT_SCENE, CrowdNavEnv
+from sweep_core.errors import SceneError, show
+from sweep_core.model.scene import Scene, load_scene
+
+#: most environments of one vector environment, whatever the memory
+MAX_ENVS = 100_000
+#: share of the available memory the K environments may take
+MEMORY_SHARE = 0.5
+
+
+def available_memory() -> int:
+    """Bytes of memory available to a new allocation (MemAvailable of /proc/meminfo, else the
+    physical memory)."""
+    try:
+        with Path("/proc/meminfo").open() as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+
+
+class CrowdNavVectorEnv(VectorEnv):
+    """K :class:`CrowdNavEnv` stepped together (module docstring).
+
+    Args:
+        num_envs: K, the number of environments (1 to :data:`MAX_ENVS`, and as many as half
+            the available memory holds: the first environment's size times K, checked before
+            the others are built).
+        **kwargs: the arguments of :class:`CrowdNavEnv` (scene, robot, dt, max_steps, ...).
+    """
+
+    metadata: dict[str, Any] = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
+        k = checks.integer(num_envs, "num_envs", low=1, fix="e.g. num_envs=32")
+        if k > MAX_ENVS:
+            raise SceneError("num_envs", f"{k} is more than the limit {MAX_ENVS}",
+                             f"num_envs={MAX_ENVS} or fewer")
+        scene = kwargs.pop("scene", None)
+        if not isinstance(scene, (Scene, dict)):  # a path: read once, shared by the K
+            scene = load_scene(str(scene if scene is not None else DEFAULT_SCENE))
+        # one environment built, reset and stepped, its memory traced: the estimate of each
+        tracing = tracemalloc.is_tracing()
+        if not tracing:
+            tracemalloc.start()
+        before = tracemalloc.get_traced_memory()[0]
+        try:
+            first = CrowdNavEnv(scene=scene, **kwargs)
+            first.reset(seed=0)
+            first.step(np.zeros(first.action_space.shape))
+            one = max(tracemalloc.get_traced_memory()[1] - before, 1)
+        finally:
+            if not tracing:
+                tracemalloc.stop()
+        need, have = k * one, available_memory()
+        if need > MEMORY_SHARE * have:
+            most = max(1, int(MEMORY_SHARE * have // one))
+            raise SceneError("num_envs", f"{k} environments need about {need / 1e9:.2g} GB "
+                             f"({one / 1e6:.2g} MB each), more than half the "
+                             f"{have / 1e9:.2g} GB available", f"num_envs={most} or fewer")
+        # built afresh: the measured one's generator was seeded (reset(seed=None) draws anew)
+        self.envs = [CrowdNavEnv(scene=scene, **kwargs) for _ in range(k)]
+        self.num_envs = k
+        self.single_observation_space = first.observation_space
+        self.single_action_space = first.action_space
+        self.observation_space = batch_space(first.observation_space, k)
+        self.action_space = batch_space(first.action_space, k)
+        self.width = int(first.action_space.shape[0])
+        self._done = np.zeros(k, dtype=np.bool_)
+
+    # -- gymnasium ----------------------------------------------------------------------
+
+    def reset(self, *, seed: int | list[int | None] | None = None,
+              options: dict[str, Any] | None = None
+              ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Resets every environment: seed None (each draws its own), an int s (environment i
+        gets s + i) or a list of K seeds (ints or None)."""
+        seeds = self._seeds(seed)
+        super().reset(seed=seeds[0])
+        obs, infos = [], {}
+        for i, (env, s) in enumerate(zip(self.envs, seeds)):
+            o, info = env.reset(seed=s, options=options)
+            obs.append(o)
+            infos = self._add_info(infos, info, i)
+        self._done[:] = False
+        return self._stack(obs), infos
+
+    def step(self, actions: Any) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray,
+                                          np.ndarray, dict[str, Any]]:
+        a = self._actions(actions)
+        obs = []
+        rewards = np.zeros(self.num_envs)
+        terminated = np.zeros(self.num_envs, dtype=np.bool_)
+        truncated = np.zeros(self.num_envs, dtype=np.bool_)
+        infos: dict[str, Any] = {}
+        for i, env in enumerate(self.envs):
+            if self._done[i]:  # next-step autoreset: this step starts its next episode
+                o, info = env.reset()
+            else:
+                o, rewards[i], terminated[i], truncated[i], info = env.step(a[i])
+            obs.append(o)
+            infos = self._add_info(infos, info, i)
+        self._done = terminated | truncated
+        return self._stack(obs), rewards, terminated, truncated, infos
+
+    def close_extras(self, **kwargs: Any) -> None:
+        for env in self.envs:
+            env.close()
+
+    # -- checks and batching ------------------------------------------------------------
+
+    def _seeds(self, seed: Any) -> list[int | None]:
+        k = self.num_envs
+        if seed is None:
+            return [None] * k
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            return [int(seed) + i for i in range(k)]
+        if isinstance(seed, (list, tuple, np.ndarray)):
+            if len(seed) != k:
+                raise SceneError("seed", f"has {len(seed)} seeds for {k} environments: "
+                                 f"{show(seed)}", f"give one seed per environment (a list of "
+                                 f"{k}) or a single integer")
+            return [None if s is None else checks.integer(s, f"seed[{i}]", fix=f"give "
+                                                          f"seed[{i}] as an integer >= 0")
+                    for i, s in enumerate(seed)]
+        raise SceneError("seed", f"must be an integer, a list of {k} seeds or None, got "
+                         f"{show(seed)}", f"e.g. seed=0 or seed=[0, 1, ...] ({k} seeds)")
+
+    def _actions(self, actions: Any) -> np.ndarray:
+        want = (self.num_envs, self.width)
+        try:
+            a = np.asarray(actions, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise SceneError("actions", f"must be numbers of shape {want}, got "
+                             f"{show(actions)}", "give an element of env.action_space") from None
+        if a.shape != want:
+            raise SceneError("actions", f"must have shape {want} (one row per environment), "
+                             f"got shape {a.shape}", "give an element of env.action_space")
+        bad = np.flatnonzero(~np.isfinite(a).all(axis=1))
+        if len(bad):
+            i = int(bad[0])
+            raise SceneError(f"actions[{i}]", f"must be {self.width} finite numbers, got "
+                             f"{show(a[i])}", f"give environment {i} an element of "
+                             "env.single_action_space")
+        return a
+
+    def _stack(self, obs: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+        return {key: np.stack([o[key] for o in obs]) for key in obs[0]}
+
+
+def make(num_envs: int = 1, **kwargs: Any) -> CrowdNavVectorEnv:
+    """The vector entry point of ``sweep/CrowdNav-v0``."""
+    return CrowdNavVectorEnv(num_envs=num_envs, **kwargs)
+
+
+__all__ = ["CrowdNavVectorEnv", "MAX_ENVS", "available_memory", "make"]

@@ -1,0 +1,146 @@
+"""Compiled kernels of the wall and obstacle rows and of the exact crossing test (numba).
+
+:func:`near_rows` is :func:`sweep_core.model.geometry.single_rows`' dense evaluation of the
+half-planes, segments and circles in one pass over the agents, the same floating-point
+operations in the same order as the vectorised numpy form (each two-term dot product
+x0*y0 + x1*y1, no fused multiply-add: numba compiles without fastmath, so LLVM contracts
+nothing), so the rows' bits are those of the numpy form on every CPU.
+
+:func:`paths_meet` is :func:`sweep_core.model.outlines.segments_meet` for many pairs: the
+bounding boxes compared exactly, the four orientation determinants in float with Shewchuk's
+error filter; a pair whose sign the filter cannot vouch for is returned as unsure, for the
+exact rational evaluation in Python (:func:`sweep_core.model.outlines.orientation`).
+
+Compiled with ``cache=True`` (see :mod:`sweep_core.model.neighbours`).
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from sweep_core.model.outlines import segments_meet
+
+#: Shewchuk's ccwerrboundA (as :data:`sweep_core.model.outlines.ORIENT_BOUND`)
+_ORIENT_BOUND = (3.0 + 16.0 * 2.0 ** -53) * 2.0 ** -53
+
+
+@numba.njit(cache=True, nogil=True)
+def near_rows(q: np.ndarray, r: np.ndarray, reach: float, hn: np.ndarray, hc: np.ndarray,
+              sa: np.ndarray, sb: np.ndarray, inside: np.ndarray, cc: np.ndarray,
+              cr: np.ndarray, agent: np.ndarray, item: np.ndarray, g: np.ndarray,
+              nrm: np.ndarray, foot: np.ndarray, counts: np.ndarray) -> None:
+    """Every (agent, item) of the half-planes hn (W, 2), hc (W,) (offsets at t), segments
+    [sa, sb] (S, 2) and circles cc (O, 2), cr (O,) whose value at q (N, 2), r (N,) is <= reach
+    (m), written kind after kind into agent, item, g, nrm (M, 2), foot (M,) (room for
+    N * (W + S + O) rows), agent-major within a kind; counts (3,) the rows of each kind.
+    inside (N, S) bool: the centre lies inside the solid polygon segment k bounds (value
+    -dist - r), or shape (0, 0) when no segment bounds one."""
+    n = q.shape[0]
+    m = 0
+    polygons = inside.shape[0] > 0
+    start = m
+    for a in range(n):
+        x, y, ra = q[a, 0], q[a, 1], r[a]
+        for k in range(hn.shape[0]):
+            val = (x * hn[k, 0] + y * hn[k, 1] - hc[k]) - ra
+            if val <= reach:
+                agent[m], item[m], g[m] = a, k, val
+                nrm[m, 0], nrm[m, 1], foot[m] = hn[k, 0], hn[k, 1], hc[k]
+                m += 1
+    counts[0] = m - start
+    start = m
+    for a in range(n):
+        x, y, ra = q[a, 0], q[a, 1], r[a]
+        for k in range(sa.shape[0]):
+            ax, ay = sa[k, 0], sa[k, 1]
+            abx, aby = sb[k, 0] - ax, sb[k, 1] - ay
+            s = ((x - ax) * abx + (y - ay) * aby) / (abx * abx + aby * aby)
+            s = min(max(s, 0.0), 1.0)
+            fx, fy = ax + s * abx, ay + s * aby
+            dx, dy = x - fx, y - fy
+            dist = math.sqrt(dx * dx + dy * dy)
+            val = dist - ra
+            if polygons and inside[a, k]:
+                val = -dist - ra
+            if val <= reach:
+                den = max(dist, 1e-300)
+                ex, ey = dx / den, dy / den
+                agent[m], item[m], g[m] = a, k, val
+                nrm[m, 0], nrm[m, 1], foot[m] = ex, ey, ex * fx + ey * fy
+                m += 1
+    counts[1] = m - start
+    start = m
+    for a in range(n):
+        x, y, ra = q[a, 0], q[a, 1], r[a]
+        for k in range(cc.shape[0]):
+            dx, dy = x - cc[k, 0], y - cc[k, 1]
+            dist = math.sqrt(dx * dx + dy * dy)
+            val = (dist - cr[k]) - ra
+            if val <= reach:
+                den = max(dist, 1e-300)
+                ex, ey = dx / den, dy / den
+                agent[m], item[m], g[m] = a, k, val
+                nrm[m, 0], nrm[m, 1] = ex, ey
+                foot[m] = (ex * cc[k, 0] + ey * cc[k, 1]) + cr[k]
+                m += 1
+    counts[2] = m - start
+
+
+@numba.njit(cache=True, nogil=True)
+def _orient(px: float, py: float, qx: float, qy: float, rx: float, ry: float
+            ) -> tuple[int, bool]:
+    """The float sign of the turn p -> q -> r and whether the error filter vouches for it."""
+    t1 = (qx - px) * (ry - py)
+    t2 = (qy - py) * (rx - px)
+    det = t1 - t2
+    sure = abs(det) > _ORIENT_BOUND * (abs(t1) + abs(t2))
+    return (1 if det > 0 else (-1 if det < 0 else 0)), sure
+
+
+@numba.njit(cache=True, nogil=True)
+def _within(px: float, py: float, sx: float, sy: float, ex: float, ey: float) -> bool:
+    return (min(sx, ex) <= px <= max(sx, ex)) and (min(sy, ey) <= py <= max(sy, ey))
+
+
+@numba.njit(cache=True, nogil=True)
+def paths_meet(p0: np.ndarray, p1: np.ndarray, a: np.ndarray, b: np.ndarray,
+               hit: np.ndarray, unsure: np.ndarray) -> None:
+    """For each pair m: the closed segments [p0_m, p1_m] and [a_m, b_m] ((M, 2) each) share
+    a point (hit[m]), decided from float orientations the filter vouches for; unsure[m] when
+    the boxes overlap and some orientation is not vouched for (hit[m] is then meaningless:
+    decide it exactly)."""
+    for m in range(p0.shape[0]):
+        hit[m] = False
+        unsure[m] = False
+        ax, ay, bx, by = p0[m, 0], p0[m, 1], p1[m, 0], p1[m, 1]
+        cx, cy, dx, dy = a[m, 0], a[m, 1], b[m, 0], b[m, 1]
+        if not (min(ax, bx) <= max(cx, dx) and min(cx, dx) <= max(ax, bx)
+                and min(ay, by) <= max(cy, dy) and min(cy, dy) <= max(ay, by)):
+            continue
+        o1, s1 = _orient(ax, ay, bx, by, cx, cy)
+        o2, s2 = _orient(ax, ay, bx, by, dx, dy)
+        o3, s3 = _orient(cx, cy, dx, dy, ax, ay)
+        o4, s4 = _orient(cx, cy, dx, dy, bx, by)
+        if not (s1 and s2 and s3 and s4):
+            unsure[m] = True
+            continue
+        hit[m] = ((o1 * o2 < 0 and o3 * o4 < 0)
+                  or (o1 == 0 and _within(cx, cy, ax, ay, bx, by))
+                  or (o2 == 0 and _within(dx, dy, ax, ay, bx, by))
+                  or (o3 == 0 and _within(ax, ay, cx, cy, dx, dy))
+                  or (o4 == 0 and _within(bx, by, cx, cy, dx, dy)))
+
+
+def paths_meet_exactly(p0: np.ndarray, p1: np.ndarray, a: np.ndarray, b: np.ndarray
+                       ) -> np.ndarray:
+    """bool (M,): [p0_m, p1_m] and [a_m, b_m] ((M, 2) float64 each) share a point, decided
+    exactly: :func:`paths_meet`, and :func:`~sweep_core.model.outlines.segments_meet`'s
+    rational arithmetic for the pairs it leaves unsure."""
+    p0, p1, a, b = (np.ascontiguousarray(v, dtype=np.float64) for v in (p0, p1, a, b))
+    hit, unsure = np.empty(len(p0), dtype=np.bool_), np.empty(len(p0), dtype=np.bool_)
+    paths_meet(p0, p1, a, b, hit, unsure)
+    if unsure.any():
+        hit[unsure] = segments_meet(p0[unsure], p1[unsure], a[unsure], b[unsure])
+    return hit

@@ -1,0 +1,64 @@
+"""``sweep bench speed --scenes steps``: ORCA built on the same scene, the rows' arithmetic,
+and its options refused before anything is measured."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sweep_core.bench import steps
+from sweep_core.cli import main
+from sweep_core.model.scene import load_scene
+
+
+def test_walls_become_segments() -> None:
+    """robot_crowd's closed polyline of 5 points is 4 segments; crowdnav's two walls 2."""
+    segs = steps._segments(load_scene("robot_crowd"))
+    assert segs == [((0.0, 0.0), (16.0, 0.0)), ((16.0, 0.0), (16.0, 10.0)),
+                    ((16.0, 10.0), (0.0, 10.0)), ((0.0, 10.0), (0.0, 0.0))]
+    assert len(steps._segments(load_scene("crowdnav"))) == 2
+
+
+def test_orca_has_the_scenes_agents_and_walks_to_the_goal() -> None:
+    pytest.importorskip("pyrvo", reason="pyrvo (requirements-dev.txt) is the ORCA column")
+    scene = load_scene("crowdnav")
+    orca = steps.Orca(scene, 0.1)
+    assert orca.n == scene.n_agents + 1  # ten people and the robot
+    q0 = np.array([orca.sim.get_agent_position(i).to_tuple() for i in range(orca.n)])
+    np.testing.assert_allclose(q0[:-1], scene.positions)
+    for _ in range(5):
+        orca.step()
+    q1 = np.array([orca.sim.get_agent_position(i).to_tuple() for i in range(orca.n)])
+    # the people head west to (-1, 3), the robot east to its goal (11, 3)
+    assert (q1[:-1, 0] < q0[:-1, 0]).all()
+    assert q1[-1, 0] > q0[-1, 0]
+
+
+def test_engine_row_is_a_ratio_of_medians() -> None:
+    pytest.importorskip("pyrvo", reason="pyrvo (requirements-dev.txt) is the ORCA column")
+    row = steps.engine_vs_orca("crowdnav", steps=3)
+    assert row["agents"] == 11
+    assert row["sweep_median_ms"] > 0 and row["other_median_ms"] > 0
+    assert math.isclose(row["ratio"], row["sweep_median_ms"] / row["other_median_ms"])
+    assert row["sweep_cpu_median_ms"] > 0 and "CPU time" in row["note"]
+
+
+@pytest.mark.parametrize(("option", "value"), [("--run-steps", "0"), ("--run-steps", "-1"),
+                                               ("--env-steps", "0"), ("--num-envs", "0"),
+                                               ("--num-envs", "100000")])
+def test_steps_options_refused(capsys: pytest.CaptureFixture[str], tmp_path: object,
+                               option: str, value: str) -> None:
+    csv = tmp_path / "steps.csv"  # type: ignore[operator]
+    rc = main(["bench", "speed", "--scenes", "steps", option, value, "--csv", str(csv)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err.startswith("sweep: error: ") and "\n" not in err, err
+    assert option in err and value in err, err
+    assert not csv.exists()
+
+
+def test_recorded_row_pairs_each_recorded_step_with_an_engine_step() -> None:
+    row = steps.recorded_vs_engine("crowdnav", 4)
+    assert row["note"].startswith("steps 21-24,")  # four recorded steps measured
+    assert row["sweep_median_ms"] > 0 and row["other_median_ms"] > 0
+    assert math.isclose(row["ratio"], row["sweep_median_ms"] / row["other_median_ms"])

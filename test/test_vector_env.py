@@ -1,0 +1,160 @@
+"""The vectorised sweep/CrowdNav-v0 (``gymnasium.make_vec(..., vectorization_mode=
+"vector_entry_point")``): Gymnasium's vector API contract, checked against Gymnasium's own
+SyncVectorEnv of the single environment bit for bit (next-step autoreset included), each
+environment's episode that of the single environment with the same seed, and its bad input
+refused in one line naming the argument, the value and the fix."""
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+from robot_scenes import small_scene
+from test_envs import same as same_plain
+
+import sweep_core.envs  # noqa: F401  (registers sweep/CrowdNav-v0)
+from sweep_core.envs import vector
+from sweep_core.envs.vector import CrowdNavVectorEnv
+from sweep_core.errors import SceneError
+
+
+def same(a: object, b: object) -> bool:
+    """Bit for bit (test_envs.same), object arrays (infos' lists) element by element."""
+    if isinstance(a, np.ndarray) and a.dtype == object:
+        return (isinstance(b, np.ndarray) and b.dtype == object and a.shape == b.shape
+                and all(same(x, y) for x, y in zip(a.tolist(), b.tolist())))
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))  # type: ignore
+    return same_plain(a, b)
+
+
+KW = {"scene": small_scene(), "dt": 0.1, "max_steps": 4}
+
+
+def actions(k: int, step: int) -> np.ndarray:
+    """A fixed, deterministic batch of commands (v, omega), one row per environment."""
+    return np.array([[0.8 - 0.1 * i, 0.3 * np.sin(step + i)] for i in range(k)])
+
+
+def rollout(envs: gymnasium.vector.VectorEnv, seed, steps: int) -> list:
+    out = list(envs.reset(seed=seed))
+    for step in range(steps):
+        out += list(envs.step(actions(envs.num_envs, step)))
+    return out
+
+
+def test_the_vector_entry_point_is_gymnasiums_sync_vector_env_bit_for_bit() -> None:
+    vec = gymnasium.make_vec("sweep/CrowdNav-v0", num_envs=3,
+                             vectorization_mode="vector_entry_point", **KW)
+    sync = gymnasium.make_vec("sweep/CrowdNav-v0", num_envs=3, vectorization_mode="sync",
+                              **KW)
+    assert isinstance(vec.unwrapped, CrowdNavVectorEnv)
+    assert vec.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    assert sync.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    assert vec.observation_space == sync.observation_space
+    assert vec.action_space == sync.action_space
+    assert vec.single_observation_space == sync.single_observation_space
+    # 11 steps of episodes of 4: two autoresets in each environment
+    ours, theirs = rollout(vec, 5, 11), rollout(sync, 5, 11)
+    assert same(ours, theirs)
+    ours, theirs = rollout(vec, [9, 2, 4], 6), rollout(sync, [9, 2, 4], 6)
+    assert same(ours, theirs)
+    obs = ours[0]
+    assert vec.observation_space.contains(obs)
+    # the step after a truncation is the autoreset: reward 0, not done, a first observation
+    trunc = [ours[2 + 5 * s + 3] for s in range(6)]
+    assert [bool(t.all()) for t in trunc] == [False, False, False, True, False, False]
+    assert (ours[2 + 5 * 4 + 1] == 0).all() and not ours[2 + 5 * 4 + 2].any()
+    np.testing.assert_array_equal(ours[2 + 5 * 4]["odom"][:, :3], [[0.5, 1.5, 0.0]] * 3)
+    vec.close()
+    sync.close()
+
+
+def test_each_environment_is_the_single_environment_with_its_seed() -> None:
+    vec = vector.make(num_envs=3, **KW)
+    batch = rollout(vec, [11, 12, 13], 4)
+    for i, seed in enumerate([11, 12, 13]):
+        single = gymnasium.make("sweep/CrowdNav-v0", **KW)
+        obs, _ = single.reset(seed=seed)
+        assert same({k: v[i] for k, v in batch[0].items()}, obs)
+        for step in range(4):
+            obs, reward, term, trunc, _ = single.step(actions(3, step)[i])
+            got = batch[2 + 5 * step: 2 + 5 * step + 4]
+            assert same({k: v[i] for k, v in got[0].items()}, obs)
+            assert repr(float(got[1][i])) == repr(reward)
+            assert bool(got[2][i]) == term and bool(got[3][i]) == trunc
+    # the seed matters
+    other = rollout(vec, [11, 99, 13], 4)
+    assert not same(other, batch)
+    assert same(other[0]["odom"][0], batch[0]["odom"][0])
+
+
+@pytest.mark.parametrize(("num_envs", "words"), [
+    (0, ["num_envs", "got 0", "num_envs=32"]), (-1, ["num_envs", "got -1"]),
+    (2.5, ["num_envs", "2.5"]), ("x", ["num_envs", "'x'"]), (True, ["num_envs", "got true"]),
+    (10 ** 9, ["num_envs", "1000000000", "100000"])])
+def test_bad_counts_are_refused(num_envs: object, words: list[str]) -> None:
+    with pytest.raises(SceneError) as err:
+        vector.make(num_envs=num_envs, **KW)
+    text = str(err.value)
+    assert "\n" not in text
+    for word in words:
+        assert word in text, text
+
+
+def test_more_environments_than_the_memory_holds_are_refused_before_building_them(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    built = []
+    monkeypatch.setattr(vector, "available_memory", lambda: 10 ** 8)  # 100 MB
+    real = vector.CrowdNavEnv
+
+    def counted(*args: object, **kwargs: object) -> object:
+        built.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(vector, "CrowdNavEnv", counted)
+    with pytest.raises(SceneError) as err:
+        vector.make(num_envs=50_000, **KW)
+    text = str(err.value)
+    assert "num_envs" in text and "50000 environments need about" in text and "GB" in text
+    assert "num_envs=" in text and "or fewer" in text
+    assert len(built) == 1  # only the one measured
+
+
+@pytest.fixture(scope="module")
+def envs() -> CrowdNavVectorEnv:
+    env = vector.make(num_envs=3, **KW)
+    env.reset(seed=0)
+    return env
+
+
+@pytest.mark.parametrize(("batch", "words"), [
+    (np.zeros((2, 2)), ["actions", "(3, 2)", "(2, 2)"]),
+    (np.zeros(6), ["actions", "(3, 2)", "(6,)"]),
+    (np.array([[0.1, 0.0], [np.nan, 0.0], [0.0, 0.0]]), ["actions[1]", "nan", "environment 1"]),
+    (np.array([[0.1, 0.0], [0.0, 0.0], [0.0, np.inf]]), ["actions[2]", "inf"]),
+    ("fast", ["actions", "fast"])])
+def test_bad_actions_are_refused_naming_the_environment(envs: CrowdNavVectorEnv,
+                                                        batch: object,
+                                                        words: list[str]) -> None:
+    with pytest.raises(SceneError) as err:
+        envs.step(batch)
+    text = str(err.value)
+    assert "\n" not in text
+    for word in words:
+        assert word in text, text
+
+
+@pytest.mark.parametrize(("seed", "words"), [
+    ([1, 2], ["seed", "has 2 seeds for 3 environments", "a list of 3"]),
+    ([1, 2, 3, 4], ["seed", "has 4 seeds"]), ("abc", ["seed", "'abc'"]),
+    ([1, -2, 3], ["seed[1]", "-2"])])
+def test_bad_seeds_are_refused(envs: CrowdNavVectorEnv, seed: object, words: list[str]) -> None:
+    with pytest.raises(SceneError) as err:
+        envs.reset(seed=seed)  # type: ignore[arg-type]
+    text = str(err.value)
+    assert "\n" not in text
+    for word in words:
+        assert word in text, text

@@ -1,0 +1,104 @@
+"""The compiled wall rows and crossing test give exactly what the numpy forms give: the rows'
+bits equal :func:`single_values`' (half-planes, segments, polyline pieces, polygon edges with
+an agent inside, circles), and the path test equals the exact
+:func:`segments_meet` on random, touching and collinear pairs."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sweep_core.model.geometry import single_rows, single_values
+from sweep_core.model.outlines import segments_meet
+from sweep_core.model.scene import Scene
+from sweep_core.model.wall_kernels import paths_meet, paths_meet_exactly
+
+
+def _scene() -> Scene:
+    return Scene.from_dict({
+        "agents": {"positions": [[1.0, 1.0]], "radius": 0.2},
+        "walls": [{"kind": "halfplane", "normal": [0.0, 1.0], "offset": -1.0},
+                  {"kind": "segment", "a": [-3.0, 5.0], "b": [4.0, 6.0]},
+                  {"kind": "polyline", "points": [[6, -2], [7, 3], [9, 4]]}],
+        "obstacles": [{"kind": "circle", "center": [2.0, 3.0], "radius": 0.7},
+                      {"kind": "polygon", "points": [[-4, -0.5], [-2, -0.5], [-3, 1.5]]}]})
+
+
+def _reference(geom, t, q, r, reach):  # the numpy form: single_values filtered
+    out = []
+    for g, nrm, foot in single_values(geom, t, q, r):
+        a, k = np.nonzero(g <= reach)
+        out.append((a, k, g[a, k], nrm[a, k], foot[a, k]))
+    return out
+
+
+@pytest.mark.parametrize("reach", [0.0, 0.5, 3.0, 1e3])
+def test_rows_are_the_numpy_forms_bits(reach: float) -> None:
+    geom = _scene().geometry
+    rng = np.random.default_rng(1)
+    q = rng.uniform(-5.0, 10.0, (300, 2))
+    q[:4] = [[-3.0, 0.0], [-3.1, 0.2], [2.0, 3.0], [6.0, -2.0]]  # inside, centre, on a vertex
+    r = rng.uniform(0.1, 0.3, 300)
+    got, want = single_rows(geom, 0.7, q, r, reach), _reference(geom, 0.7, q, r, reach)
+    assert len(got) == len(want) == 4
+    assert sum(len(w[0]) for w in want) > 0
+    for g_kind, w_kind in zip(got, want):
+        for g, w in zip(g_kind, w_kind):
+            assert g.shape == w.shape
+            assert np.array_equal(g.view(np.uint8) if g.dtype.kind == "f" else g,
+                                  w.view(np.uint8) if w.dtype.kind == "f" else w)
+
+
+def test_an_agent_inside_the_polygon_has_negative_values() -> None:
+    geom = _scene().geometry
+    q, r = np.array([[-3.0, 0.0]]), np.array([0.2])
+    a, k, g, _, _ = single_rows(geom, 0.0, q, r, 0.0)[1]
+    assert len(g) == 3 and (g < 0).all()  # the triangle's three edges
+
+
+def _meet(p0, p1, a, b):
+    hit, unsure = np.empty(len(p0), dtype=bool), np.empty(len(p0), dtype=bool)
+    paths_meet(p0, p1, a, b, hit, unsure)
+    return hit, unsure
+
+
+def test_paths_meet_is_segments_meet() -> None:
+    rng = np.random.default_rng(2)
+    p0, p1, a, b = (rng.uniform(-1, 1, (4000, 2)) for _ in range(4))
+    # touching at an end, collinear overlapping, collinear apart, on the line of a segment
+    p0[:4] = [[0, 0], [0, 0], [0, 0], [0.5, 0.5]]
+    p1[:4] = [[1, 1], [2, 0], [1, 0], [0.5, 2.0]]
+    a[:4] = [[1, 1], [1, 0], [2, 0], [0, 0]]
+    b[:4] = [[3, 0], [3, 0], [3, 0], [1, 1]]
+    # nearly collinear: the float determinant is not to be trusted there
+    p0[4], p1[4], a[4], b[4] = [0.1, 0.1], [0.3, 0.3], [0.2, 0.2 + 1e-17], [0.5, 0.5]
+    hit, unsure = _meet(p0, p1, a, b)
+    exact = segments_meet(p0, p1, a, b)
+    assert np.array_equal(hit[~unsure], exact[~unsure])
+    decided = paths_meet_exactly(p0, p1, a, b)
+    assert np.array_equal(decided, exact)
+    assert decided[:4].tolist() == [True, True, False, True]
+    assert unsure[[0, 1, 3, 4]].all()  # zero determinants: the filter vouches for none
+    assert not unsure[2]  # collinear but the boxes are apart: decided by the boxes
+    assert exact[4]  # (0.2, 0.2 + 1e-17) rounds onto the path's line
+    assert 0 < hit.sum() < len(hit) and unsure.sum() < 10
+
+
+@pytest.mark.parametrize("spread", [1.0, 8.0, 40.0])
+def test_gaps_from_every_value_equal_the_doubling_search(monkeypatch: pytest.MonkeyPatch,
+                                                         spread: float) -> None:
+    """gaps() takes every value at once for a few segments; the search that doubles its reach
+    (the path of many segments, forced here) finds the same minimum, contacts and near pairs."""
+    from sweep_core.model import geometry
+
+    geom = _scene().geometry
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-spread, spread, (60, 2))
+    r = np.full(60, 0.2)
+    fast = geometry.gaps(geom, 0.0, q, r)
+    monkeypatch.setattr(geometry, "DENSE_SEGMENTS", -1)
+    slow = geometry.gaps(geom, 0.0, q, r)
+    assert (fast.min_single, fast.contacts, fast.worst_single, fast.reach) == \
+        (slow.min_single, slow.contacts, slow.worst_single, slow.reach)
+    assert sorted(zip(fast.near_agent.tolist(), fast.near_segment.tolist())) == \
+        sorted(zip(slow.near_agent.tolist(), slow.near_segment.tolist()))
+    assert len(fast.near_agent) > 0 or spread != 8.0  # a crowd among the segments
