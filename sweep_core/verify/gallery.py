@@ -3,7 +3,7 @@
 law (``flows.headway``).
 
 Flow: the crossings of a line across the door (``room_door``: x = 10 m, 1.2 m wide) or the
-corridor's end (``bottleneck``: x = 11 m, 1 m wide), by PedPy's ``compute_n_t`` on the
+corridor's end (``bottleneck``: x = 10 m, 1 m wide), by PedPy's ``compute_n_t`` on the
 recorded positions (every 0.1 s), counted from the 10th crossing to the last in a 40 s run
 (the first ten are the crowd's front reaching the door): J = (n - 10) / (t_n - t_10), 1/s.
 Target: with the speed law, J within 15 % of the experiments' line for the width (the
@@ -31,7 +31,7 @@ from sweep_core.verify.figures import figure, save
 #: scene -> (line across its door or corridor end (two points, m), its width (m))
 LINES: dict[str, tuple[tuple[tuple[float, float], tuple[float, float]], float]] = {
     "room_door": (((10.0, 4.4), (10.0, 5.6)), 1.2),
-    "bottleneck": (((11.0, 3.5), (11.0, 4.5)), 1.0),
+    "bottleneck": (((10.0, 3.5), (10.0, 4.5)), 1.0),
 }
 LAWS = ("headway", "pure")
 #: simulated time (s) of a run, and of a run of ``--quick``
