@@ -189,6 +189,16 @@ def page_text() -> str:
            "disks at the",
            "snapshot with their radii, coloured by group. Every scene runs in the test suite.",
            "",
+           "People who walk to a goal or an exit walk with the speed law (`flows.headway: {}`, "
+           "the csm law",
+           "at the parameters `sweep verify` validates): their flows through doors and their "
+           "speeds are",
+           "those of the experiments ([What the defaults model](validation.md#what-the-"
+           "defaults-model)).",
+           "Each scene says which model it uses and why; deleting `headway` from a copy gives "
+           "the pure",
+           "model.",
+           "",
            "Run times: `sweep run NAME` for 10 s of simulated time at dt = 0.01 s, every step "
            "recorded,",
            f"measured on {measured_on()}; an idle machine is faster.", ""]
@@ -196,6 +206,7 @@ def page_text() -> str:
         spec = load_yaml(s.path.read_text())
         desc = " ".join(str(spec.get("description", "")).split())
         out += [f"## {s.name}", "", f"![{s.name}](gallery/{s.name}.png)", "", desc, "",
+                f"Model: {s.model}. Why: {s.why}.", "",
                 f"`sweep run {s.name}`: {s.agents} agents, about {round(s.run_s)} s.", ""]
     return "\n".join(out)
 

@@ -1,5 +1,7 @@
 """The bundled scene gallery: every scene in it runs, ``sweep scenes`` lists each one as its
-index says, and ``sweep run NAME`` runs a bundled scene by name when no such file exists."""
+index says, every scene whose people walk somewhere uses the validated speed law (the pure
+model one key away), and ``sweep run NAME`` runs a bundled scene by name when no such file
+exists."""
 import importlib.util
 import json
 import shutil
@@ -11,7 +13,9 @@ import pytest
 from sweep_core.cli import build_parser, main
 from sweep_core.errors import SceneError
 from sweep_core.model.gallery import bundled_scenes, resolve_scene_path, scenes_dir
-from sweep_core.model.scene import load_scene
+from sweep_core.model.scene import Scene, load_scene
+from sweep_core.model.speed_law import headway_from_spec
+from sweep_core.model.yaml_files import load_yaml
 from sweep_core.numerics.simulator import Simulator
 
 REPO = Path(__file__).resolve().parents[1]
@@ -48,12 +52,14 @@ def test_every_gallery_scene_runs_a_few_steps(entry) -> None:
 def test_sweep_scenes_lists_each_with_agents_and_run_time(capsys) -> None:
     assert main(["scenes"]) == 0
     out = capsys.readouterr().out
-    rows = {line.split()[0]: line.split() for line in out.splitlines() if line.strip()}
+    table = out.split("\n\n")[0]   # the first table (the second says why each model)
+    rows = {line.split()[0]: line.split() for line in table.splitlines() if line.strip()}
     for entry in SCENES:
         row = rows[entry.name]
         assert int(row[1]) == entry.agents
         assert float(row[2]) == pytest.approx(round(entry.run_s))
-        assert entry.shows in out
+        assert " ".join(row[3:5]) == entry.model or row[3] == entry.model
+        assert entry.shows in out and entry.why in out
     assert "measured on" in out
 
 
@@ -109,3 +115,38 @@ def test_the_node_takes_a_bundled_scene_name(tmp_path, monkeypatch) -> None:
     problem = params.check_value("scene", "no_such_scene")
     assert problem.startswith("scene:") and "corridor_groups" in problem
     assert "no file" in params.check_value("scene", "/no/such/scene.yaml")
+
+
+def _walks(scene: Scene) -> bool:
+    """Whether some agent of the scene wishes a velocity at t = 0 (walks somewhere)."""
+    return bool(np.any(scene.drift(0.0, scene.positions) != 0.0))
+
+
+@pytest.mark.parametrize("entry", SCENES, ids=[s.name for s in SCENES])
+def test_every_walking_scene_uses_the_validated_speed_law(entry) -> None:
+    scene = load_scene(entry.name)
+    spec = load_yaml(entry.path.read_text())
+    headway = (spec.get("flows") or {}).get("headway")
+    # people who walk to a goal or an exit walk with the speed law; the index says so
+    assert _walks(scene) == (entry.model == "speed law"), entry.why
+    assert (headway is not None) == (entry.model == "speed law")
+    assert entry.why
+    if headway is None:
+        return
+    # the law sweep verify validates: csm at its default parameters, as the scene runs it
+    assert headway == {}
+    law = scene.flows
+    validated = headway_from_spec({})
+    assert law.law == validated["law"] == "csm"
+    assert (law.time_gap, law.repulsion, law.repulsion_range, law.lateral, law.follow) == (
+        validated["time_gap"], validated["repulsion"], validated["repulsion_range"],
+        validated["lateral"], validated["follow"])
+    # the pure model is one key away: the same scene without flows.headway loads and runs
+    del spec["flows"]["headway"]
+    pure = Scene.from_dict(spec, name=entry.name, base=entry.path.parent)
+    assert pure.flows is None or pure.flows.time_gap is None
+    sim = Simulator(pure, dt=0.01, seed=0)
+    start = sim.positions.copy()
+    sim.step(2)
+    assert sim.state.min_gap >= -1e-9
+    assert np.max(np.hypot(*(sim.positions - start).T)) > 1e-3

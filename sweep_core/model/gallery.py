@@ -1,9 +1,11 @@
 """The bundled scenes (``sweep_core/scenes/``): their index, and scene names resolved to files.
 
 ``scenes/gallery.yaml`` lists each bundled scene once: ``name`` (its file is ``NAME.yaml``),
-``shows`` (one line: what it shows), ``agents`` (its agent count, checked against the scene by
-the tests) and ``run_s``, the wall time of ``sweep run NAME`` (10 s simulated, dt 0.01, every
-step recorded) measured by ``docs/gallery.py`` on the machine that ``measured_on`` names.
+``shows`` (one line: what it shows), ``model`` (``speed law``: its people walk with the
+validated speed law ``flows.headway``; ``pure``: without it), ``why`` (one line: why that
+model), ``agents`` (its agent count, checked against the scene by the tests) and ``run_s``,
+the wall time of ``sweep run NAME`` (10 s simulated, dt 0.01, every step recorded) measured
+by ``docs/gallery.py`` on the machine that ``measured_on`` names.
 
 A scene argument (``sweep run NAME``, the node's ``scene``, an ensemble's scene) is a path
 first: a name resolves to a bundled scene only when no such file exists.
@@ -20,18 +22,24 @@ from sweep_core.model.yaml_files import load_yaml
 
 #: the index of the bundled scenes, beside them
 INDEX = "gallery.yaml"
+#: the models a bundled scene's people walk with: the speed law (``flows.headway``, validated
+#: by ``sweep verify``) or the pure model (no speed law)
+MODELS = ("speed law", "pure")
 
 
 @dataclass(frozen=True)
 class BundledScene:
     """One bundled scene: name, what it shows, agents, the measured wall time (s) of
-    ``sweep run NAME`` (10 s simulated) and its file."""
+    ``sweep run NAME`` (10 s simulated), its file, and the model its people walk with
+    (``MODELS``) and why."""
 
     name: str
     shows: str
     agents: int
     run_s: float
     path: Path
+    model: str = "pure"
+    why: str = ""
 
 
 def scenes_dir() -> Path:
@@ -50,12 +58,16 @@ def bundled_scenes() -> list[BundledScene]:
     out = []
     for k, item in enumerate(checks.mapping(_index(), INDEX, required={"scenes"})["scenes"]):
         field = f"{INDEX}: scenes[{k}]"
-        checks.mapping(item, field, allowed={"name", "shows", "agents", "run_s"},
-                       required={"name", "shows", "agents", "run_s"})
+        keys = {"name", "shows", "agents", "run_s", "model", "why"}
+        checks.mapping(item, field, allowed=keys, required=keys)
+        if item["model"] not in MODELS:
+            raise SceneError(f"{field}.model", f"unknown model {show(item['model'])}",
+                             f"use one of {', '.join(MODELS)}")
         out.append(BundledScene(str(item["name"]), str(item["shows"]),
                                 checks.integer(item["agents"], f"{field}.agents", low=0),
                                 checks.number(item["run_s"], f"{field}.run_s", positive=True),
-                                folder / f"{item['name']}.yaml"))
+                                folder / f"{item['name']}.yaml", str(item["model"]),
+                                str(item["why"])))
     return out
 
 

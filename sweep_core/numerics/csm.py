@@ -48,6 +48,27 @@ from sweep_core.model.neighbours import pairs_within
 
 #: repulsion terms with exponent (l - d) / D below -CUT are left out (a e^-CUT, a 1e-4 of a)
 CUT = 9.2
+#: ln 2 in two parts (the high part's last 32 bits zero, so k LN2_HI is exact for |k| < 2^20)
+LN2_HI = 6.93147180369123816490e-01
+LN2_LO = 1.90821492927058770002e-10
+INV_LN2 = 1.44269504088896338700e+00
+#: 1 / n! for n = 0 .. 14, the Taylor coefficients of e^r
+TAYLOR = np.array([1.0 / math.factorial(n) for n in range(15)])
+
+
+@numba.njit(cache=True, nogil=True)
+def exp(x: float) -> float:
+    """e^x for -700 < x < 700 in additions, multiplications and ldexp only: the same bits on
+    every CPU (the C library's exp differs in the last bit between its FMA and plain
+    variants, which made runs with the speed law depend on the CPU). x = k ln 2 + r with
+    |r| <= ln 2 / 2 (Cody and Waite's two-part ln 2), e^r by its Taylor series to r^14 / 14!
+    (truncation below 5e-18 relative), then scaled by 2^k; within 2 ulp of e^x."""
+    k = math.floor(x * INV_LN2 + 0.5)
+    r = (x - k * LN2_HI) - k * LN2_LO
+    p = TAYLOR[14]
+    for n in range(13, -1, -1):  # Horner: sum of r^n / n!
+        p = p * r + TAYLOR[n]
+    return math.ldexp(p, int(k))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -75,7 +96,7 @@ def directions(q: np.ndarray, r: np.ndarray, u: np.ndarray, pi: np.ndarray, pj: 
             x = (r[i] + r[j] - d) / reach
             if d == 0.0 or x < -CUT:
                 continue
-            f = strength * math.exp(x) / d
+            f = strength * exp(x) / d
             if moving[i]:
                 out[i, 0] += f * dx
                 out[i, 1] += f * dy

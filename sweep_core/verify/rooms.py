@@ -213,7 +213,8 @@ def _cases_12(quick: bool) -> list[Case]:
     t_end = 150.0 if quick else 300.0
     return [Case(label, "rimea12_bottleneck", t_end, (("agents.spawn.count", n),) + extra,
                  record_every=2, stop_when_empty=True)
-            for label, extra in (("headway", (("flows.headway", {}),)), ("pure", ()))]
+            for label, extra in (("headway", (("flows.headway", {}),)),
+                                 ("pure", (("flows.headway", None),)))]
 
 
 def _jams(tr: Trace) -> tuple[float, float, float, float]:
