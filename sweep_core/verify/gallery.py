@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sweep_core.analysis.speed import WindowSpeeds
 from sweep_core.model.gallery import scenes_dir
 from sweep_core.model.yaml_files import load_yaml
 from sweep_core.verify.base import Case, Test, Trace, Verdict
@@ -96,17 +97,22 @@ def flow(times: np.ndarray) -> float:
 
 
 def windowed_speeds(tr: Trace, window: float = WINDOW_S) -> np.ndarray:
-    """Every agent's speed (m/s) over ``window`` s: |x(t + window) - x(t)| / window for each
-    recorded frame t of an agent also recorded window s later."""
+    """Every agent's speed (m/s) at each of its frames, as ``sweep analyze`` measures it
+    (:class:`~sweep_core.analysis.speed.WindowSpeeds`): its displacement over ``window`` s
+    centred on the frame, one-sided at the ends of its presence; frames without a window are
+    left out."""
     traj = tr.traj
-    k = int(round(window * traj.frame_rate))
-    if k < 1 or len(traj.ids) <= k:
-        return np.zeros(0)
-    order = np.lexsort((traj.frames, traj.ids))
-    ids, frames, xy = traj.ids[order], traj.frames[order], traj.xy[order]
-    same = (ids[k:] == ids[:-k]) & (frames[k:] - frames[:-k] == k)
-    d = xy[k:][same] - xy[:-k][same]
-    return np.hypot(d[:, 0], d[:, 1]) / (k / traj.frame_rate)
+    ws = WindowSpeeds(window)
+    order = np.lexsort((traj.ids, traj.frames))
+    frames, ids, xy = traj.frames[order], traj.ids[order], traj.xy[order]
+    cuts = np.flatnonzero(np.diff(frames)) + 1
+    ready = []
+    for f, f_ids, f_xy in zip(frames[np.r_[0, cuts]] if len(frames) else (),
+                              np.split(ids, cuts), np.split(xy, cuts)):
+        ready += ws.push(float(f) / traj.frame_rate, f_ids, f_xy)
+    ready += ws.finish()
+    v = np.concatenate([r.speed for r in ready]) if ready else np.zeros(0)
+    return v[np.isfinite(v)]
 
 
 def measure(traces: dict[str, list[Trace]]) -> dict[str, dict[str, list[tuple[float, float]]]]:
