@@ -1,23 +1,20 @@
-"""The pictures of the scene gallery and of the README, each made from a run of its scene, and
-the measured run times that ``sweep scenes`` prints.
+"""The pictures of the scene gallery and of the README, each made from a run of its scene.
 
 For every bundled scene (``sweep scenes``) this runs ``sweep run NAME`` (10 s simulated, dt
 0.01, every step recorded, as a user would), times it, and draws ``docs/gallery/NAME.png``
 from the recording: walls and obstacles (where they are at the snapshot), each agent's path
 over the last seconds before the snapshot, and the disks at the snapshot with their radii,
 coloured by group, and writes the page ``docs/gallery.md``. The README's picture
-(``docs/crowd_at_door.png``) is the bundled ``room_door`` drawn the same way. The wall times
-go into ``sweep_core/scenes/gallery.yaml`` (``run_s``) with the machine they were measured
-on (``measured_on``, from ``--machine``):
+(``docs/crowd_at_door.png``) is the bundled ``room_door`` drawn the same way. The wall time of
+each run is printed, not stored (it depends on the machine and its load):
 
-    python docs/gallery.py --machine "a 2-core x86-64 VM shared with other jobs"
-    python docs/gallery.py --only bottleneck --no-times     # one picture, index untouched
+    python docs/gallery.py
+    python docs/gallery.py --only bottleneck     # one picture
 """
 from __future__ import annotations
 
 import argparse
 import json
-import re
 import subprocess
 import sys
 import tempfile
@@ -35,7 +32,7 @@ from matplotlib.patches import Circle  # noqa: E402
 from sweep_core.analysis.frames import FrameReader  # noqa: E402
 from sweep_core.analysis.robots import read_robot_topics  # noqa: E402
 from sweep_core.analysis.run import load_run  # noqa: E402
-from sweep_core.model.gallery import INDEX, bundled_scenes, measured_on, scenes_dir  # noqa: E402
+from sweep_core.model.gallery import bundled_scenes  # noqa: E402
 from sweep_core.model.yaml_files import load_yaml  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
@@ -161,25 +158,13 @@ def _geometry_box(geo) -> tuple[np.ndarray, np.ndarray]:
     return allp.min(0), allp.max(0)
 
 
-def write_times(times: dict[str, float], machine: str) -> None:
-    """Writes the measured ``run_s`` (rounded up to whole seconds) and ``measured_on`` into
-    the index, keeping its comments and order."""
-    index = scenes_dir() / INDEX
-    text = index.read_text()
-    text = re.sub(r"(?m)^measured_on: .*$", f"measured_on: {machine}", text)
-    for name, wall in times.items():
-        text = re.sub(rf"(?m)^(- name: {re.escape(name)}\n(?:  .*\n)*?  run_s: )\S+$",
-                      lambda m, w=wall: f"{m[1]}{int(np.ceil(w))}", text)
-    index.write_text(text)
-
-
 def page_text() -> str:
-    """docs/gallery.md: each bundled scene with its picture, description, agents and measured
-    run time, from the index and the scene files."""
+    """docs/gallery.md: each bundled scene with its picture, description, agents and model,
+    from the index and the scene files."""
     out = ["# Scene gallery", "",
            "Every scene here is bundled with the package: `sweep scenes` lists them with their "
            "agent counts",
-           "and expected run times, `sweep run NAME` runs one, and `sweep scenes` prints the "
+           "and models, `sweep run NAME` runs one, and `sweep scenes` prints the "
            "folder they are",
            "in, to copy one as the start of your own (the [schema reference](schema.md) lists "
            "every key).",
@@ -197,17 +182,13 @@ def page_text() -> str:
            "defaults-model)).",
            "Each scene says which model it uses and why; deleting `headway` from a copy gives "
            "the pure",
-           "model.",
-           "",
-           "Run times: `sweep run NAME` for 10 s of simulated time at dt = 0.01 s, every step "
-           "recorded,",
-           f"measured on {measured_on()}; an idle machine is faster.", ""]
+           "model.", ""]
     for s in bundled_scenes():
         spec = load_yaml(s.path.read_text())
         desc = " ".join(str(spec.get("description", "")).split())
         out += [f"## {s.name}", "", f"![{s.name}](gallery/{s.name}.png)", "", desc, "",
                 f"Model: {s.model}. Why: {s.why}.", "",
-                f"`sweep run {s.name}`: {s.agents} agents, about {round(s.run_s)} s.", ""]
+                f"`sweep run {s.name}`: {s.agents} agents.", ""]
     return "\n".join(out)
 
 
@@ -219,23 +200,16 @@ def write_page() -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="*", help="these scenes only")
-    parser.add_argument("--no-times", action="store_true", help="do not write the run times")
-    parser.add_argument("--machine", default="this machine",
-                        help="what the run times were measured on (written to the index)")
     args = parser.parse_args(argv)
     scenes = [s for s in bundled_scenes() if not args.only or s.name in args.only]
-    times = {}
     with tempfile.TemporaryDirectory() as tmp:
         for s in scenes:
             rec, wall = run_scene(s.name, Path(tmp))
-            times[s.name] = wall
             snap = SNAPSHOT.get(s.name, T_END)
             draw(rec, OUT / f"{s.name}.png", snap, s.name)
             if s.name == "room_door":
                 draw(rec, REPO / "docs" / "crowd_at_door.png", snap, "200 agents leave a room")
             print(f"{s.name}: {wall:.1f} s, {OUT / (s.name + '.png')}")
-    if not args.no_times:
-        write_times(times, args.machine)
     write_page()
     return 0
 

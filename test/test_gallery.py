@@ -49,7 +49,8 @@ def test_every_gallery_scene_runs_a_few_steps(entry) -> None:
     assert np.max(np.hypot(*(sim.positions - start).T)) > 1e-3
 
 
-def test_sweep_scenes_lists_each_with_agents_and_run_time(capsys) -> None:
+def test_sweep_scenes_lists_each_with_agents_and_model(capsys) -> None:
+    """Agents, model and what each shows; no run time (it depends on the machine)."""
     assert main(["scenes"]) == 0
     out = capsys.readouterr().out
     table = out.split("\n\n")[0]   # the first table (the second says why each model)
@@ -57,10 +58,9 @@ def test_sweep_scenes_lists_each_with_agents_and_run_time(capsys) -> None:
     for entry in SCENES:
         row = rows[entry.name]
         assert int(row[1]) == entry.agents
-        assert float(row[2]) == pytest.approx(round(entry.run_s))
-        assert " ".join(row[3:5]) == entry.model or row[3] == entry.model
+        assert " ".join(row[2:4]) == entry.model or row[2] == entry.model
         assert entry.shows in out and entry.why in out
-    assert "measured on" in out
+    assert "run s" not in out and "measured on" not in out
 
 
 def test_sweep_run_name_runs_the_bundled_scene(tmp_path, monkeypatch) -> None:

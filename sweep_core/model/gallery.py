@@ -3,9 +3,8 @@
 ``scenes/gallery.yaml`` lists each bundled scene once: ``name`` (its file is ``NAME.yaml``),
 ``shows`` (one line: what it shows), ``model`` (``speed law``: its people walk with the
 validated speed law ``flows.headway``; ``pure``: without it), ``why`` (one line: why that
-model), ``agents`` (its agent count, checked against the scene by the tests) and ``run_s``,
-the wall time of ``sweep run NAME`` (10 s simulated, dt 0.01, every step recorded) measured
-by ``docs/gallery.py`` on the machine that ``measured_on`` names.
+model) and ``agents`` (its agent count, checked against the scene by the tests). Run times
+are not listed: they depend on the machine and its load (``sweep bench`` measures them).
 
 A scene argument (``sweep run NAME``, the node's ``scene``, an ensemble's scene) is a path
 first: a name resolves to a bundled scene only when no such file exists.
@@ -29,14 +28,12 @@ MODELS = ("speed law", "pure")
 
 @dataclass(frozen=True)
 class BundledScene:
-    """One bundled scene: name, what it shows, agents, the measured wall time (s) of
-    ``sweep run NAME`` (10 s simulated), its file, and the model its people walk with
-    (``MODELS``) and why."""
+    """One bundled scene: name, what it shows, agents, its file, and the model its people walk
+    with (``MODELS``) and why."""
 
     name: str
     shows: str
     agents: int
-    run_s: float
     path: Path
     model: str = "pure"
     why: str = ""
@@ -47,25 +44,19 @@ def scenes_dir() -> Path:
     return Path(str(resources.files("sweep_core") / "scenes"))
 
 
-def measured_on() -> str:
-    """Where and how the run times of the index were measured."""
-    return str(_index().get("measured_on", ""))
-
-
 def bundled_scenes() -> list[BundledScene]:
     """The bundled scenes, in the index's order."""
     folder = scenes_dir()
     out = []
     for k, item in enumerate(checks.mapping(_index(), INDEX, required={"scenes"})["scenes"]):
         field = f"{INDEX}: scenes[{k}]"
-        keys = {"name", "shows", "agents", "run_s", "model", "why"}
+        keys = {"name", "shows", "agents", "model", "why"}
         checks.mapping(item, field, allowed=keys, required=keys)
         if item["model"] not in MODELS:
             raise SceneError(f"{field}.model", f"unknown model {show(item['model'])}",
                              f"use one of {', '.join(MODELS)}")
         out.append(BundledScene(str(item["name"]), str(item["shows"]),
                                 checks.integer(item["agents"], f"{field}.agents", low=0),
-                                checks.number(item["run_s"], f"{field}.run_s", positive=True),
                                 folder / f"{item['name']}.yaml", str(item["model"]),
                                 str(item["why"])))
     return out
