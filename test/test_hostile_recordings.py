@@ -85,10 +85,11 @@ def rewrite(src: Path, dst: Path, edit=None, agent_ids=None) -> Path:
 
 
 #: runs each command line of argv (JSON) in this one process, then prints per command its
-#: exit code and stderr, and the process's peak resident memory (MB, getrusage's ru_maxrss:
-#: the largest any of the commands reached)
+#: exit code and stderr, and the process's peak resident memory (MB, Linux's VmHWM: the largest
+#: any of the commands reached; getrusage's ru_maxrss would also count the test process that
+#: forked it, as Linux keeps it across execve)
 RUNNER = """
-import contextlib, io, json, resource, sys
+import contextlib, io, json, sys
 from sweep_core.cli import main
 out = []
 for args in json.loads(sys.argv[1]):
@@ -99,7 +100,8 @@ for args in json.loads(sys.argv[1]):
         except SystemExit as e:
             code = e.code
     out.append([code, err.getvalue()])
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+with open("/proc/self/status") as fh:
+    peak = next(int(ln.split()[1]) for ln in fh if ln.startswith("VmHWM:")) / 1024
 print(json.dumps({"runs": out, "peak_mb": peak}))
 """
 

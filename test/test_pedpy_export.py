@@ -26,16 +26,17 @@ DT = 0.05
 TICKS = [5, 5, 5, 4, 5, 5, 5, 5, 5, 8, 3, 5]
 
 
-def _node_like_recording(path, ticks, t_end=6.0, record_every=None):
+def _node_like_recording(path, ticks, t_end=6.0, record_every=None, **options):
     """States recorded after ``ticks`` steps each (cycled) up to t_end, with the node's
-    metadata (no record_every unless given)."""
+    metadata (no record_every unless given); ``options`` for the recorder (chunk size)."""
     scene = Scene.from_dict({
         "agents": {"positions": [[0.0, 0.0], [10.0, 0.0], [20.0, 0.0], [30.0, 0.0]],
                    "radius": 0.2},
         "drift": {"kind": "per_agent", "velocities": VELOCITIES},
     })
     sim = Simulator(scene, dt=DT, seed=0)
-    with BackgroundRecorder(path, metadata=run_metadata(scene, sim, None, record_every)) as rec:
+    with BackgroundRecorder(path, metadata=run_metadata(scene, sim, None, record_every),
+                            **options) as rec:
         for name, msgtype in topics.TYPES.items():
             rec.add_channel("/" + name, msgtype)
         topics.record_state(rec.write, sim.state)
@@ -117,7 +118,9 @@ def test_a_recording_without_a_frame_is_refused(tmp_path, capsys):
 
 def test_a_recording_cut_short_is_refused(tmp_path, capsys):
     """Before: exported up to the cut, exit 0, as if the run had ended there."""
-    rec = _node_like_recording(tmp_path / "whole.mcap", [1], t_end=60.0, record_every=1)
+    # chunks of 16 kB, closed by size alone (not by the wall clock): the cut leaves several whole
+    rec = _node_like_recording(tmp_path / "whole.mcap", [1], t_end=60.0, record_every=1,
+                               chunk_size=1 << 14, flush_interval_s=None)
     cut = tmp_path / "cut.mcap"
     data = rec.read_bytes()
     cut.write_bytes(data[:len(data) * 2 // 3])

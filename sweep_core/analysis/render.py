@@ -14,7 +14,11 @@ the last recorded state at or before ``start + k * speed / fps``; a window [star
 MP4 (H.264) through imageio-ffmpeg, whose wheel ships the ffmpeg binary; GIF through Pillow
 when the output name ends in ``.gif`` or, for the default name, when no ffmpeg is available.
 Outputs go through :mod:`sweep_core.io.outputs` (never over the recording, written to a
-temporary file and renamed)."""
+temporary file and renamed).
+
+Longer than the usual module: the frame's drawing, its colour modes (speeds over the
+analysis's window among them) and the memory estimate share one figure's state; the writers
+are apart, in :mod:`sweep_core.analysis.animation`."""
 from __future__ import annotations
 
 import math
