@@ -111,3 +111,42 @@ def test_bad_live_options_are_refused(tmp_path, capsys, args):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and args[0] in err[0]
     assert not (tmp_path / "x.mcap").exists()
+
+
+def test_a_recording_is_served_as_it_was_recorded(tmp_path):
+    """sweep replay --live: the recording's own messages (agents, walls, markers) reach a
+    client, decoded from the recording's schemas, paced on the recording's clock."""
+    rec = tmp_path / "rec.mcap"
+    assert main(["run", "--t-end", "3", "--dt", "0.05", "--out", str(rec), "--quiet"]) == 0
+    from sweep_core.io.live import serve_recording
+
+    lines: list[str] = []
+    live = LiveView(0, 1.0, say=lines.append)
+    served: list[int] = []
+    thread = threading.Thread(target=lambda: served.append(serve_recording(rec, live)))
+    thread.start()
+    try:
+        got = _receive(live.port, {"/agents", "/walls", "/markers"})
+    finally:
+        thread.join(timeout=10 * WAIT_S)
+        live.stop()
+    scene = load_scene(None)
+    assert got["/agents"].width == scene.n_agents
+    assert len([m for m in got["/walls"].markers if m.ns == "walls"]) == \
+        len(scene.geometry.segment_a)
+    # every message of the recording was served (3 s at dt 0.05: 61 states)
+    from sweep_core.io.recording.scan import scan_recording
+    assert served == [scan_recording(rec).message_count] and served[0] >= 2 * 61
+
+
+def test_replay_live_port_in_use_is_one_line_exit_2(tmp_path, capsys):
+    rec = tmp_path / "rec.mcap"
+    assert main(["run", "--t-end", "0.1", "--out", str(rec), "--quiet"]) == 0
+    capsys.readouterr()
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        code = main(["replay", str(rec), "--quiet", "--live", str(port)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and f"--live {port}" in err[0] and "fix:" in err[0]

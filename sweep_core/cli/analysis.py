@@ -11,6 +11,7 @@ import sys
 from sweep_core.analysis import compare, metrics, replay, report
 from sweep_core.analysis.speed import DEFAULT_WINDOW_S
 from sweep_core.cli.commands import summary
+from sweep_core.cli.run import start_live
 from sweep_core.io.recording.recover import hint
 from sweep_core.numerics import kernels
 
@@ -47,6 +48,16 @@ def _analyze(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
+    live = start_live(args)  # a port in use is said before any work
+    if live is not None:
+        from sweep_core.io.live import serve_recording
+
+        try:
+            served = serve_recording(args.recording, live)
+        finally:
+            live.stop()
+        print(f"sweep: live view: {served} recorded messages served; now the replay's check",
+              file=sys.stderr)
     _kernels()
     res = replay.replay(args.recording, progress=not args.quiet)
     for line in res.problems:
@@ -116,6 +127,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("recording", help="MCAP file from sweep run or sweep_node")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--live", type=int, nargs="?", const=8765, default=None, metavar="PORT",
+                   help="first serve the recording as it was recorded to Foxglove over its "
+                        "WebSocket protocol on 127.0.0.1:PORT (default 8765; 0: any free "
+                        "port), then check it")
+    p.add_argument("--live-rate", type=float, default=1.0, metavar="FACTOR",
+                   help="with --live: the recording's time runs at FACTOR x real time "
+                        "(default 1; 0: as fast as it is read)")
     p.set_defaults(func=_replay)
 
     p = sub.add_parser("compare", help=summary("compare"),

@@ -1,4 +1,5 @@
-"""A run served live over Foxglove's WebSocket protocol (``sweep run --live``), through the
+"""A run served live over Foxglove's WebSocket protocol (``sweep run --live``, and a
+recording as it was recorded, ``sweep replay --live``), through the
 foxglove-sdk package (imported only here, only when a live view starts; its server speaks the
 ``foxglove.sdk.v1`` subprotocol).
 
@@ -13,6 +14,7 @@ run goes on.
 """
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
@@ -148,3 +150,29 @@ class LiveView:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+#: the channels a recording of sweep holds latched (sent again to a late subscriber)
+LATCHED = ("/walls", "/tf_static", "/navigation_field")
+
+
+def serve_recording(path: str | os.PathLike[str], view: LiveView) -> int:
+    """Serves the recording ``path`` on ``view`` as it was recorded (``sweep replay --live``):
+    every message of a type the project encodes (:data:`~sweep_core.io.cdr.SCHEMAS`; others
+    are skipped), with its recorded bytes, in file order, paced on the recording's log clock
+    at the view's rate. Returns the number of messages served."""
+    from sweep_core.io.recording import read_recording
+
+    served, first = 0, None
+    channels: set[str] = set()
+    for msg in read_recording(path):
+        if msg.msgtype not in SCHEMAS:
+            continue
+        if msg.topic not in channels:
+            view.add_channel(msg.topic, msg.msgtype, latched=msg.topic in LATCHED)
+            channels.add(msg.topic)
+        first = msg.log_time_ns if first is None else first
+        view.pace((msg.log_time_ns - first) / 1e9)
+        view.write(msg.topic, msg.log_time_ns, msg.data)
+        served += 1
+    return served
