@@ -7,6 +7,8 @@ from functools import cache
 from importlib import metadata
 from pathlib import Path
 
+from sweep_core.version import __version__
+
 #: the libraries whose versions can change a run's floats
 SHAPING = ("numpy", "scipy", "numba", "llvmlite", "cvxopt", "proxsuite", "clarabel", "piqp",
            "qpsolvers")
@@ -16,9 +18,12 @@ CPU_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512dq", "avx512bw", 
 
 
 def versions() -> dict[str, str]:
-    """Name -> version of sweep_ros and the libraries that shape its results."""
-    out = {"python": platform.python_version()}
-    for dist in ("sweep_ros", *SHAPING, "mcap", "PyYAML"):
+    """Name -> version of sweep_ros and the libraries that shape its results. sweep_ros's is
+    the version of the code that runs (``sweep_core.version``), not of the installed
+    distribution's metadata, which a source tree on the path or a stale install can differ
+    from."""
+    out = {"python": platform.python_version(), "sweep_ros": __version__}
+    for dist in (*SHAPING, "mcap", "PyYAML"):
         try:
             out[dist] = metadata.version(dist)
         except metadata.PackageNotFoundError:
