@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Callable, Iterator
+from typing import Any
 
 from sweep_core.analysis.run import RunMeta
 from sweep_core.errors import RecordingError
@@ -20,21 +22,30 @@ Commands = dict[tuple[int, int], dict[str, tuple[float, float, float]]]
 Odometry = dict[tuple[int, int], dict[str, tuple[float, float, float, float]]]
 
 
+def _robot_messages(meta: RunMeta, kind: str, decode: Callable[[bytes], Any]
+                    ) -> Iterator[tuple[tuple[int, int], str, Any]]:
+    """((segment, step), robot name, decoded message) of every recorded ``/NAME/<kind>`` in
+    file order (none for a scene without robots); a message that cannot be decoded is a
+    RecordingError naming where it is."""
+    scene = meta.scene
+    if scene is None or not scene.robots:
+        return
+    topics = {topic(r.name, kind): r.name for r in scene.robots}
+    for msg in read_recording(meta.path, topics):
+        try:
+            decoded = decode(msg.data)
+        except ValueError as err:
+            raise RecordingError(f"{meta.path}: {msg.where()}: {err}") from None
+        key = (meta.segment_of(msg.log_time_ns), meta.step_of(decoded.stamp_ns))
+        yield key, topics[msg.topic], decoded
+
+
 def recorded_commands(meta: RunMeta) -> Commands:
     """(segment, step) -> {robot name: (vx, vy, omega)} of every recorded ``/NAME/cmd_vel``;
     empty for a scene without robots."""
-    scene = meta.scene
-    if scene is None or not scene.robots:
-        return {}
-    topics = {topic(r.name, "cmd_vel"): r.name for r in scene.robots}
     out: Commands = {}
-    for msg in read_recording(meta.path, topics):
-        try:
-            twist = cdr.decode_twist_stamped(msg.data)
-        except ValueError as err:
-            raise RecordingError(f"{meta.path}: {msg.where()}: {err}") from None
-        key = (meta.segment_of(msg.log_time_ns), meta.step_of(twist.stamp_ns))
-        out.setdefault(key, {})[topics[msg.topic]] = (
+    for key, name, twist in _robot_messages(meta, "cmd_vel", cdr.decode_twist_stamped):
+        out.setdefault(key, {})[name] = (
             float(twist.linear[0]), float(twist.linear[1]), float(twist.angular[2]))
     return out
 
@@ -42,20 +53,11 @@ def recorded_commands(meta: RunMeta) -> Commands:
 def recorded_odometry(meta: RunMeta) -> Odometry:
     """(segment, step) -> {robot name: (x, y, qz, qw)} of the first recorded ``/NAME/odom`` of
     each step (m and the yaw's quaternion); empty for a scene without robots."""
-    scene = meta.scene
-    if scene is None or not scene.robots:
-        return {}
-    topics = {topic(r.name, "odom"): r.name for r in scene.robots}
     out: Odometry = {}
-    for msg in read_recording(meta.path, topics):
-        try:
-            odom = cdr.decode_odometry(msg.data)
-        except ValueError as err:
-            raise RecordingError(f"{meta.path}: {msg.where()}: {err}") from None
-        key = (meta.segment_of(msg.log_time_ns), meta.step_of(odom.stamp_ns))
+    for key, name, odom in _robot_messages(meta, "odom", cdr.decode_odometry):
         # the first at a step: the pose the step produced (the node publishes the state again
         # after placing a robot between two steps; the placement shows in the next step)
-        out.setdefault(key, {}).setdefault(topics[msg.topic], (
+        out.setdefault(key, {}).setdefault(name, (
             float(odom.position[0]), float(odom.position[1]), float(odom.orientation[2]),
             float(odom.orientation[3])))
     return out

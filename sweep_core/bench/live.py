@@ -15,7 +15,7 @@ from pathlib import Path
 
 from sweep_core.bench import options
 from sweep_core.bench.speed import crowd
-from sweep_core.bench.tables import write_csv
+from sweep_core.bench.tables import table_row, write_csv
 from sweep_core.io.live import LiveView
 from sweep_core.io.recording.runs import record_run
 from sweep_core.numerics.simulator import Simulator
@@ -81,8 +81,7 @@ def run(args: argparse.Namespace) -> int:
                  "client_steps_per_s": max(with_client),
                  "ratio": max(with_client) / max(alone)}
             rows.append(r)
-            print(" ".join(f"{r[c]:>{w}.3f}" if isinstance(r[c], float) else f"{r[c]:>{w}}"
-                           for c, w in zip(COLUMNS, widths)), flush=True)
+            print(table_row(r, COLUMNS, widths), flush=True)
     write_csv(Path(args.csv), rows, COLUMNS)
     print(f"csv: {args.csv}")
     return 0

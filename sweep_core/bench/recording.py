@@ -30,7 +30,7 @@ import numpy as np
 
 from sweep_core.bench import options
 from sweep_core.bench.speed import crowd
-from sweep_core.bench.tables import write_csv
+from sweep_core.bench.tables import table_row, write_csv
 from sweep_core.io import cdr, markers, topics
 from sweep_core.io.cdr.markers import encode_marker_array
 from sweep_core.io.recording import BackgroundRecorder
@@ -108,8 +108,7 @@ def run(args: argparse.Namespace) -> int:
         for jammed in ((False, True) if args.jammed else (False,)):
             r = measure(n, jammed, args.steps, args.warmup, args.block, args.compression)
             results.append(r)
-            print(" ".join(f"{r[c]:>{w}.3f}" if isinstance(r[c], float) else f"{r[c]:>{w}}"
-                           for c, w in zip(COLUMNS, widths)), flush=True)
+            print(table_row(r, COLUMNS, widths), flush=True)
     write_csv(Path(args.csv), results, COLUMNS)
     print(f"csv: {args.csv}")
     return 0

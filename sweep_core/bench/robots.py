@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from sweep_core.bench import options
-from sweep_core.bench.tables import write_csv
+from sweep_core.bench.tables import table_row, write_csv
 from sweep_core.model.robots import MAX_BEAMS
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.robots.scan import scan
@@ -67,8 +67,7 @@ def run(args: argparse.Namespace) -> int:
         for beams in args.beams:
             row = measure(n, beams, args.repeat)
             results.append(row)
-            print(" ".join(f"{row[c]:>14.3f}" if isinstance(row[c], float) else f"{row[c]:>14}"
-                           for c in COLUMNS), flush=True)
+            print(table_row(row, COLUMNS, [14] * len(COLUMNS)), flush=True)
     write_csv(Path(args.csv), results, COLUMNS)
     print(f"csv: {args.csv}")
     return 0

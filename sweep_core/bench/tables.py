@@ -18,3 +18,10 @@ def write_csv(path: Path, rows: list[dict], columns: Sequence[str] | None = None
         w = csv.DictWriter(fh, fieldnames=list(columns or rows[0]))
         w.writeheader()
         w.writerows(rows)
+
+
+def table_row(row: dict, columns: Sequence[str], widths: Sequence[int]) -> str:
+    """One printed row of a study's table: each column right-aligned in its width, floats
+    with three decimals."""
+    return " ".join(f"{row[c]:>{w}.3f}" if isinstance(row[c], float) else f"{row[c]:>{w}}"
+                    for c, w in zip(columns, widths))
