@@ -211,6 +211,7 @@ class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin
         self._overruns = 0
         self._last_tick_start: float | None = None
         self._last_markers = -math.inf
+        self._published: tuple[int, int] | None = None  # (reset count, step) last published
         self._rt_anchor: tuple[float, float] | None = None
         self._window = Window(self.sim.t)
         self._maps_applied = 0

@@ -22,6 +22,7 @@ class PublishingMixin:
 
     def _publish_state(self, force_markers: bool = False) -> None:
         state = self.sim.state
+        self._published = (self._resets, self.sim.n_steps)
         ns = topics.stamp_ns(state.t)
         log_ns = self._log_ns(state.t)
         encoded = topics.encode_state(state, self.frame_id)
@@ -40,6 +41,13 @@ class PublishingMixin:
                 self._publish_walls()
         self._publish_robots(log_ns)
         self._publish_navigation()
+
+    def _publish_pending(self) -> None:
+        """The state, when its step's has not been published yet (a control callback about
+        to change it between two steps of a tick: the recording then holds the state the
+        step made, before the change, as replay expects). The caller holds the gate."""
+        if self._published != (self._resets, self.sim.n_steps):
+            self._publish_state()
 
     def _publish_navigation(self) -> None:
         """The navigation_field of the drift in effect, when it differs from the one last

@@ -201,7 +201,9 @@ class RobotsMixin:
     def _place_robot(self, name: str, topic: str, pose: tuple[float, float, float]) -> None:
         """Puts the robot at pose between two steps, at rest (SceneError naming the overlap:
         the state is then unchanged), and records it for replay (``robot_pose_NNNNNN``:
-        ``placement`` {robot, pose} before step ``step``)."""
+        ``placement`` {robot, pose} before step ``step``). The state of the step before it
+        is published first if it was not yet (a placement between two steps of a tick)."""
+        self._publish_pending()
         self.sim.robots.place(name, pose, self.sim.t, self.sim.positions, self.sim.radii)
         with self._robot_lock:  # the command before the placement is not carried over
             self._robot_commands.pop(name, None)

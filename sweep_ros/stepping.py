@@ -80,8 +80,9 @@ class SteppingMixin:
             self.get_logger().error(f"step thread stopped: {traceback.format_exc()}")
 
     def _tick(self) -> None:
-        """One timer tick: its steps one at a time (the gate held for one step each), then
-        the state. A pause, reset or stop between two steps ends the tick there."""
+        """One timer tick: its steps one at a time (the gate held for one step each), the
+        state published with the last of them. A pause, reset or stop between two steps ends
+        the tick there."""
         start = time.monotonic()
         with self._gate.step():
             period = 1.0 / self._p["rate_hz"]
@@ -98,12 +99,16 @@ class SteppingMixin:
         taken = 0
         for _ in range(n):
             with self._gate.step():
-                if (self.paused or self._stopping.is_set() or self._closed
-                        or self._resets != segment or not self._advance()):
+                going = not (self.paused or self._stopping.is_set() or self._closed
+                             or self._resets != segment) and self._advance()
+                taken += going
+                if not going or taken == n:
+                    # published while the gate is still held (and by a placement between two
+                    # steps of the tick, before it moves the robot): a recorded state is the
+                    # one its step made
+                    if taken and self._resets == segment and not self._closed:
+                        self._publish_pending()
                     break
-            taken += 1
         with self._gate.step():
-            if taken and self._resets == segment and not self._closed:
-                self._publish_state()
             self._window.ticks += 1
             self._window.tick_s += time.monotonic() - start

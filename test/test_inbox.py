@@ -1,15 +1,19 @@
 """The node's command inbox (latest wins, every message counted once) and its step gate
-(a control callback goes first at the next step boundary), without ROS."""
+(a control callback goes first at the next step boundary; a tick's state is published before
+one goes in), without ROS."""
 from __future__ import annotations
 
 import threading
 import time
+import types
 
 import numpy as np
 
 from sweep_core.model.fields import Uniform
 from sweep_ros.gate import StepGate
 from sweep_ros.inbox import CommandInbox
+from sweep_ros.publishing import PublishingMixin
+from sweep_ros.stepping import SteppingMixin
 
 
 def _field(vx: float) -> Uniform:
@@ -132,3 +136,61 @@ def test_group_commands_wait_together_and_supersede_their_own_group():
     c = inbox.counters()
     assert c["commands_applied"] == 4 and c["commands_refused"] == 1
     assert c["commands_superseded"] == 3 and _balanced(c)
+
+
+class _Ticker(SteppingMixin, PublishingMixin):
+    """The step thread's tick over a stand-in engine: each step and each publication logs
+    what it saw; a control callback (a placement, which publishes a pending state first as
+    the node's does) waits for the gate during the step it is placed after."""
+
+    def __init__(self, steps: int, pause_after: int | None = None) -> None:
+        self._gate, self._p = StepGate(), {"rate_hz": 50.0, "real_time_factor": 0.0,
+                                           "steps_per_tick": steps}
+        self._last_tick_start, self._overruns = None, 0
+        self._window = types.SimpleNamespace(overruns=0, ticks=0, tick_s=0.0)
+        self.paused, self._closed, self._resets = False, False, 0
+        self._stopping = threading.Event()
+        self.log: list[str] = []
+        self.n, self.placed, self.pause_after = 0, False, pause_after
+        self.control: threading.Thread | None = None
+        self._published: tuple[int, int] | None = None
+
+    @property
+    def sim(self) -> types.SimpleNamespace:
+        return types.SimpleNamespace(n_steps=self.n)
+
+    def _advance(self) -> bool:
+        self.n += 1
+        self.log.append(f"step {self.n}")
+        if self.n == self.pause_after:
+            self.paused = True  # as a pause service between two steps would
+        if self.n == self._p["steps_per_tick"] or self.n == self.pause_after:
+            self.control = threading.Thread(target=self._place)
+            self.control.start()
+            while self._gate.waiting == 0:  # the placement now waits for the gate
+                time.sleep(0.0005)
+        return True
+
+    def _place(self) -> None:
+        with self._gate.control():
+            self._publish_pending()
+            self.placed = True
+            self.log.append("placed")
+
+    def _publish_state(self, force_markers: bool = False) -> None:
+        self._published = (self._resets, self.n)
+        self.log.append(f"published step {self.n}" + (" after the placement"
+                                                       if self.placed else ""))
+
+
+def test_a_tick_publishes_its_state_before_a_waiting_command_goes_in():
+    """The state a tick ends with is published before a command waiting for the gate (a
+    robot placement, a map) is applied, so a recorded state is always the one its step made
+    (the placement is recorded as made after that step, and replay applies it there)."""
+    for steps, pause_after in ((3, None), (1, None), (4, 2)):
+        t = _Ticker(steps, pause_after)
+        t._tick()
+        t.control.join(timeout=10)
+        last = pause_after or steps
+        assert t.log[-2:] == [f"published step {last}", "placed"], t.log
+        assert t.log.count(f"published step {last}") == 1 and t.n == last

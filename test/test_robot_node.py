@@ -138,9 +138,8 @@ def check_recording(record: Path) -> None:
     for a, b in zip(times, times[1:]):
         oa, ob = odom[a], odom[b]
         if a <= placed <= b:
-            # the placement lands between these two states; at placed == b it is applied at
-            # b's time, before or after b's state is published (the gate lets it in between a
-            # step and its publication), so neither interval touching it is an arc
+            # the placement lands between these two states (after a's publication: the node
+            # publishes a tick's state before it lets a command in), so this is not an arc
             continue
         if np.hypot(*(people[a] - oa.position[:2]).T).min() < 3.0:
             break  # near the people: the crowd yields, but the test of exactness stops here
