@@ -102,3 +102,26 @@ def test_gaps_from_every_value_equal_the_doubling_search(monkeypatch: pytest.Mon
     assert sorted(zip(fast.near_agent.tolist(), fast.near_segment.tolist())) == \
         sorted(zip(slow.near_agent.tolist(), slow.near_segment.tolist()))
     assert len(fast.near_agent) > 0 or spread != 8.0  # a crowd among the segments
+
+
+def test_gaps_pairs_are_the_numpy_forms_bits() -> None:
+    """The compiled pair gaps of gaps() hold the numpy form's bits, its contacts and its
+    first smallest pair; agents touching and overlapping included."""
+    from sweep_core.model.geometry import gaps
+
+    rng = np.random.default_rng(4)
+    q = rng.uniform(0.0, 6.0, (200, 2))
+    q[1] = q[0] + [0.4, 0.0]  # touching (radii 0.2)
+    q[3] = q[2] + [0.1, 0.3]  # overlapping
+    r = np.full(200, 0.2)
+    got = gaps(_scene().geometry, 0.0, q, r, contact_tol=1e-6)
+    d = q[got.pair_i] - q[got.pair_j]
+    want = np.sqrt(np.einsum("ij,ij->i", d, d)) - r[got.pair_i] - r[got.pair_j]
+    assert len(want) > 10
+    assert np.array_equal(got.pair_gap.view(np.uint8), want.view(np.uint8))
+    w = int(np.argmin(want))
+    assert got.worst_pair == (int(got.pair_i[w]), int(got.pair_j[w]), float(want[w]))
+    assert got.min_pair == float(want.min()) < 0
+    singles = sum(int(np.count_nonzero(g <= 1e-6)) for g, _, _ in
+                  single_values(_scene().geometry, 0.0, q, r)[:3])
+    assert got.contacts == int(np.count_nonzero(want <= 1e-6)) + singles

@@ -15,7 +15,7 @@ import numpy as np
 from sweep_core.model.neighbours import pairs_within, segments_within
 from sweep_core.model.outlines import points_in_polygon
 from sweep_core.model.user import constraint_name, evaluate
-from sweep_core.model.wall_kernels import near_rows
+from sweep_core.model.wall_kernels import near_rows, pair_gaps, single_gaps
 
 # codes of single-row kinds, in the order of scene.geometry
 HALFPLANE, SEGMENT, CIRCLE, USER = 0, 1, 2, 3
@@ -334,47 +334,83 @@ class Gaps:
 def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
          contact_tol: float = 1e-6) -> Gaps:
     """Evaluate every constraint that can be violated or touching at (t, q)."""
-    i, j = pairs_within(q, 2.0 * float(r.max(initial=0.0)) + contact_tol)
-    d = q[i] - q[j]
-    pg = np.sqrt(np.einsum("ij,ij->i", d, d)) - r[i] - r[j]
-    contacts = int(np.count_nonzero(pg <= contact_tol))
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    r = np.ascontiguousarray(r, dtype=np.float64)
+    r_max = float(r.max(initial=0.0))
+    i, j = pairs_within(q, 2.0 * r_max + contact_tol)
+    pg = np.empty(len(i))
+    contacts, w = pair_gaps(q, r, i, j, float(contact_tol), pg)
     worst_pair = None
     min_pair = np.inf
-    if len(pg):
-        w = int(np.argmin(pg))
+    if w >= 0:
         min_pair = float(pg[w])
         worst_pair = (int(i[w]), int(j[w]), min_pair)
     min_single, worst_single = np.inf, None
-    reach, near = 0.0, (np.empty(0, dtype=np.intp), np.empty(0, dtype=np.intp))
+    reach, near = 0.0, (_EMPTY, _EMPTY)
     if not geom.is_empty and len(q):
-        # the smallest value over all (agent, item): searched within a reach that doubles
-        # until something is found (what is not found is larger than what is)
-        reach = max(contact_tol, 2.0 * float(r.max(initial=0.0)), 1e-3)
+        # the smallest value over all (agent, item): searched within a reach that grows
+        # eightfold until something is found (what is not found is larger than what is)
+        reach = max(contact_tol, 2.0 * r_max, 1e-3)
         here = geom.at(t)
+        summary = None
         if not here.user and (len(here.segment_a) == 0
                               or len(q) * len(here.segment_a) <= DENSE_SEGMENTS):
-            # every value at once (compiled), then the reach the doubling below would stop at
-            # and the rows within it, in the same order
-            every = [(a, k, g) for a, k, g, _, _ in _dense_rows(here, t, q, r, math.inf)]
-            low = min((float(g.min()) for _, _, g in every if len(g)), default=math.inf)
-            while not (low <= reach or reach > 1e12):
-                reach *= 8.0
-            found = [(a[g <= reach], k[g <= reach], g[g <= reach]) for a, k, g in every]
+            summary = _dense_gaps(here, t, q, r, contact_tol, reach)
+        if summary is not None:
+            reach, count, min_single, worst_single, near = summary
+            contacts += count
         else:
-            while True:
-                rows = single_rows(here, t, q, r, reach)
-                if any(len(a) for a, _, _, _, _ in rows) or reach > 1e12:
-                    break
-                reach *= 8.0
-            found = [(a, k, g) for a, k, g, _, _ in rows]
-        near = found[SEGMENT][0], found[SEGMENT][1]
-        for kind, (a, k, g) in enumerate(found):
-            if len(g) == 0:
-                continue
-            contacts += int(np.count_nonzero(g <= contact_tol))
-            w = int(np.argmin(g))
-            if g[w] < min_single:
-                min_single = float(g[w])
-                worst_single = (int(a[w]), kind, int(k[w]), min_single)
+            found = _found_rows(here, t, q, r, reach)
+            reach = found[-1]
+            near = found[SEGMENT][0], found[SEGMENT][1]
+            for kind, (a, k, g) in enumerate(found[:-1]):
+                if len(g) == 0:
+                    continue
+                contacts += int(np.count_nonzero(g <= contact_tol))
+                w = int(np.argmin(g))
+                if g[w] < min_single:
+                    min_single = float(g[w])
+                    worst_single = (int(a[w]), kind, int(k[w]), min_single)
     return Gaps(min_pair, min_single, contacts, worst_pair, worst_single, i, j, pg, near[0],
                 near[1], reach)
+
+
+def _dense_gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, contact_tol: float,
+                reach: float) -> tuple | None:
+    """:func:`gaps`' wall and obstacle part, every value at once (compiled,
+    :func:`~sweep_core.model.wall_kernels.single_gaps`): (reach, contacts, smallest value,
+    worst_single, near segment pairs), or None when some value is NaN."""
+    hc = geom.halfplane_offset + geom.halfplane_velocity * t
+    inside = (inside_polygons(q, geom) if np.any(geom.segment_polygon >= 0)
+              else _NO_POLYGON)
+    n_seg = len(geom.segment_a)
+    vals = np.empty(len(q) * (len(hc) + n_seg + len(geom.circle_radius)))
+    near_a = np.empty(len(q) * n_seg, dtype=np.intp)
+    near_k = np.empty(len(q) * n_seg, dtype=np.intp)
+    out = np.empty(6)
+    c = np.ascontiguousarray  # one compiled signature whatever the arrays' strides
+    found = single_gaps(q, r, c(geom.halfplane_normal, dtype=np.float64),
+                        c(hc, dtype=np.float64), c(geom.segment_a, dtype=np.float64),
+                        c(geom.segment_b, dtype=np.float64), c(inside),
+                        c(geom.circle_center, dtype=np.float64),
+                        c(geom.circle_radius, dtype=np.float64), float(contact_tol),
+                        float(reach), vals, near_a, near_k, out)
+    if out[3] == -2.0:
+        return None
+    worst = None
+    if out[3] >= 0:
+        worst = (int(out[4]), int(out[3]), int(out[5]), float(out[2]))
+    return (float(out[0]), int(out[1]), float(out[2]), worst,
+            (near_a[:found], near_k[:found]))
+
+
+def _found_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: float
+                ) -> list:
+    """For each kind the rows (agent, item, value) within the reach at which the eightfold
+    growth from ``reach`` first finds one (the largest tried past 1e12 m), that reach last."""
+    while True:
+        rows = single_rows(geom, t, q, r, reach)
+        if any(len(a) for a, _, _, _, _ in rows) or reach > 1e12:
+            break
+        reach *= 8.0
+    return [(a, k, g) for a, k, g, _, _ in rows] + [reach]

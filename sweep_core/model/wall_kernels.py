@@ -11,6 +11,11 @@ bounding boxes compared exactly, the four orientation determinants in float with
 error filter; a pair whose sign the filter cannot vouch for is returned as unsure, for the
 exact rational evaluation in Python (:func:`sweep_core.model.outlines.orientation`).
 
+:func:`pair_gaps` and :func:`single_gaps` are :func:`sweep_core.model.geometry.gaps`' summary
+(smallest value, its place, contacts, the segment pairs near the agents) in one pass each, the
+values the bits of :func:`near_rows` and of the numpy form; :func:`crossing_pairs` gathers the
+crossing test's candidate pairs (:func:`sweep_core.model.crossing.crossings`) and tests them.
+
 Compiled with ``cache=True`` (see :mod:`sweep_core.model.neighbours`).
 """
 from __future__ import annotations
@@ -144,3 +149,93 @@ def paths_meet_exactly(p0: np.ndarray, p1: np.ndarray, a: np.ndarray, b: np.ndar
     if unsure.any():
         hit[unsure] = segments_meet(p0[unsure], p1[unsure], a[unsure], b[unsure])
     return hit
+
+
+@numba.njit(cache=True, nogil=True)
+def pair_gaps(q: np.ndarray, r: np.ndarray, i: np.ndarray, j: np.ndarray, contact_tol: float,
+              pg: np.ndarray) -> tuple[int, int]:
+    """pg[m] = |q_i - q_j| - r_i - r_j (m) for the pairs (i, j) (M,) each; returns the count
+    of pg <= contact_tol and the first index of the smallest pg (-1 when M = 0)."""
+    contacts, w = 0, -1
+    for m in range(i.shape[0]):
+        a, b = i[m], j[m]
+        dx, dy = q[a, 0] - q[b, 0], q[a, 1] - q[b, 1]
+        v = math.sqrt(dx * dx + dy * dy) - r[a] - r[b]
+        pg[m] = v
+        if v <= contact_tol:
+            contacts += 1
+        if w < 0 or v < pg[w]:
+            w = m
+    return contacts, w
+
+
+@numba.njit(cache=True, nogil=True)
+def single_gaps(q: np.ndarray, r: np.ndarray, hn: np.ndarray, hc: np.ndarray,
+                sa: np.ndarray, sb: np.ndarray, inside: np.ndarray, cc: np.ndarray,
+                cr: np.ndarray, contact_tol: float, reach: float, vals: np.ndarray,
+                near_a: np.ndarray, near_k: np.ndarray, out: np.ndarray) -> int:
+    """The summary of every half-plane, segment and circle value at q (N, 2), r (N,) (the
+    arguments of :func:`near_rows`, whose values these are, bit for bit): vals (room for
+    N * (W + S + O)) holds them kind after kind, agent-major. The search distance starts at
+    ``reach`` and grows eightfold until some value lies within it (or it exceeds 1e12 m).
+    out (6,) float64 receives: that distance, the count of values <= contact_tol, the
+    smallest value within it, its kind (0, 1, 2), agent and item (-1: none); near_a, near_k
+    (room for N * S) the (agent, segment) pairs within it, agent-major, whose count is
+    returned. A NaN value makes out[3] = -2 (the caller then takes the numpy path)."""
+    n = q.shape[0]
+    polygons = inside.shape[0] > 0
+    nh, ns, nc = hn.shape[0], sa.shape[0], cc.shape[0]
+    low = math.inf
+    m = 0
+    for a in range(n):
+        x, y, ra = q[a, 0], q[a, 1], r[a]
+        for k in range(nh):
+            vals[m] = (x * hn[k, 0] + y * hn[k, 1] - hc[k]) - ra
+            m += 1
+    for a in range(n):
+        x, y, ra = q[a, 0], q[a, 1], r[a]
+        for k in range(ns):
+            ax, ay = sa[k, 0], sa[k, 1]
+            abx, aby = sb[k, 0] - ax, sb[k, 1] - ay
+            s = ((x - ax) * abx + (y - ay) * aby) / (abx * abx + aby * aby)
+            s = min(max(s, 0.0), 1.0)
+            dx, dy = x - (ax + s * abx), y - (ay + s * aby)
+            dist = math.sqrt(dx * dx + dy * dy)
+            val = dist - ra
+            if polygons and inside[a, k]:
+                val = -dist - ra
+            vals[m] = val
+            m += 1
+    for a in range(n):
+        x, y, ra = q[a, 0], q[a, 1], r[a]
+        for k in range(nc):
+            dx, dy = x - cc[k, 0], y - cc[k, 1]
+            vals[m] = (math.sqrt(dx * dx + dy * dy) - cr[k]) - ra
+            m += 1
+    for u in range(m):
+        if math.isnan(vals[u]):
+            out[3] = -2.0
+            return 0
+        low = min(low, vals[u])
+    while not (low <= reach or reach > 1e12):
+        reach *= 8.0
+    out[0] = reach
+    contacts = 0
+    best, kind, who, item = math.inf, -1, -1, -1
+    found = 0
+    start = 0
+    for kd, width in enumerate((nh, ns, nc)):
+        for u in range(n * width):
+            v = vals[start + u]
+            if v > reach:
+                continue
+            if v <= contact_tol:
+                contacts += 1
+            if v < best:
+                best, kind, who, item = v, kd, u // width, u % width
+            if kd == 1:
+                near_a[found], near_k[found] = u // width, u % width
+                found += 1
+        start += n * width
+    out[1], out[2], out[3], out[4], out[5] = contacts, best, kind, who, item
+    return found
