@@ -125,3 +125,29 @@ def test_gaps_pairs_are_the_numpy_forms_bits() -> None:
     singles = sum(int(np.count_nonzero(g <= 1e-6)) for g, _, _ in
                   single_values(_scene().geometry, 0.0, q, r)[:3])
     assert got.contacts == int(np.count_nonzero(want <= 1e-6)) + singles
+
+
+@pytest.mark.parametrize("with_near", [True, False])
+def test_crossings_in_one_pass_are_the_searched_ones(monkeypatch: pytest.MonkeyPatch,
+                                                     with_near: bool) -> None:
+    """The compiled candidates-and-test pass of crossings() finds the pairs the spatial
+    search (forced here) finds: paths through walls, a polygon's edges, a
+    path ending on a wall, paths that stay put."""
+    from sweep_core.model import crossing
+    from sweep_core.model.geometry import gaps
+
+    geom = _scene().geometry
+    rng = np.random.default_rng(5)
+    q0 = rng.uniform(-5.0, 10.0, (400, 2))
+    q1 = q0 + rng.normal(0.0, 1.5, (400, 2))
+    q1[:3] = q0[:3]  # did not move
+    q0[3], q1[3] = [-3.0, 4.0], [-3.0, 6.0]  # through the segment wall
+    q0[4], q1[4] = [0.5, 4.5], [0.5, 5.5]  # ends on it
+    r = np.full(400, 0.2)
+    near = gaps(geom, 0.0, q1, r) if with_near else None
+    fast = crossing.crossings(geom, q0, q1, r, near)
+    monkeypatch.setattr(crossing, "DENSE_PAIRS", -1)
+    slow = crossing.crossings(geom, q0, q1, r, near)
+    assert sorted(zip(*(v.tolist() for v in fast))) == sorted(zip(*(v.tolist() for v in slow)))
+    assert 3 in fast[0].tolist() and 4 in fast[0].tolist() and len(fast[0]) > 10
+    assert not {0, 1, 2} & set(fast[0].tolist())

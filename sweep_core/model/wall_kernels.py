@@ -239,3 +239,74 @@ def single_gaps(q: np.ndarray, r: np.ndarray, hn: np.ndarray, hc: np.ndarray,
         start += n * width
     out[1], out[2], out[3], out[4], out[5] = contacts, best, kind, who, item
     return found
+
+
+@numba.njit(cache=True, nogil=True)
+def _path_meets(ax: float, ay: float, bx: float, by: float, cx: float, cy: float, dx: float,
+                dy: float) -> tuple[bool, bool]:
+    """(hit, unsure) of :func:`paths_meet` for one pair [a, b], [c, d]."""
+    if not (min(ax, bx) <= max(cx, dx) and min(cx, dx) <= max(ax, bx)
+            and min(ay, by) <= max(cy, dy) and min(cy, dy) <= max(ay, by)):
+        return False, False
+    o1, s1 = _orient(ax, ay, bx, by, cx, cy)
+    o2, s2 = _orient(ax, ay, bx, by, dx, dy)
+    o3, s3 = _orient(cx, cy, dx, dy, ax, ay)
+    o4, s4 = _orient(cx, cy, dx, dy, bx, by)
+    if not (s1 and s2 and s3 and s4):
+        return False, True
+    return ((o1 * o2 < 0 and o3 * o4 < 0)
+            or (o1 == 0 and _within(cx, cy, ax, ay, bx, by))
+            or (o2 == 0 and _within(dx, dy, ax, ay, bx, by))
+            or (o3 == 0 and _within(ax, ay, cx, cy, dx, dy))
+            or (o4 == 0 and _within(bx, by, cx, cy, dx, dy))), False
+
+
+@numba.njit(cache=True, nogil=True)
+def crossing_pairs(q0: np.ndarray, q1: np.ndarray, r1: np.ndarray, near_a: np.ndarray,
+                   near_k: np.ndarray, reach: float, sa: np.ndarray, sb: np.ndarray,
+                   static: np.ndarray, dense: int, out_i: np.ndarray, out_k: np.ndarray,
+                   out_unsure: np.ndarray) -> int:
+    """:func:`sweep_core.model.crossing.crossings`' candidates and their test in one pass:
+    the near pairs (near_a, near_k) and, for every agent that moved farther than reach +
+    r1 (every agent when reach < 0), each static segment; a candidate is kept when its
+    segment is static and its agent moved. Writes the candidates whose path meets their
+    segment, or which the error filter leaves unsure (out_unsure), in the candidates' order
+    into out_i, out_k (room for len(near_a) + N * S); returns their count, or -1 when the far
+    agents times the static segments exceed ``dense`` (the caller searches them instead)."""
+    n, ns = q0.shape[0], sa.shape[0]
+    n_static = 0
+    for k in range(ns):
+        if static[k]:
+            n_static += 1
+    far = 0
+    for a in range(n):
+        step = math.hypot(q1[a, 0] - q0[a, 0], q1[a, 1] - q0[a, 1])
+        if step > (-1.0 if reach < 0 else reach + r1[a]):
+            far += 1
+    if far * n_static > dense:
+        return -1
+    m = 0
+    for u in range(near_a.shape[0]):
+        a, k = near_a[u], near_k[u]
+        if not static[k] or (q1[a, 0] == q0[a, 0] and q1[a, 1] == q0[a, 1]):
+            continue
+        hit, unsure = _path_meets(q0[a, 0], q0[a, 1], q1[a, 0], q1[a, 1], sa[k, 0], sa[k, 1],
+                                  sb[k, 0], sb[k, 1])
+        if hit or unsure:
+            out_i[m], out_k[m], out_unsure[m] = a, k, unsure
+            m += 1
+    for a in range(n):
+        if q1[a, 0] == q0[a, 0] and q1[a, 1] == q0[a, 1]:
+            continue
+        step = math.hypot(q1[a, 0] - q0[a, 0], q1[a, 1] - q0[a, 1])
+        if not step > (-1.0 if reach < 0 else reach + r1[a]):
+            continue
+        for k in range(ns):
+            if not static[k]:
+                continue
+            hit, unsure = _path_meets(q0[a, 0], q0[a, 1], q1[a, 0], q1[a, 1], sa[k, 0],
+                                      sa[k, 1], sb[k, 0], sb[k, 1])
+            if hit or unsure:
+                out_i[m], out_k[m], out_unsure[m] = a, k, unsure
+                m += 1
+    return m
