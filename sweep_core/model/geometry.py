@@ -3,11 +3,16 @@
 The feasible set Q(t) = {q : |q_i - q_j| >= r_i(t) + r_j(t), g_k(t, q_i) >= 0}: this module
 evaluates those functions exactly (no linearisation; that is :mod:`sweep_core.numerics.constraints`).
 Distances in m, positions (N, 2).
+
+Longer than the usual module because the geometry's three evaluations (every value, the rows
+within a reach, the gaps' summary) share its arrays and item codes; the compiled loops are in
+:mod:`sweep_core.model.wall_kernels`.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -79,6 +84,34 @@ class Geometry:
         if len(self.circle_motion) != len(self.circle_radius):
             object.__setattr__(self, "circle_motion",
                                np.full(len(self.circle_radius), -1, dtype=np.intp))
+
+    @cached_property
+    def packed(self) -> tuple[np.ndarray, ...]:
+        """The arrays the compiled kernels take, C-contiguous float64, computed once: the
+        half-planes' normals (W, 2) and offsets at t = 0 plus 0.0 (W,), the segments' ends
+        (S, 2) each, the circles' centres (O, 2) and radii (O,)."""
+        c = np.ascontiguousarray
+        return (c(self.halfplane_normal, dtype=np.float64),
+                c(self.halfplane_offset + self.halfplane_velocity * 0.0, dtype=np.float64),
+                c(self.segment_a, dtype=np.float64), c(self.segment_b, dtype=np.float64),
+                c(self.circle_center, dtype=np.float64), c(self.circle_radius, dtype=np.float64))
+
+    @cached_property
+    def fixed_halfplanes(self) -> bool:
+        """No half-plane moves (their offsets at any t are those at t = 0)."""
+        return not np.any(self.halfplane_velocity)
+
+    @cached_property
+    def has_polygons(self) -> bool:
+        """Some segment is the edge of a solid polygon."""
+        return bool(np.any(self.segment_polygon >= 0))
+
+    def offsets(self, t: float) -> np.ndarray:
+        """(W,) the half-planes' offsets c + v t at t (s), m, C-contiguous float64."""
+        if self.fixed_halfplanes:
+            return self.packed[1]
+        return np.ascontiguousarray(self.halfplane_offset + self.halfplane_velocity * t,
+                                    dtype=np.float64)
 
     @property
     def is_moving(self) -> bool:
@@ -249,19 +282,15 @@ def _dense_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: f
     :func:`single_values`), user constraints through :func:`single_values`' own code."""
     q = np.ascontiguousarray(q, dtype=np.float64)
     r = np.ascontiguousarray(r, dtype=np.float64)
-    hc = geom.halfplane_offset + geom.halfplane_velocity * t
-    inside = (inside_polygons(q, geom) if np.any(geom.segment_polygon >= 0)
-              else _NO_POLYGON)
-    room = len(q) * (len(hc) + len(geom.segment_a) + len(geom.circle_radius))
+    hc = geom.offsets(t)
+    inside = inside_polygons(q, geom) if geom.has_polygons else _NO_POLYGON
+    hn, _, sa, sb, cc, cr = geom.packed
+    room = len(q) * (len(hc) + len(sa) + len(cr))
     agent, item = np.empty(room, dtype=np.intp), np.empty(room, dtype=np.intp)
     g, nrm, foot = np.empty(room), np.empty((room, 2)), np.empty(room)
     counts = np.zeros(3, dtype=np.intp)
-    c = np.ascontiguousarray  # one compiled signature whatever the arrays' strides
-    near_rows(q, r, float(reach), c(geom.halfplane_normal, dtype=np.float64),
-              c(hc, dtype=np.float64), c(geom.segment_a, dtype=np.float64),
-              c(geom.segment_b, dtype=np.float64), c(inside), c(geom.circle_center,
-              dtype=np.float64), c(geom.circle_radius, dtype=np.float64), agent, item, g, nrm,
-              foot, counts)
+    near_rows(q, r, float(reach), hn, hc, sa, sb, inside, cc, cr, agent, item, g, nrm, foot,
+              counts)
     out = []
     start = 0
     for c in counts.tolist():
@@ -380,21 +409,15 @@ def _dense_gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, contact_
     """:func:`gaps`' wall and obstacle part, every value at once (compiled,
     :func:`~sweep_core.model.wall_kernels.single_gaps`): (reach, contacts, smallest value,
     worst_single, near segment pairs), or None when some value is NaN."""
-    hc = geom.halfplane_offset + geom.halfplane_velocity * t
-    inside = (inside_polygons(q, geom) if np.any(geom.segment_polygon >= 0)
-              else _NO_POLYGON)
-    n_seg = len(geom.segment_a)
-    vals = np.empty(len(q) * (len(hc) + n_seg + len(geom.circle_radius)))
-    near_a = np.empty(len(q) * n_seg, dtype=np.intp)
-    near_k = np.empty(len(q) * n_seg, dtype=np.intp)
+    hc = geom.offsets(t)
+    inside = inside_polygons(q, geom) if geom.has_polygons else _NO_POLYGON
+    hn, _, sa, sb, cc, cr = geom.packed
+    vals = np.empty(len(q) * (len(hc) + len(sa) + len(cr)))
+    near_a = np.empty(len(q) * len(sa), dtype=np.intp)
+    near_k = np.empty(len(q) * len(sa), dtype=np.intp)
     out = np.empty(6)
-    c = np.ascontiguousarray  # one compiled signature whatever the arrays' strides
-    found = single_gaps(q, r, c(geom.halfplane_normal, dtype=np.float64),
-                        c(hc, dtype=np.float64), c(geom.segment_a, dtype=np.float64),
-                        c(geom.segment_b, dtype=np.float64), c(inside),
-                        c(geom.circle_center, dtype=np.float64),
-                        c(geom.circle_radius, dtype=np.float64), float(contact_tol),
-                        float(reach), vals, near_a, near_k, out)
+    found = single_gaps(q, r, hn, hc, sa, sb, inside, cc, cr, float(contact_tol), float(reach),
+                        vals, near_a, near_k, out)
     if out[3] == -2.0:
         return None
     worst = None
