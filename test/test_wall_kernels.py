@@ -151,3 +151,29 @@ def test_crossings_in_one_pass_are_the_searched_ones(monkeypatch: pytest.MonkeyP
     assert sorted(zip(*(v.tolist() for v in fast))) == sorted(zip(*(v.tolist() for v in slow)))
     assert 3 in fast[0].tolist() and 4 in fast[0].tolist() and len(fast[0]) > 10
     assert not {0, 1, 2} & set(fast[0].tolist())
+
+
+@pytest.mark.parametrize("cut", [0.0, 0.3, 2.0])
+def test_linearised_rows_in_one_pass_are_the_numpy_forms(monkeypatch: pytest.MonkeyPatch,
+                                                         cut: float) -> None:
+    """linearise()'s compiled pair rows and single rows hold the bits, order and kinds of the
+    rows built through single_rows and numpy (the path of many segments, forced here)."""
+    from sweep_core.numerics import constraints
+
+    geom = _scene().geometry
+    rng = np.random.default_rng(7)
+    q = rng.uniform(-5.0, 10.0, (300, 2))
+    r = rng.uniform(0.1, 0.3, 300)
+    fast = constraints.linearise(geom, 0.4, q, r, cut)
+    monkeypatch.setattr(constraints, "DENSE_SEGMENTS", -1)
+    slow = constraints.linearise(geom, 0.4, q, r, cut)
+    d = q[slow.pair_i] - q[slow.pair_j]
+    dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+    assert np.array_equal(slow.pair_e, d / np.maximum(dist, 1e-300)[:, None])
+    assert len(fast.pair_b) > 0 and len(fast.single_b) > 0
+    assert set(fast.single_kind.tolist()) == {0, 1, 2}
+    for name in ("pair_i", "pair_j", "pair_e", "pair_b", "single_a", "single_n", "single_b",
+                 "single_kind", "single_item"):
+        got, want = getattr(fast, name), getattr(slow, name)
+        assert got.dtype == want.dtype and got.shape == want.shape, name
+        assert np.array_equal(got.view(np.uint8), want.view(np.uint8)), name

@@ -275,13 +275,13 @@ def single_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: f
     return out
 
 
-def _dense_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: float
-                ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
-    """:func:`single_rows` evaluated against every item: half-planes, segments and circles in
-    one compiled pass (:func:`~sweep_core.model.wall_kernels.near_rows`, the bits of
-    :func:`single_values`), user constraints through :func:`single_values`' own code."""
-    q = np.ascontiguousarray(q, dtype=np.float64)
-    r = np.ascontiguousarray(r, dtype=np.float64)
+def dense_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: float
+               ) -> tuple[np.ndarray, ...]:
+    """The half-plane, segment and circle rows of a geometry with nothing moving within
+    ``reach`` (m) at (t, q) (q (N, 2), r (N,) C-contiguous float64) in one compiled pass
+    (:func:`~sweep_core.model.wall_kernels.near_rows`, the bits of :func:`single_values`):
+    agent (M,), item (M,), value (M,), unit normal (M, 2), foot (M,), kind after kind, and
+    the count of each kind (3,)."""
     hc = geom.offsets(t)
     inside = inside_polygons(q, geom) if geom.has_polygons else _NO_POLYGON
     hn, _, sa, sb, cc, cr = geom.packed
@@ -289,8 +289,19 @@ def _dense_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: f
     agent, item = np.empty(room, dtype=np.intp), np.empty(room, dtype=np.intp)
     g, nrm, foot = np.empty(room), np.empty((room, 2)), np.empty(room)
     counts = np.zeros(3, dtype=np.intp)
-    near_rows(q, r, float(reach), hn, hc, sa, sb, inside, cc, cr, agent, item, g, nrm, foot,
-              counts)
+    m = near_rows(q, r, float(reach), hn, hc, sa, sb, inside, cc, cr, agent, item, g, nrm, foot,
+                  counts)
+    return agent[:m], item[:m], g[:m], nrm[:m], foot[:m], counts
+
+
+def _dense_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: float
+                ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """:func:`single_rows` evaluated against every item: half-planes, segments and circles in
+    one compiled pass (:func:`dense_rows`), user constraints through :func:`single_values`'
+    own code."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    r = np.ascontiguousarray(r, dtype=np.float64)
+    agent, item, g, nrm, foot, counts = dense_rows(geom, t, q, r, reach)
     out = []
     start = 0
     for c in counts.tolist():

@@ -35,11 +35,12 @@ _ORIENT_BOUND = (3.0 + 16.0 * 2.0 ** -53) * 2.0 ** -53
 def near_rows(q: np.ndarray, r: np.ndarray, reach: float, hn: np.ndarray, hc: np.ndarray,
               sa: np.ndarray, sb: np.ndarray, inside: np.ndarray, cc: np.ndarray,
               cr: np.ndarray, agent: np.ndarray, item: np.ndarray, g: np.ndarray,
-              nrm: np.ndarray, foot: np.ndarray, counts: np.ndarray) -> None:
+              nrm: np.ndarray, foot: np.ndarray, counts: np.ndarray) -> int:
     """Every (agent, item) of the half-planes hn (W, 2), hc (W,) (offsets at t), segments
     [sa, sb] (S, 2) and circles cc (O, 2), cr (O,) whose value at q (N, 2), r (N,) is <= reach
     (m), written kind after kind into agent, item, g, nrm (M, 2), foot (M,) (room for
-    N * (W + S + O) rows), agent-major within a kind; counts (3,) the rows of each kind.
+    N * (W + S + O) rows), agent-major within a kind; counts (3,) the rows of each kind;
+    returns their total.
     inside (N, S) bool: the centre lies inside the solid polygon segment k bounds (value
     -dist - r), or shape (0, 0) when no segment bounds one."""
     n = q.shape[0]
@@ -91,6 +92,7 @@ def near_rows(q: np.ndarray, r: np.ndarray, reach: float, hn: np.ndarray, hc: np
                 foot[m] = (ex * cc[k, 0] + ey * cc[k, 1]) + cr[k]
                 m += 1
     counts[2] = m - start
+    return m
 
 
 @numba.njit(cache=True, nogil=True)
@@ -309,4 +311,26 @@ def crossing_pairs(q0: np.ndarray, q1: np.ndarray, r1: np.ndarray, near_a: np.nd
             if hit or unsure:
                 out_i[m], out_k[m], out_unsure[m] = a, k, unsure
                 m += 1
+    return m
+
+
+@numba.njit(cache=True, nogil=True)
+def pair_rows(q: np.ndarray, r: np.ndarray, i: np.ndarray, j: np.ndarray, cut: float,
+              out_i: np.ndarray, out_j: np.ndarray, out_e: np.ndarray, out_b: np.ndarray
+              ) -> int:
+    """The linearised pair rows (:func:`sweep_core.numerics.constraints.linearise`) of the
+    pairs (i, j) (M,) whose gap |q_i - q_j| - r_i - r_j is <= cut (m): their agents, unit
+    vectors e = (q_i - q_j) / |q_i - q_j| (M, 2) and bounds r_i + r_j (m), in the pairs'
+    order (the numpy form's bits); returns their count."""
+    m = 0
+    for u in range(i.shape[0]):
+        a, b = i[u], j[u]
+        dx, dy = q[a, 0] - q[b, 0], q[a, 1] - q[b, 1]
+        dist = math.sqrt(dx * dx + dy * dy)
+        if dist - r[a] - r[b] <= cut:
+            den = max(dist, 1e-300)
+            out_i[m], out_j[m] = a, b
+            out_e[m, 0], out_e[m, 1] = dx / den, dy / den
+            out_b[m] = r[a] + r[b]
+            m += 1
     return m
