@@ -106,6 +106,25 @@ class Geometry:
         """Some segment is the edge of a solid polygon."""
         return bool(np.any(self.segment_polygon >= 0))
 
+    def with_circles(self, centres: np.ndarray, radii: np.ndarray) -> Geometry:
+        """This geometry with static circle obstacles added (centres (M, 2), radii (M,) m,
+        item indices after its own circles, scene index -1), its packed arrays carried over."""
+        m = len(radii)
+        out = replace(self, circle_center=np.concatenate([self.circle_center, centres]),
+                      circle_radius=np.concatenate([self.circle_radius, radii]),
+                      circle_index=np.concatenate([self.circle_index,
+                                                   np.full(m, -1, dtype=self.circle_index.dtype)]),
+                      circle_motion=np.concatenate([self.circle_motion,
+                                                    np.full(m, -1, dtype=np.intp)]))
+        hn, off, sa, sb, _, _ = self.packed
+        cache = out.__dict__
+        cache["packed"] = (hn, off, sa, sb, np.ascontiguousarray(out.circle_center,
+                                                                 dtype=np.float64),
+                           np.ascontiguousarray(out.circle_radius, dtype=np.float64))
+        cache["fixed_halfplanes"], cache["has_polygons"] = self.fixed_halfplanes, \
+            self.has_polygons
+        return out
+
     def offsets(self, t: float) -> np.ndarray:
         """(W,) the half-planes' offsets c + v t at t (s), m, C-contiguous float64."""
         if self.fixed_halfplanes:
