@@ -177,3 +177,30 @@ def test_linearised_rows_in_one_pass_are_the_numpy_forms(monkeypatch: pytest.Mon
         got, want = getattr(fast, name), getattr(slow, name)
         assert got.dtype == want.dtype and got.shape == want.shape, name
         assert np.array_equal(got.view(np.uint8), want.view(np.uint8)), name
+
+
+def test_with_circles_is_replace_with_the_packed_arrays_carried() -> None:
+    """Geometry.with_circles (the robots' disks, every step) gives the fields replace() gives
+    and the packed arrays a fresh geometry packs."""
+    import dataclasses
+
+    from sweep_core.model.geometry import Geometry
+
+    geom = _scene().geometry
+    geom.packed  # noqa: B018 - packed before, as in a run
+    centres, radii = np.array([[1.0, 2.0], [4.0, 0.5]]), np.array([0.3, 0.25])
+    got = geom.with_circles(centres, radii)
+    want = dataclasses.replace(
+        geom, circle_center=np.concatenate([geom.circle_center, centres]),
+        circle_radius=np.concatenate([geom.circle_radius, radii]),
+        circle_index=np.concatenate([geom.circle_index, [-1, -1]]),
+        circle_motion=np.concatenate([geom.circle_motion, [-1, -1]]))
+    for f in dataclasses.fields(Geometry):
+        a, b = getattr(got, f.name), getattr(want, f.name)
+        if isinstance(a, np.ndarray):
+            assert a.dtype == b.dtype and np.array_equal(a, b), f.name
+        else:
+            assert a == b, f.name
+    for a, b in zip(got.packed, want.packed):
+        assert np.array_equal(a, b)
+    assert len(got.circle_radius) == len(geom.circle_radius) + 2
