@@ -62,3 +62,35 @@ def test_recorded_row_pairs_each_recorded_step_with_an_engine_step() -> None:
     assert row["note"].startswith("steps 21-24,")  # four recorded steps measured
     assert row["sweep_median_ms"] > 0 and row["other_median_ms"] > 0
     assert math.isclose(row["ratio"], row["sweep_median_ms"] / row["other_median_ms"])
+
+
+def test_the_single_environments_rate_resets_it_at_the_end_of_an_episode(monkeypatch):
+    """Stepping an ended episode is not stepping the environment: env_rates resets the single
+    environment when an episode ends (every 7 steps here) and the vectorised one resets its
+    own environments."""
+    import sweep_core.envs as envs
+
+    class Episodes:
+        action_space = type("Box", (), {"shape": (2,)})()
+
+        def __init__(self) -> None:
+            self.resets, self.t = 0, 0
+
+        def reset(self, seed=None):
+            self.resets, self.t = self.resets + 1, 0
+            return {}, {}
+
+        def step(self, action):
+            assert self.t < 7, "stepped an ended episode"
+            self.t += 1
+            return {}, 0.0, self.t == 7, False, {}
+
+        def close(self) -> None:
+            pass
+
+    env = Episodes()
+    monkeypatch.setattr(envs, "make_single", lambda: env)
+    monkeypatch.setattr(envs, "has_vector", lambda: False)
+    rows = steps.env_rates(70, 32)
+    assert len(rows) == 1 and np.isfinite(rows[0]["sweep_median_ms"])
+    assert env.resets == 1 + (10 + 70) // 7

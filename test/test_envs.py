@@ -109,3 +109,27 @@ def test_the_bundled_scene_makes_the_default_environment():
     obs, _ = env.reset(seed=0)
     assert env.observation_space.contains(obs)
     assert obs["goal"] == pytest.approx([10.0, 0.0])  # from (1, 3) facing east to (11, 3)
+
+
+def test_episodes_do_not_build_the_driven_robots_controller(monkeypatch):
+    """The actions replace the driven robot's controller, so its navigation field is not
+    built at each reset; the episodes are those of the same scene with controller none."""
+    from sweep_core.envs.crowdnav import DEFAULT_SCENE
+    from sweep_core.model.scene import load_scene
+    from sweep_core.numerics.robots import planners
+
+    scene = load_scene(str(DEFAULT_SCENE))
+    assert scene.robots[0].controller == "social_force"
+    spec = dict(scene.spec, robots=[dict(scene.spec["robots"][0], controller="none")])
+    plain = CrowdNavEnv(spec, max_steps=30)
+    want = episode(plain, 3, 30)
+
+    build = planners.controller_for
+
+    def refuse(scene, robot):
+        assert robot.controller == "none", "the driven robot's controller was built"
+        return build(scene, robot)
+
+    monkeypatch.setattr(planners, "controller_for", refuse)
+    env = CrowdNavEnv(scene, max_steps=30)
+    assert same(episode(env, 3, 30), want)

@@ -102,3 +102,105 @@ def test_gaps_from_every_value_equal_the_doubling_search(monkeypatch: pytest.Mon
     assert sorted(zip(fast.near_agent.tolist(), fast.near_segment.tolist())) == \
         sorted(zip(slow.near_agent.tolist(), slow.near_segment.tolist()))
     assert len(fast.near_agent) > 0 or spread != 8.0  # a crowd among the segments
+
+
+def test_gaps_pairs_are_the_numpy_forms_bits() -> None:
+    """The compiled pair gaps of gaps() hold the numpy form's bits, its contacts and its
+    first smallest pair; agents touching and overlapping included."""
+    from sweep_core.model.geometry import gaps
+
+    rng = np.random.default_rng(4)
+    q = rng.uniform(0.0, 6.0, (200, 2))
+    q[1] = q[0] + [0.4, 0.0]  # touching (radii 0.2)
+    q[3] = q[2] + [0.1, 0.3]  # overlapping
+    r = np.full(200, 0.2)
+    got = gaps(_scene().geometry, 0.0, q, r, contact_tol=1e-6)
+    d = q[got.pair_i] - q[got.pair_j]
+    want = np.sqrt(np.einsum("ij,ij->i", d, d)) - r[got.pair_i] - r[got.pair_j]
+    assert len(want) > 10
+    assert np.array_equal(got.pair_gap.view(np.uint8), want.view(np.uint8))
+    w = int(np.argmin(want))
+    assert got.worst_pair == (int(got.pair_i[w]), int(got.pair_j[w]), float(want[w]))
+    assert got.min_pair == float(want.min()) < 0
+    singles = sum(int(np.count_nonzero(g <= 1e-6)) for g, _, _ in
+                  single_values(_scene().geometry, 0.0, q, r)[:3])
+    assert got.contacts == int(np.count_nonzero(want <= 1e-6)) + singles
+
+
+@pytest.mark.parametrize("with_near", [True, False])
+def test_crossings_in_one_pass_are_the_searched_ones(monkeypatch: pytest.MonkeyPatch,
+                                                     with_near: bool) -> None:
+    """The compiled candidates-and-test pass of crossings() finds the pairs the spatial
+    search (forced here) finds: paths through walls, a polygon's edges, a
+    path ending on a wall, paths that stay put."""
+    from sweep_core.model import crossing
+    from sweep_core.model.geometry import gaps
+
+    geom = _scene().geometry
+    rng = np.random.default_rng(5)
+    q0 = rng.uniform(-5.0, 10.0, (400, 2))
+    q1 = q0 + rng.normal(0.0, 1.5, (400, 2))
+    q1[:3] = q0[:3]  # did not move
+    q0[3], q1[3] = [-3.0, 4.0], [-3.0, 6.0]  # through the segment wall
+    q0[4], q1[4] = [0.5, 4.5], [0.5, 5.5]  # ends on it
+    r = np.full(400, 0.2)
+    near = gaps(geom, 0.0, q1, r) if with_near else None
+    fast = crossing.crossings(geom, q0, q1, r, near)
+    monkeypatch.setattr(crossing, "DENSE_PAIRS", -1)
+    slow = crossing.crossings(geom, q0, q1, r, near)
+    assert sorted(zip(*(v.tolist() for v in fast))) == sorted(zip(*(v.tolist() for v in slow)))
+    assert 3 in fast[0].tolist() and 4 in fast[0].tolist() and len(fast[0]) > 10
+    assert not {0, 1, 2} & set(fast[0].tolist())
+
+
+@pytest.mark.parametrize("cut", [0.0, 0.3, 2.0])
+def test_linearised_rows_in_one_pass_are_the_numpy_forms(monkeypatch: pytest.MonkeyPatch,
+                                                         cut: float) -> None:
+    """linearise()'s compiled pair rows and single rows hold the bits, order and kinds of the
+    rows built through single_rows and numpy (the path of many segments, forced here)."""
+    from sweep_core.numerics import constraints
+
+    geom = _scene().geometry
+    rng = np.random.default_rng(7)
+    q = rng.uniform(-5.0, 10.0, (300, 2))
+    r = rng.uniform(0.1, 0.3, 300)
+    fast = constraints.linearise(geom, 0.4, q, r, cut)
+    monkeypatch.setattr(constraints, "DENSE_SEGMENTS", -1)
+    slow = constraints.linearise(geom, 0.4, q, r, cut)
+    d = q[slow.pair_i] - q[slow.pair_j]
+    dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+    assert np.array_equal(slow.pair_e, d / np.maximum(dist, 1e-300)[:, None])
+    assert len(fast.pair_b) > 0 and len(fast.single_b) > 0
+    assert set(fast.single_kind.tolist()) == {0, 1, 2}
+    for name in ("pair_i", "pair_j", "pair_e", "pair_b", "single_a", "single_n", "single_b",
+                 "single_kind", "single_item"):
+        got, want = getattr(fast, name), getattr(slow, name)
+        assert got.dtype == want.dtype and got.shape == want.shape, name
+        assert np.array_equal(got.view(np.uint8), want.view(np.uint8)), name
+
+
+def test_with_circles_is_replace_with_the_packed_arrays_carried() -> None:
+    """Geometry.with_circles (the robots' disks, every step) gives the fields replace() gives
+    and the packed arrays a fresh geometry packs."""
+    import dataclasses
+
+    from sweep_core.model.geometry import Geometry
+
+    geom = _scene().geometry
+    geom.packed  # noqa: B018 - packed before, as in a run
+    centres, radii = np.array([[1.0, 2.0], [4.0, 0.5]]), np.array([0.3, 0.25])
+    got = geom.with_circles(centres, radii)
+    want = dataclasses.replace(
+        geom, circle_center=np.concatenate([geom.circle_center, centres]),
+        circle_radius=np.concatenate([geom.circle_radius, radii]),
+        circle_index=np.concatenate([geom.circle_index, [-1, -1]]),
+        circle_motion=np.concatenate([geom.circle_motion, [-1, -1]]))
+    for f in dataclasses.fields(Geometry):
+        a, b = getattr(got, f.name), getattr(want, f.name)
+        if isinstance(a, np.ndarray):
+            assert a.dtype == b.dtype and np.array_equal(a, b), f.name
+        else:
+            assert a == b, f.name
+    for a, b in zip(got.packed, want.packed):
+        assert np.array_equal(a, b)
+    assert len(got.circle_radius) == len(geom.circle_radius) + 2

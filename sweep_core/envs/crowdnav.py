@@ -33,6 +33,7 @@ holds the people's velocities in float32).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -126,6 +127,11 @@ class CrowdNavEnv(gymnasium.Env):
         self.box = spaces.Box(-high, high, dtype=np.float64)
         self.action_space = self.box
         self.range_max = float(spec["scan"].get("range_max", 10.0))
+        # the scene the episodes run: this robot without its controller, which the actions
+        # replace (building it, a navigation field, cost more than a hundred steps per reset)
+        self.run_scene = replace(self.scene, robots=tuple(
+            replace(r, controller="none", controller_params=()) if r.name == name else r
+            for r in self.scene.robots))
         self.sim = self._simulator(0)
         self.beams = len(self._ranges())
         self.observation_space = spaces.Dict({
@@ -142,7 +148,7 @@ class CrowdNavEnv(gymnasium.Env):
     def _simulator(self, seed: int) -> Simulator:
         """A new run of the scene; this robot is driven by the actions (its controller, if the
         scene gives one, is set aside; the scene's other robots keep theirs)."""
-        sim = Simulator(self.scene, self.dt, seed, scheme=self.scheme)
+        sim = Simulator(self.run_scene, self.dt, seed, scheme=self.scheme)
         assert sim.robots is not None
         sim.robots.controllers.pop(self.name, None)
         return sim

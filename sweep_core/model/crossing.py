@@ -21,7 +21,8 @@ import numpy as np
 
 from sweep_core.model.geometry import Gaps, Geometry
 from sweep_core.model.neighbours import segments_within
-from sweep_core.model.wall_kernels import paths_meet_exactly
+from sweep_core.model.outlines import segments_meet
+from sweep_core.model.wall_kernels import crossing_pairs, paths_meet_exactly
 
 #: agent x segment pairs up to which candidates are found by direct bounding-box comparison
 DENSE_PAIRS = 1 << 16
@@ -37,25 +38,47 @@ def crossings(geom: Geometry, q0: np.ndarray, q1: np.ndarray, r1: np.ndarray,
     segment ends within its length of it, so its value there is at most |q1 - q0| - r1_i);
     agents that moved farther (or all, without ``near``) are searched here."""
     static = geom.segment_motion < 0
+    empty = np.empty(0, dtype=np.intp)
+    if len(static) == 0:
+        return empty, empty
+    q0 = np.ascontiguousarray(q0, dtype=np.float64)
+    q1 = np.ascontiguousarray(q1, dtype=np.float64)
+    r1 = np.ascontiguousarray(r1, dtype=np.float64)
+    i, k = (empty, empty) if near is None else (near.near_agent, near.near_segment)
+    room = len(i) + max(0, min(len(q0) * len(static), DENSE_PAIRS))
+    out_i, out_k = np.empty(room, dtype=np.intp), np.empty(room, dtype=np.intp)
+    unsure = np.empty(room, dtype=np.bool_)
+    # the candidates gathered and tested in one compiled pass: bounding boxes (exact
+    # comparisons), then the orientations in float where the error filter vouches for their
+    # signs; the pairs it leaves unsure are decided exactly here
+    found = crossing_pairs(q0, q1, r1, np.ascontiguousarray(i, dtype=np.intp),
+                           np.ascontiguousarray(k, dtype=np.intp),
+                           -1.0 if near is None else float(near.reach),
+                           np.ascontiguousarray(geom.segment_a, dtype=np.float64),
+                           np.ascontiguousarray(geom.segment_b, dtype=np.float64),
+                           static, DENSE_PAIRS, out_i, out_k, unsure)
+    if found >= 0:
+        i, k, unsure = out_i[:found], out_k[:found], unsure[:found]
+        hit = ~unsure
+        if unsure.any():
+            hit[unsure] = segments_meet(q0[i[unsure]], q1[i[unsure]],
+                                        geom.segment_a[k[unsure]], geom.segment_b[k[unsure]])
+        return i[hit], k[hit]
+    return _searched(geom, q0, q1, r1, near, static)
+
+
+def _searched(geom: Geometry, q0: np.ndarray, q1: np.ndarray, r1: np.ndarray,
+              near: Gaps | None, static: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`crossings` with the far agents' candidates found by the spatial index."""
     step = np.hypot(q1[:, 0] - q0[:, 0], q1[:, 1] - q0[:, 1])
     empty = np.empty(0, dtype=np.intp)
-    if not np.any(static) or not np.any(step > 0):
-        return empty, empty
     i, k = (empty, empty) if near is None else (near.near_agent, near.near_segment)
     far = np.flatnonzero(step > (-1.0 if near is None else near.reach + r1))
-    if len(far):
-        seg = np.flatnonzero(static)
-        if len(far) * len(seg) <= DENSE_PAIRS:
-            fi, fk = (m.ravel() for m in np.meshgrid(np.arange(len(far)), np.arange(len(seg)),
-                                                      indexing="ij"))
-        else:
-            fi, fk = segments_within(q0[far], geom.segment_a[seg], geom.segment_b[seg],
-                                     max(float(step[far].max()), 1e-6) * 1.001)
-        i, k = np.concatenate([i, far[fi]]), np.concatenate([k, seg[fk]])
+    seg = np.flatnonzero(static)
+    fi, fk = segments_within(q0[far], geom.segment_a[seg], geom.segment_b[seg],
+                             max(float(step[far].max()), 1e-6) * 1.001)
+    i, k = np.concatenate([i, far[fi]]), np.concatenate([k, seg[fk]])
     keep = static[k] & (step[i] > 0)
     i, k = i[keep], k[keep]
-    p0, p1, a, b = q0[i], q1[i], geom.segment_a[k], geom.segment_b[k]
-    # bounding boxes overlap (exact comparisons), then the orientations in float where the
-    # error filter vouches for their signs (compiled), exactly for the rest
-    hit = paths_meet_exactly(p0, p1, a, b)
+    hit = paths_meet_exactly(q0[i], q1[i], geom.segment_a[k], geom.segment_b[k])
     return i[hit], k[hit]

@@ -68,6 +68,7 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
+from sweep_core.model.bilinear import bilinear
 from sweep_core.model.fields import Field, Groups, grid_cell
 from sweep_core.model.geometry import Geometry
 from sweep_core.model.maps import OccupancyMap
@@ -157,14 +158,27 @@ class Geodesic(Field):
         return self.cache["arrays"]
 
     def _at(self, v: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """Node values v (H, W) or (H, W, 2) bilinear at q (N, 2), clamped to the grid."""
-        fx, ix = grid_cell(self.x, q[:, 0])
-        fy, iy = grid_cell(self.y, q[:, 1])
-        w = [((1 - fy) * (1 - fx)), ((1 - fy) * fx), (fy * (1 - fx)), (fy * fx)]
-        if v.ndim == 3:
-            w = [c[:, None] for c in w]
-        return (w[0] * v[iy, ix] + w[1] * v[iy, ix + 1] + w[2] * v[iy + 1, ix]
-                + w[3] * v[iy + 1, ix + 1])
+        """Node values v (H, W) or (H, W, 2) bilinear at q (N, 2), clamped to the grid
+        (compiled, :func:`~sweep_core.model.bilinear.bilinear`; numpy for a grid of one node
+        along an axis)."""
+        if self.x.size < 2 or self.y.size < 2:
+            fx, ix = grid_cell(self.x, q[:, 0])
+            fy, iy = grid_cell(self.y, q[:, 1])
+            w = [((1 - fy) * (1 - fx)), ((1 - fy) * fx), (fy * (1 - fx)), (fy * fx)]
+            if v.ndim == 3:
+                w = [c[:, None] for c in w]
+            return (w[0] * v[iy, ix] + w[1] * v[iy, ix + 1] + w[2] * v[iy + 1, ix]
+                    + w[3] * v[iy + 1, ix + 1])
+        nodes = v if v.ndim == 3 else v[:, :, None]
+        out = np.empty((len(q), nodes.shape[2]))
+        bilinear(self._nodes(self.x), self._nodes(self.y), self._nodes(nodes),
+                 np.ascontiguousarray(q, dtype=np.float64), out)
+        return out if v.ndim == 3 else out[:, 0]
+
+    @staticmethod
+    def _nodes(a: np.ndarray) -> np.ndarray:
+        return a if a.flags.c_contiguous and a.dtype == np.float64 else \
+            np.ascontiguousarray(a, dtype=np.float64)
 
     @property
     def max_speed(self) -> float:

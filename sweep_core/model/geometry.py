@@ -3,11 +3,16 @@
 The feasible set Q(t) = {q : |q_i - q_j| >= r_i(t) + r_j(t), g_k(t, q_i) >= 0}: this module
 evaluates those functions exactly (no linearisation; that is :mod:`sweep_core.numerics.constraints`).
 Distances in m, positions (N, 2).
+
+Longer than the usual module because the geometry's three evaluations (every value, the rows
+within a reach, the gaps' summary) share its arrays and item codes; the compiled loops are in
+:mod:`sweep_core.model.wall_kernels`.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -15,7 +20,7 @@ import numpy as np
 from sweep_core.model.neighbours import pairs_within, segments_within
 from sweep_core.model.outlines import points_in_polygon
 from sweep_core.model.user import constraint_name, evaluate
-from sweep_core.model.wall_kernels import near_rows
+from sweep_core.model.wall_kernels import near_rows, pair_gaps, single_gaps
 
 # codes of single-row kinds, in the order of scene.geometry
 HALFPLANE, SEGMENT, CIRCLE, USER = 0, 1, 2, 3
@@ -79,6 +84,53 @@ class Geometry:
         if len(self.circle_motion) != len(self.circle_radius):
             object.__setattr__(self, "circle_motion",
                                np.full(len(self.circle_radius), -1, dtype=np.intp))
+
+    @cached_property
+    def packed(self) -> tuple[np.ndarray, ...]:
+        """The arrays the compiled kernels take, C-contiguous float64, computed once: the
+        half-planes' normals (W, 2) and offsets at t = 0 plus 0.0 (W,), the segments' ends
+        (S, 2) each, the circles' centres (O, 2) and radii (O,)."""
+        c = np.ascontiguousarray
+        return (c(self.halfplane_normal, dtype=np.float64),
+                c(self.halfplane_offset + self.halfplane_velocity * 0.0, dtype=np.float64),
+                c(self.segment_a, dtype=np.float64), c(self.segment_b, dtype=np.float64),
+                c(self.circle_center, dtype=np.float64), c(self.circle_radius, dtype=np.float64))
+
+    @cached_property
+    def fixed_halfplanes(self) -> bool:
+        """No half-plane moves (their offsets at any t are those at t = 0)."""
+        return not np.any(self.halfplane_velocity)
+
+    @cached_property
+    def has_polygons(self) -> bool:
+        """Some segment is the edge of a solid polygon."""
+        return bool(np.any(self.segment_polygon >= 0))
+
+    def with_circles(self, centres: np.ndarray, radii: np.ndarray) -> Geometry:
+        """This geometry with static circle obstacles added (centres (M, 2), radii (M,) m,
+        item indices after its own circles, scene index -1), its packed arrays carried over."""
+        m = len(radii)
+        out = replace(self, circle_center=np.concatenate([self.circle_center, centres]),
+                      circle_radius=np.concatenate([self.circle_radius, radii]),
+                      circle_index=np.concatenate([self.circle_index,
+                                                   np.full(m, -1, dtype=self.circle_index.dtype)]),
+                      circle_motion=np.concatenate([self.circle_motion,
+                                                    np.full(m, -1, dtype=np.intp)]))
+        hn, off, sa, sb, _, _ = self.packed
+        cache = out.__dict__
+        cache["packed"] = (hn, off, sa, sb, np.ascontiguousarray(out.circle_center,
+                                                                 dtype=np.float64),
+                           np.ascontiguousarray(out.circle_radius, dtype=np.float64))
+        cache["fixed_halfplanes"], cache["has_polygons"] = self.fixed_halfplanes, \
+            self.has_polygons
+        return out
+
+    def offsets(self, t: float) -> np.ndarray:
+        """(W,) the half-planes' offsets c + v t at t (s), m, C-contiguous float64."""
+        if self.fixed_halfplanes:
+            return self.packed[1]
+        return np.ascontiguousarray(self.halfplane_offset + self.halfplane_velocity * t,
+                                    dtype=np.float64)
 
     @property
     def is_moving(self) -> bool:
@@ -242,26 +294,33 @@ def single_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: f
     return out
 
 
-def _dense_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: float
-                ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
-    """:func:`single_rows` evaluated against every item: half-planes, segments and circles in
-    one compiled pass (:func:`~sweep_core.model.wall_kernels.near_rows`, the bits of
-    :func:`single_values`), user constraints through :func:`single_values`' own code."""
-    q = np.ascontiguousarray(q, dtype=np.float64)
-    r = np.ascontiguousarray(r, dtype=np.float64)
-    hc = geom.halfplane_offset + geom.halfplane_velocity * t
-    inside = (inside_polygons(q, geom) if np.any(geom.segment_polygon >= 0)
-              else _NO_POLYGON)
-    room = len(q) * (len(hc) + len(geom.segment_a) + len(geom.circle_radius))
+def dense_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: float
+               ) -> tuple[np.ndarray, ...]:
+    """The half-plane, segment and circle rows of a geometry with nothing moving within
+    ``reach`` (m) at (t, q) (q (N, 2), r (N,) C-contiguous float64) in one compiled pass
+    (:func:`~sweep_core.model.wall_kernels.near_rows`, the bits of :func:`single_values`):
+    agent (M,), item (M,), value (M,), unit normal (M, 2), foot (M,), kind after kind, and
+    the count of each kind (3,)."""
+    hc = geom.offsets(t)
+    inside = inside_polygons(q, geom) if geom.has_polygons else _NO_POLYGON
+    hn, _, sa, sb, cc, cr = geom.packed
+    room = len(q) * (len(hc) + len(sa) + len(cr))
     agent, item = np.empty(room, dtype=np.intp), np.empty(room, dtype=np.intp)
     g, nrm, foot = np.empty(room), np.empty((room, 2)), np.empty(room)
     counts = np.zeros(3, dtype=np.intp)
-    c = np.ascontiguousarray  # one compiled signature whatever the arrays' strides
-    near_rows(q, r, float(reach), c(geom.halfplane_normal, dtype=np.float64),
-              c(hc, dtype=np.float64), c(geom.segment_a, dtype=np.float64),
-              c(geom.segment_b, dtype=np.float64), c(inside), c(geom.circle_center,
-              dtype=np.float64), c(geom.circle_radius, dtype=np.float64), agent, item, g, nrm,
-              foot, counts)
+    m = near_rows(q, r, float(reach), hn, hc, sa, sb, inside, cc, cr, agent, item, g, nrm, foot,
+                  counts)
+    return agent[:m], item[:m], g[:m], nrm[:m], foot[:m], counts
+
+
+def _dense_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: float
+                ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """:func:`single_rows` evaluated against every item: half-planes, segments and circles in
+    one compiled pass (:func:`dense_rows`), user constraints through :func:`single_values`'
+    own code."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    r = np.ascontiguousarray(r, dtype=np.float64)
+    agent, item, g, nrm, foot, counts = dense_rows(geom, t, q, r, reach)
     out = []
     start = 0
     for c in counts.tolist():
@@ -334,47 +393,77 @@ class Gaps:
 def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
          contact_tol: float = 1e-6) -> Gaps:
     """Evaluate every constraint that can be violated or touching at (t, q)."""
-    i, j = pairs_within(q, 2.0 * float(r.max(initial=0.0)) + contact_tol)
-    d = q[i] - q[j]
-    pg = np.sqrt(np.einsum("ij,ij->i", d, d)) - r[i] - r[j]
-    contacts = int(np.count_nonzero(pg <= contact_tol))
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    r = np.ascontiguousarray(r, dtype=np.float64)
+    r_max = float(r.max(initial=0.0))
+    i, j = pairs_within(q, 2.0 * r_max + contact_tol)
+    pg = np.empty(len(i))
+    contacts, w = pair_gaps(q, r, i, j, float(contact_tol), pg)
     worst_pair = None
     min_pair = np.inf
-    if len(pg):
-        w = int(np.argmin(pg))
+    if w >= 0:
         min_pair = float(pg[w])
         worst_pair = (int(i[w]), int(j[w]), min_pair)
     min_single, worst_single = np.inf, None
-    reach, near = 0.0, (np.empty(0, dtype=np.intp), np.empty(0, dtype=np.intp))
+    reach, near = 0.0, (_EMPTY, _EMPTY)
     if not geom.is_empty and len(q):
-        # the smallest value over all (agent, item): searched within a reach that doubles
-        # until something is found (what is not found is larger than what is)
-        reach = max(contact_tol, 2.0 * float(r.max(initial=0.0)), 1e-3)
+        # the smallest value over all (agent, item): searched within a reach that grows
+        # eightfold until something is found (what is not found is larger than what is)
+        reach = max(contact_tol, 2.0 * r_max, 1e-3)
         here = geom.at(t)
+        summary = None
         if not here.user and (len(here.segment_a) == 0
                               or len(q) * len(here.segment_a) <= DENSE_SEGMENTS):
-            # every value at once (compiled), then the reach the doubling below would stop at
-            # and the rows within it, in the same order
-            every = [(a, k, g) for a, k, g, _, _ in _dense_rows(here, t, q, r, math.inf)]
-            low = min((float(g.min()) for _, _, g in every if len(g)), default=math.inf)
-            while not (low <= reach or reach > 1e12):
-                reach *= 8.0
-            found = [(a[g <= reach], k[g <= reach], g[g <= reach]) for a, k, g in every]
+            summary = _dense_gaps(here, t, q, r, contact_tol, reach)
+        if summary is not None:
+            reach, count, min_single, worst_single, near = summary
+            contacts += count
         else:
-            while True:
-                rows = single_rows(here, t, q, r, reach)
-                if any(len(a) for a, _, _, _, _ in rows) or reach > 1e12:
-                    break
-                reach *= 8.0
-            found = [(a, k, g) for a, k, g, _, _ in rows]
-        near = found[SEGMENT][0], found[SEGMENT][1]
-        for kind, (a, k, g) in enumerate(found):
-            if len(g) == 0:
-                continue
-            contacts += int(np.count_nonzero(g <= contact_tol))
-            w = int(np.argmin(g))
-            if g[w] < min_single:
-                min_single = float(g[w])
-                worst_single = (int(a[w]), kind, int(k[w]), min_single)
+            found = _found_rows(here, t, q, r, reach)
+            reach = found[-1]
+            near = found[SEGMENT][0], found[SEGMENT][1]
+            for kind, (a, k, g) in enumerate(found[:-1]):
+                if len(g) == 0:
+                    continue
+                contacts += int(np.count_nonzero(g <= contact_tol))
+                w = int(np.argmin(g))
+                if g[w] < min_single:
+                    min_single = float(g[w])
+                    worst_single = (int(a[w]), kind, int(k[w]), min_single)
     return Gaps(min_pair, min_single, contacts, worst_pair, worst_single, i, j, pg, near[0],
                 near[1], reach)
+
+
+def _dense_gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, contact_tol: float,
+                reach: float) -> tuple | None:
+    """:func:`gaps`' wall and obstacle part, every value at once (compiled,
+    :func:`~sweep_core.model.wall_kernels.single_gaps`): (reach, contacts, smallest value,
+    worst_single, near segment pairs), or None when some value is NaN."""
+    hc = geom.offsets(t)
+    inside = inside_polygons(q, geom) if geom.has_polygons else _NO_POLYGON
+    hn, _, sa, sb, cc, cr = geom.packed
+    vals = np.empty(len(q) * (len(hc) + len(sa) + len(cr)))
+    near_a = np.empty(len(q) * len(sa), dtype=np.intp)
+    near_k = np.empty(len(q) * len(sa), dtype=np.intp)
+    out = np.empty(6)
+    found = single_gaps(q, r, hn, hc, sa, sb, inside, cc, cr, float(contact_tol), float(reach),
+                        vals, near_a, near_k, out)
+    if out[3] == -2.0:
+        return None
+    worst = None
+    if out[3] >= 0:
+        worst = (int(out[4]), int(out[3]), int(out[5]), float(out[2]))
+    return (float(out[0]), int(out[1]), float(out[2]), worst,
+            (near_a[:found], near_k[:found]))
+
+
+def _found_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: float
+                ) -> list:
+    """For each kind the rows (agent, item, value) within the reach at which the eightfold
+    growth from ``reach`` first finds one (the largest tried past 1e12 m), that reach last."""
+    while True:
+        rows = single_rows(geom, t, q, r, reach)
+        if any(len(a) for a, _, _, _, _ in rows) or reach > 1e12:
+            break
+        reach *= 8.0
+    return [(a, k, g) for a, k, g, _, _ in rows] + [reach]

@@ -144,14 +144,25 @@ def pairs_within(q: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
     """Index arrays (i, j), i < j, of the pairs of centres q (N, 2) at most ``reach`` m apart
     (``reach`` > 0), in an order that depends on the positions alone."""
     q = np.ascontiguousarray(q, dtype=np.float64)
-    n = len(q)
-    if n < 2:
-        empty = np.empty(0, dtype=np.intp)
-        return empty, empty
-    reach = float(reach)
-    x0, y0 = float(q[:, 0].min()), float(q[:, 1].min())
-    nx = int((float(q[:, 0].max()) - x0) / reach) + 1
-    ny = int((float(q[:, 1].max()) - y0) / reach) + 1
+    if len(q) < 2:
+        return _NONE, _NONE
+    return _pairs(q, float(reach))
+
+
+_NONE = np.empty(0, dtype=np.intp)
+
+
+@numba.njit(cache=True, nogil=True)
+def _pairs(q: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`pairs_within` for N >= 2: the grid's extent, the dense grid or the sorted cells,
+    and output arrays grown until the pairs fit."""
+    n = q.shape[0]
+    x0, y0, x1, y1 = q[0, 0], q[0, 1], q[0, 0], q[0, 1]
+    for a in range(1, n):
+        x0, x1 = min(x0, q[a, 0]), max(x1, q[a, 0])
+        y0, y1 = min(y0, q[a, 1]), max(y1, q[a, 1])
+    nx = int((x1 - x0) / reach) + 1
+    ny = int((y1 - y0) / reach) + 1
     dense = nx * ny <= _GRID_CELLS_PER_AGENT * n + 64
     capacity = 4 * n
     while True:

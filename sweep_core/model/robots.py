@@ -299,23 +299,26 @@ def overlap(robot: Robot, xy: Any, geometry: Geometry, positions: np.ndarray, ra
     another robot (``others``: (x, y, radius, label)), a wall or obstacle at time t, or a
     blocked map cell."""
     c = np.array([[float(xy[0]), float(xy[1])]])
-    where = f"robot {robot.name} at {show(c[0])} (radius {robot.radius:g} m)"
+
+    def where() -> str:  # formatted only for a message (every robot's every step asks)
+        return f"robot {robot.name} at {show(c[0])} (radius {robot.radius:g} m)"
+
     if len(positions):
         d = np.hypot(*(positions - c).T) - radii - robot.radius
         a = int(np.argmin(d))
         if d[a] < -tol:
-            return f"{where} overlaps agent {a} at {show(positions[a])} by {-d[a]:.3g} m"
+            return f"{where()} overlaps agent {a} at {show(positions[a])} by {-d[a]:.3g} m"
     for x, y, r, label in others:
         gap = math.hypot(c[0, 0] - x, c[0, 1] - y) - r - robot.radius
         if gap < -tol:
-            return f"{where} overlaps {label} by {-gap:.3g} m"
+            return f"{where()} overlaps {label} by {-gap:.3g} m"
     if not geometry.is_empty:
         g = gaps(geometry, t, c, np.array([robot.radius]))
         if g.worst_single is not None and g.min_single < -tol:
             _, kind, item, gap = g.worst_single
-            return f"{where} overlaps {geometry.describe(kind, item)} by {-gap:.3g} m"
+            return f"{where()} overlaps {geometry.describe(kind, item)} by {-gap:.3g} m"
     if blocked is not None and bool(blocked(c)[0]):
-        return f"{where} has its centre in a blocked (occupied or unknown) cell of the map"
+        return f"{where()} has its centre in a blocked (occupied or unknown) cell of the map"
     return ""
 
 

@@ -11,6 +11,11 @@ bounding boxes compared exactly, the four orientation determinants in float with
 error filter; a pair whose sign the filter cannot vouch for is returned as unsure, for the
 exact rational evaluation in Python (:func:`sweep_core.model.outlines.orientation`).
 
+:func:`pair_gaps` and :func:`single_gaps` are :func:`sweep_core.model.geometry.gaps`' summary
+(smallest value, its place, contacts, the segment pairs near the agents) in one pass each, the
+values the bits of :func:`near_rows` and of the numpy form; :func:`crossing_pairs` gathers the
+crossing test's candidate pairs (:func:`sweep_core.model.crossing.crossings`) and tests them.
+
 Compiled with ``cache=True`` (see :mod:`sweep_core.model.neighbours`).
 """
 from __future__ import annotations
@@ -30,11 +35,12 @@ _ORIENT_BOUND = (3.0 + 16.0 * 2.0 ** -53) * 2.0 ** -53
 def near_rows(q: np.ndarray, r: np.ndarray, reach: float, hn: np.ndarray, hc: np.ndarray,
               sa: np.ndarray, sb: np.ndarray, inside: np.ndarray, cc: np.ndarray,
               cr: np.ndarray, agent: np.ndarray, item: np.ndarray, g: np.ndarray,
-              nrm: np.ndarray, foot: np.ndarray, counts: np.ndarray) -> None:
+              nrm: np.ndarray, foot: np.ndarray, counts: np.ndarray) -> int:
     """Every (agent, item) of the half-planes hn (W, 2), hc (W,) (offsets at t), segments
     [sa, sb] (S, 2) and circles cc (O, 2), cr (O,) whose value at q (N, 2), r (N,) is <= reach
     (m), written kind after kind into agent, item, g, nrm (M, 2), foot (M,) (room for
-    N * (W + S + O) rows), agent-major within a kind; counts (3,) the rows of each kind.
+    N * (W + S + O) rows), agent-major within a kind; counts (3,) the rows of each kind;
+    returns their total.
     inside (N, S) bool: the centre lies inside the solid polygon segment k bounds (value
     -dist - r), or shape (0, 0) when no segment bounds one."""
     n = q.shape[0]
@@ -86,6 +92,7 @@ def near_rows(q: np.ndarray, r: np.ndarray, reach: float, hn: np.ndarray, hc: np
                 foot[m] = (ex * cc[k, 0] + ey * cc[k, 1]) + cr[k]
                 m += 1
     counts[2] = m - start
+    return m
 
 
 @numba.njit(cache=True, nogil=True)
@@ -144,3 +151,186 @@ def paths_meet_exactly(p0: np.ndarray, p1: np.ndarray, a: np.ndarray, b: np.ndar
     if unsure.any():
         hit[unsure] = segments_meet(p0[unsure], p1[unsure], a[unsure], b[unsure])
     return hit
+
+
+@numba.njit(cache=True, nogil=True)
+def pair_gaps(q: np.ndarray, r: np.ndarray, i: np.ndarray, j: np.ndarray, contact_tol: float,
+              pg: np.ndarray) -> tuple[int, int]:
+    """pg[m] = |q_i - q_j| - r_i - r_j (m) for the pairs (i, j) (M,) each; returns the count
+    of pg <= contact_tol and the first index of the smallest pg (-1 when M = 0)."""
+    contacts, w = 0, -1
+    for m in range(i.shape[0]):
+        a, b = i[m], j[m]
+        dx, dy = q[a, 0] - q[b, 0], q[a, 1] - q[b, 1]
+        v = math.sqrt(dx * dx + dy * dy) - r[a] - r[b]
+        pg[m] = v
+        if v <= contact_tol:
+            contacts += 1
+        if w < 0 or v < pg[w]:
+            w = m
+    return contacts, w
+
+
+@numba.njit(cache=True, nogil=True)
+def single_gaps(q: np.ndarray, r: np.ndarray, hn: np.ndarray, hc: np.ndarray,
+                sa: np.ndarray, sb: np.ndarray, inside: np.ndarray, cc: np.ndarray,
+                cr: np.ndarray, contact_tol: float, reach: float, vals: np.ndarray,
+                near_a: np.ndarray, near_k: np.ndarray, out: np.ndarray) -> int:
+    """The summary of every half-plane, segment and circle value at q (N, 2), r (N,) (the
+    arguments of :func:`near_rows`, whose values these are, bit for bit): vals (room for
+    N * (W + S + O)) holds them kind after kind, agent-major. The search distance starts at
+    ``reach`` and grows eightfold until some value lies within it (or it exceeds 1e12 m).
+    out (6,) float64 receives: that distance, the count of values <= contact_tol, the
+    smallest value within it, its kind (0, 1, 2), agent and item (-1: none); near_a, near_k
+    (room for N * S) the (agent, segment) pairs within it, agent-major, whose count is
+    returned. A NaN value makes out[3] = -2 (the caller then takes the numpy path)."""
+    n = q.shape[0]
+    polygons = inside.shape[0] > 0
+    nh, ns, nc = hn.shape[0], sa.shape[0], cc.shape[0]
+    low = math.inf
+    m = 0
+    for a in range(n):
+        x, y, ra = q[a, 0], q[a, 1], r[a]
+        for k in range(nh):
+            vals[m] = (x * hn[k, 0] + y * hn[k, 1] - hc[k]) - ra
+            m += 1
+    for a in range(n):
+        x, y, ra = q[a, 0], q[a, 1], r[a]
+        for k in range(ns):
+            ax, ay = sa[k, 0], sa[k, 1]
+            abx, aby = sb[k, 0] - ax, sb[k, 1] - ay
+            s = ((x - ax) * abx + (y - ay) * aby) / (abx * abx + aby * aby)
+            s = min(max(s, 0.0), 1.0)
+            dx, dy = x - (ax + s * abx), y - (ay + s * aby)
+            dist = math.sqrt(dx * dx + dy * dy)
+            val = dist - ra
+            if polygons and inside[a, k]:
+                val = -dist - ra
+            vals[m] = val
+            m += 1
+    for a in range(n):
+        x, y, ra = q[a, 0], q[a, 1], r[a]
+        for k in range(nc):
+            dx, dy = x - cc[k, 0], y - cc[k, 1]
+            vals[m] = (math.sqrt(dx * dx + dy * dy) - cr[k]) - ra
+            m += 1
+    for u in range(m):
+        if math.isnan(vals[u]):
+            out[3] = -2.0
+            return 0
+        low = min(low, vals[u])
+    while not (low <= reach or reach > 1e12):
+        reach *= 8.0
+    out[0] = reach
+    contacts = 0
+    best, kind, who, item = math.inf, -1, -1, -1
+    found = 0
+    start = 0
+    for kd, width in enumerate((nh, ns, nc)):
+        for u in range(n * width):
+            v = vals[start + u]
+            if v > reach:
+                continue
+            if v <= contact_tol:
+                contacts += 1
+            if v < best:
+                best, kind, who, item = v, kd, u // width, u % width
+            if kd == 1:
+                near_a[found], near_k[found] = u // width, u % width
+                found += 1
+        start += n * width
+    out[1], out[2], out[3], out[4], out[5] = contacts, best, kind, who, item
+    return found
+
+
+@numba.njit(cache=True, nogil=True)
+def _path_meets(ax: float, ay: float, bx: float, by: float, cx: float, cy: float, dx: float,
+                dy: float) -> tuple[bool, bool]:
+    """(hit, unsure) of :func:`paths_meet` for one pair [a, b], [c, d]."""
+    if not (min(ax, bx) <= max(cx, dx) and min(cx, dx) <= max(ax, bx)
+            and min(ay, by) <= max(cy, dy) and min(cy, dy) <= max(ay, by)):
+        return False, False
+    o1, s1 = _orient(ax, ay, bx, by, cx, cy)
+    o2, s2 = _orient(ax, ay, bx, by, dx, dy)
+    o3, s3 = _orient(cx, cy, dx, dy, ax, ay)
+    o4, s4 = _orient(cx, cy, dx, dy, bx, by)
+    if not (s1 and s2 and s3 and s4):
+        return False, True
+    return ((o1 * o2 < 0 and o3 * o4 < 0)
+            or (o1 == 0 and _within(cx, cy, ax, ay, bx, by))
+            or (o2 == 0 and _within(dx, dy, ax, ay, bx, by))
+            or (o3 == 0 and _within(ax, ay, cx, cy, dx, dy))
+            or (o4 == 0 and _within(bx, by, cx, cy, dx, dy))), False
+
+
+@numba.njit(cache=True, nogil=True)
+def crossing_pairs(q0: np.ndarray, q1: np.ndarray, r1: np.ndarray, near_a: np.ndarray,
+                   near_k: np.ndarray, reach: float, sa: np.ndarray, sb: np.ndarray,
+                   static: np.ndarray, dense: int, out_i: np.ndarray, out_k: np.ndarray,
+                   out_unsure: np.ndarray) -> int:
+    """:func:`sweep_core.model.crossing.crossings`' candidates and their test in one pass:
+    the near pairs (near_a, near_k) and, for every agent that moved farther than reach +
+    r1 (every agent when reach < 0), each static segment; a candidate is kept when its
+    segment is static and its agent moved. Writes the candidates whose path meets their
+    segment, or which the error filter leaves unsure (out_unsure), in the candidates' order
+    into out_i, out_k (room for len(near_a) + N * S); returns their count, or -1 when the far
+    agents times the static segments exceed ``dense`` (the caller searches them instead)."""
+    n, ns = q0.shape[0], sa.shape[0]
+    n_static = 0
+    for k in range(ns):
+        if static[k]:
+            n_static += 1
+    far = 0
+    for a in range(n):
+        step = math.hypot(q1[a, 0] - q0[a, 0], q1[a, 1] - q0[a, 1])
+        if step > (-1.0 if reach < 0 else reach + r1[a]):
+            far += 1
+    if far * n_static > dense:
+        return -1
+    m = 0
+    for u in range(near_a.shape[0]):
+        a, k = near_a[u], near_k[u]
+        if not static[k] or (q1[a, 0] == q0[a, 0] and q1[a, 1] == q0[a, 1]):
+            continue
+        hit, unsure = _path_meets(q0[a, 0], q0[a, 1], q1[a, 0], q1[a, 1], sa[k, 0], sa[k, 1],
+                                  sb[k, 0], sb[k, 1])
+        if hit or unsure:
+            out_i[m], out_k[m], out_unsure[m] = a, k, unsure
+            m += 1
+    for a in range(n):
+        if q1[a, 0] == q0[a, 0] and q1[a, 1] == q0[a, 1]:
+            continue
+        step = math.hypot(q1[a, 0] - q0[a, 0], q1[a, 1] - q0[a, 1])
+        if not step > (-1.0 if reach < 0 else reach + r1[a]):
+            continue
+        for k in range(ns):
+            if not static[k]:
+                continue
+            hit, unsure = _path_meets(q0[a, 0], q0[a, 1], q1[a, 0], q1[a, 1], sa[k, 0],
+                                      sa[k, 1], sb[k, 0], sb[k, 1])
+            if hit or unsure:
+                out_i[m], out_k[m], out_unsure[m] = a, k, unsure
+                m += 1
+    return m
+
+
+@numba.njit(cache=True, nogil=True)
+def pair_rows(q: np.ndarray, r: np.ndarray, i: np.ndarray, j: np.ndarray, cut: float,
+              out_i: np.ndarray, out_j: np.ndarray, out_e: np.ndarray, out_b: np.ndarray
+              ) -> int:
+    """The linearised pair rows (:func:`sweep_core.numerics.constraints.linearise`) of the
+    pairs (i, j) (M,) whose gap |q_i - q_j| - r_i - r_j is <= cut (m): their agents, unit
+    vectors e = (q_i - q_j) / |q_i - q_j| (M, 2) and bounds r_i + r_j (m), in the pairs'
+    order (the numpy form's bits); returns their count."""
+    m = 0
+    for u in range(i.shape[0]):
+        a, b = i[u], j[u]
+        dx, dy = q[a, 0] - q[b, 0], q[a, 1] - q[b, 1]
+        dist = math.sqrt(dx * dx + dy * dy)
+        if dist - r[a] - r[b] <= cut:
+            den = max(dist, 1e-300)
+            out_i[m], out_j[m] = a, b
+            out_e[m, 0], out_e[m, 1] = dx / den, dy / den
+            out_b[m] = r[a] + r[b]
+            m += 1
+    return m

@@ -16,8 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sweep_core.model.geometry import Geometry, single_rows
+from sweep_core.model.geometry import DENSE_SEGMENTS, Geometry, dense_rows, single_rows
 from sweep_core.model.neighbours import pairs_within
+from sweep_core.model.wall_kernels import pair_rows
+
+#: the single rows' kind codes, in the order of scene.geometry (HALFPLANE, SEGMENT, CIRCLE)
+_KINDS = np.arange(3, dtype=np.int8)
 
 
 @dataclass(frozen=True)
@@ -76,13 +80,24 @@ def linearise(geom: Geometry, t1: float, q: np.ndarray, r1: np.ndarray, cut: flo
     q: (N, 2) positions at t_n; r1: (N,) radii at t1 = t_{n+1}.
     """
     n = len(q)
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    r1 = np.ascontiguousarray(r1, dtype=np.float64)
     i, j = pairs_within(q, 2.0 * float(r1.max(initial=0.0)) + cut)
-    d = q[i] - q[j]
-    dist = np.sqrt(np.einsum("ij,ij->i", d, d))
-    keep = dist - r1[i] - r1[j] <= cut
-    i, j, d, dist = i[keep], j[keep], d[keep], dist[keep]
-    pair_e = d / np.maximum(dist, 1e-300)[:, None]
-    pair_b = r1[i] + r1[j]
+    pi, pj = np.empty(len(i), dtype=np.intp), np.empty(len(i), dtype=np.intp)
+    pair_e, pair_b = np.empty((len(i), 2)), np.empty(len(i))
+    m = pair_rows(q, r1, i, j, float(cut), pi, pj, pair_e, pair_b)
+    i, j, pair_e, pair_b = pi[:m], pj[:m], pair_e[:m], pair_b[:m]
+    if geom.is_empty or n == 0:
+        none = np.empty(0, np.intp)
+        return Rows(i, j, pair_e, pair_b, none, np.empty((0, 2)), np.empty(0),
+                    np.empty(0, np.int8), none)
+    here = geom.at(t1)
+    if not here.user and (len(here.segment_a) == 0
+                          or n * len(here.segment_a) <= DENSE_SEGMENTS):
+        # the rows of single_rows, in its order, from one compiled pass
+        sa, si, _, sn, foot, counts = dense_rows(here, t1, q, r1, cut)
+        return Rows(i, j, pair_e, pair_b, sa, sn, foot + r1[sa], np.repeat(_KINDS, counts),
+                    si)
 
     a_list, n_list, b_list, k_list, item_list = [], [], [], [], []
     if not geom.is_empty and n:

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -80,6 +80,12 @@ class RobotState:
     contact_impulse: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
     scan: Scan | None = None
 
+    def copy(self) -> RobotState:
+        """A shallow copy (what ``dataclasses.replace(self)`` gives, without its checks)."""
+        new = object.__new__(RobotState)
+        new.__dict__.update(self.__dict__)
+        return new
+
     @property
     def goal_reached(self) -> bool:
         g = self.robot.goal
@@ -124,13 +130,13 @@ class Fleet:
 
     def snapshot(self) -> tuple:
         """What a step changes (the robots' states, the step count), for :meth:`restore`."""
-        return ({name: replace(st) for name, st in self.states.items()}, self.step_index)
+        return ({name: st.copy() for name, st in self.states.items()}, self.step_index)
 
     def restore(self, saved: tuple) -> None:
         """The fleet as :meth:`snapshot` saw it (a failed step is undone)."""
         states, self.step_index = saved
         for name, st in states.items():
-            self.states[name].__dict__.update(replace(st).__dict__)
+            self.states[name].__dict__.update(st.copy().__dict__)
 
     def check_geometry(self, scene: Scene, t: float) -> str:
         """What a robot's current disk would overlap in ``scene``'s walls, obstacles and map
@@ -208,7 +214,7 @@ class Fleet:
         targets = [kinematics.arc(st.pose, st.command, h) for st in states]
         moving = [st.robot.prescribed and st.command != (0.0, 0.0, 0.0) for st in states]
         self._settle(states, targets, moving, t1)
-        before = [replace(st) for st in states]
+        before = [st.copy() for st in states]
         try:
             proj = self._project(scheme, states, targets, t1, q, pred, r1)
             self._finish(states, targets, proj, q, r1, t1, h, len(q))
@@ -305,14 +311,8 @@ class Fleet:
         circle obstacles (item indices after the scene's own circles)."""
         if not centres:
             return geom
-        m = len(centres)
-        return replace(geom,
-                       circle_center=np.concatenate([geom.circle_center, np.array(centres)]),
-                       circle_radius=np.concatenate([geom.circle_radius, np.array(radii)]),
-                       circle_index=np.concatenate([geom.circle_index,
-                                                    np.full(m, -1, dtype=geom.circle_index.dtype)]),
-                       circle_motion=np.concatenate([geom.circle_motion,
-                                                     np.full(m, -1, dtype=np.intp)]))
+        return geom.with_circles(np.array(centres, dtype=np.float64).reshape(-1, 2),
+                                 np.array(radii, dtype=np.float64))
 
     def _finish(self, states: list[RobotState], targets: list, proj: Projection, q: np.ndarray,
                 r1: np.ndarray, t1: float, h: float, n: int) -> None:

@@ -15,6 +15,7 @@ above range_max +inf (no return within range): every finite range lies in
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -88,10 +89,18 @@ def ray_cast(ox: float, oy: float, ux: np.ndarray, uy: np.ndarray, centers: np.n
     return out
 
 
+@functools.lru_cache(maxsize=64)
+def _angles(spec: ScanSpec) -> np.ndarray:
+    """spec.angles(), computed once per scanner (read-only)."""
+    angles = spec.angles()
+    angles.flags.writeable = False
+    return angles
+
+
 def beam_directions(yaw: float, spec: ScanSpec) -> tuple[np.ndarray, np.ndarray]:
     """(B,) cosines and sines of the beams' world angles (C library, per beam)."""
-    angles = (yaw + spec.angles()).tolist()
-    return (np.array([math.cos(a) for a in angles]), np.array([math.sin(a) for a in angles]))
+    angles = (yaw + _angles(spec)).tolist()
+    return np.array(list(map(math.cos, angles))), np.array(list(map(math.sin, angles)))
 
 
 def scan(spec: ScanSpec, pose: tuple[float, float, float], t: float, step: int,
