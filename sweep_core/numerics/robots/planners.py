@@ -67,10 +67,12 @@ class Tracker:
         v = np.zeros_like(xy)
         if self.t is not None and t > self.t and len(xy) and len(self.xy):
             dt = t - self.t
-            d = np.hypot(xy[:, None, 0] - self.xy[None, :, 0], xy[:, None, 1] - self.xy[None, :, 1])
-            j = np.argmin(d, axis=1)
-            back = np.argmin(d, axis=0)
-            ok = (back[j] == np.arange(len(xy))) & (d[np.arange(len(xy)), j] <= GATE)
+            dx = xy[:, None, 0] - self.xy[None, :, 0]
+            dy = xy[:, None, 1] - self.xy[None, :, 1]
+            d2 = dx * dx + dy * dy  # squared distances: the same nearest, no square roots
+            j = np.argmin(d2, axis=1)
+            back = np.argmin(d2, axis=0)
+            ok = (back[j] == np.arange(len(xy))) & (d2[np.arange(len(xy)), j] <= GATE * GATE)
             a = 1.0 - math.exp(-dt / TRACK_TIME)
             step = (xy[ok] - self.xy[j[ok]]) / dt
             v[ok] = self.v[j[ok]] + a * (step - self.v[j[ok]])
