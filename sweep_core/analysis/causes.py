@@ -48,6 +48,9 @@ class ContactLog:
             h: float) -> None:
         """One step's contacts: person ``ids`` (K,), their ``impulse`` (K, 2) m/s, the robot's
         ``displacement`` (2,) m over the step of h s."""
+        if not len(ids):  # no contact: every open event ends
+            self.open = {}
+            return
         share = robot_shares(impulse, displacement, h)
         lam = np.hypot(*np.asarray(impulse, dtype=np.float64).reshape(-1, 2).T) * h
         self.robot_impulse += float(share.sum()) / h

@@ -45,6 +45,8 @@ PARAMETERS: dict[str, dict[str, tuple[float | None, float, float, str, str]]] = 
         "safety_margin": (0.1, 0.0, 1.0, "m", "added to the robot's radius"),
         "neighbours": (16.0, 1.0, float(MAX_NEIGHBOURS), "", "nearest people considered"),
         "stop_margin": (0.1, 0.0, 2.0, "m", "clearance it can always stop short of"),
+        "people_speed": (0.0, 0.0, 5.0, "m/s", "speed at which people are assumed to close "
+                         "in (the safety layer)"),
         "turn_gain": (3.0, 0.1, 20.0, "1/s", "turn rate per rad of heading error "
                       "(diff_drive)"),
     },
@@ -59,6 +61,8 @@ PARAMETERS: dict[str, dict[str, tuple[float | None, float, float, str, str]]] = 
         "side": (0.5, 0.0, 2.0, "", "share of a person ahead's repulsion turned to the "
                  "robot's right"),
         "stop_margin": (0.1, 0.0, 2.0, "m", "clearance it can always stop short of"),
+        "people_speed": (0.0, 0.0, 5.0, "m/s", "speed at which people are assumed to close "
+                         "in (the safety layer)"),
         "wall_strength": (2.0, 0.0, 50.0, "m/s^2", "repulsion of a wall at contact"),
         "wall_range": (0.2, 0.05, 5.0, "m", "decay length of the wall repulsion"),
         "turn_gain": (3.0, 0.1, 20.0, "1/s", "turn rate per rad of heading error "

@@ -11,11 +11,15 @@ preferred velocity follows the geodesic field to the goal round them (:func:`.co
 goal_field`), and the wall segments and circle obstacles within the sensor range are obstacles
 of the planner.
 
-Both turn a wished velocity u (m/s, map frame) into a command (:func:`to_command`): holonomic
-(u in the robot's frame, turning towards u); diff_drive (turn rate ``turn_gain`` times the
-heading error, speed |u| cos(error), never backwards, 0 beyond 90 degrees of error), clipped to
-the robot's speed, angular speed and acceleration limits against its last command, so the
-fleet applies it unchanged.
+Both turn a wished velocity u (m/s, map frame) into a command (:func:`to_command`) through
+the safety layer of :mod:`.guard` (passive motion safety: u replaced by the nearest velocity
+from which the robot can be at rest before any person seen ahead, closing in at
+``people_speed``, comes within ``stop_margin``): holonomic (u in the robot's frame, turning
+towards u, the change of command scaled as a whole into the acceleration limit); diff_drive
+(turn rate ``turn_gain`` times the heading error, speed |u| cos(error), never backwards, 0
+beyond 90 degrees of error, at most the safe speed along its heading), clipped to the robot's
+speed, angular speed and acceleration limits against its last command, so the fleet applies
+it unchanged.
 """
 from __future__ import annotations
 
@@ -33,6 +37,7 @@ from sweep_core.numerics.robots.control import (
     feasible,
     goal_field,
 )
+from sweep_core.numerics.robots.guard import nearest_safe, safe_speed
 from sweep_core.numerics.robots.kinematics import wrap
 
 #: the time (s) over which a tracked person's velocity is smoothed
@@ -62,10 +67,12 @@ class Tracker:
         v = np.zeros_like(xy)
         if self.t is not None and t > self.t and len(xy) and len(self.xy):
             dt = t - self.t
-            d = np.hypot(xy[:, None, 0] - self.xy[None, :, 0], xy[:, None, 1] - self.xy[None, :, 1])
-            j = np.argmin(d, axis=1)
-            back = np.argmin(d, axis=0)
-            ok = (back[j] == np.arange(len(xy))) & (d[np.arange(len(xy)), j] <= GATE)
+            dx = xy[:, None, 0] - self.xy[None, :, 0]
+            dy = xy[:, None, 1] - self.xy[None, :, 1]
+            d2 = dx * dx + dy * dy  # squared distances: the same nearest, no square roots
+            j = np.argmin(d2, axis=1)
+            back = np.argmin(d2, axis=0)
+            ok = (back[j] == np.arange(len(xy))) & (d2[np.arange(len(xy)), j] <= GATE * GATE)
             a = 1.0 - math.exp(-dt / TRACK_TIME)
             step = (xy[ok] - self.xy[j[ok]]) / dt
             v[ok] = self.v[j[ok]] + a * (step - self.v[j[ok]])
@@ -73,42 +80,55 @@ class Tracker:
         return v
 
 
-def braking(robot: Robot, u: np.ndarray, obs: Observation, margin: float) -> np.ndarray:
-    """``u`` (2,) m/s scaled down so that its speed towards every person seen, <e_j, u> (e_j
-    the unit vector from the robot to person j), is at most sqrt(2 a (c_j - margin)), a the
-    robot's max_acceleration and c_j its clearance to j (m): the speed from which it can
-    still stop before coming within ``margin`` m of a person standing still."""
-    if not len(obs.people):
-        return u
-    rel = obs.people - np.array(obs.pose[:2])
-    d = np.maximum(np.hypot(*rel.T), 1e-12)
-    towards = (rel @ u) / d
-    gap = np.maximum(d - obs.radius - obs.people_radii - margin, 0.0)
-    bound = np.sqrt(2.0 * robot.max_acceleration * gap)
-    over = towards > bound
-    if not over.any():
-        return u
-    return u * float(np.min(bound[over] / towards[over]))
-
-
-def to_command(robot: Robot, u: np.ndarray, obs: Observation, turn_gain: float,
-               margin: float) -> tuple[float, float, float]:
+def to_command(robot: Robot, u: np.ndarray, obs: Observation, params: dict[str, float]
+               ) -> tuple[float, float, float]:
     """The command (vx, vy, omega) that follows the wished velocity ``u`` (2,) m/s (module
-    docstring), within the robot's limits."""
+    docstring): the nearest safe velocity (:func:`.guard.nearest_safe`), its speed at most
+    the safe speed along the direction the robot moves in, within the robot's limits."""
     yaw = obs.pose[2]
+    u = nearest_safe(u, obs.pose, obs.radius, obs.people, obs.people_radii,
+                     robot.max_acceleration, params["stop_margin"], params["people_speed"])
     speed = float(math.hypot(u[0], u[1]))
     heading = math.atan2(u[1], u[0]) if speed > 1e-9 else yaw
     error = wrap(heading - yaw)
-    omega = turn_gain * error if speed > 1e-9 else 0.0
+    omega = params["turn_gain"] * error if speed > 1e-9 else 0.0
     c, s = math.cos(yaw), math.sin(yaw)
     if robot.kinematics == "holonomic":
-        u = braking(robot, u, obs, margin)
-        wanted = (c * u[0] + s * u[1], -s * u[0] + c * u[1], omega)
+        along = u / speed if speed > 1e-9 else np.array([c, s])
     else:
-        forward = speed * max(0.0, math.cos(error))
-        ahead = braking(robot, np.array([forward * c, forward * s]), obs, margin)
-        wanted = (float(np.hypot(*ahead)), 0.0, omega)
-    return feasible(robot, (float(wanted[0]), float(wanted[1]), float(wanted[2])), obs)
+        speed = speed * max(0.0, math.cos(error))
+        along = np.array([c, s])
+    speed = min(speed, safe_speed(obs.pose, along, obs.radius, obs.people, obs.people_radii,
+                                  robot.max_acceleration, params["stop_margin"],
+                                  params["people_speed"]))
+    if robot.kinematics == "holonomic":
+        return holonomic_command(robot, speed * along, omega, obs, params)
+    return feasible(robot, (speed, 0.0, omega), obs)
+
+
+def holonomic_command(robot: Robot, u: np.ndarray, omega: float, obs: Observation,
+                      params: dict[str, float]) -> tuple[float, float, float]:
+    """The holonomic command towards the safe velocity ``u`` (2,) m/s (map frame): the change
+    from the last command scaled as a whole into the acceleration limit (so that, from rest,
+    the command is parallel to u); when the result is still faster than the safe speed along
+    its own direction, the last command slowed as hard as the limit allows."""
+    yaw = obs.pose[2]
+    c, s = math.cos(yaw), math.sin(yaw)
+    want = np.array([c * u[0] + s * u[1], -s * u[0] + c * u[1]])
+    last = np.array((obs.command if obs.command is not None else obs.twist)[:2], dtype=float)
+    step = robot.max_acceleration * obs.dt if obs.dt > 0 else math.inf
+    change = want - last
+    big = float(np.abs(change).max())
+    v = last + change * (min(1.0, step / big) if big > 0 else 1.0)
+    speed = float(np.hypot(*v))
+    if speed > 1e-12:
+        world = np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]]) / speed
+        if speed > safe_speed(obs.pose, world, obs.radius, obs.people, obs.people_radii,
+                              robot.max_acceleration, params["stop_margin"],
+                              params["people_speed"]):
+            big = float(np.abs(last).max())
+            v = last * (max(0.0, 1.0 - step / big) if big > 0 else 0.0)
+    return feasible(robot, (float(v[0]), float(v[1]), omega), obs)
 
 
 def world_velocity(obs: Observation) -> np.ndarray:
@@ -200,7 +220,7 @@ class Orca(_Planner):
             sim.set_agent_pref_velocity(k, (float(v[0]), float(v[1])))
         sim.do_step()
         u = np.array(sim.get_agent_velocity(me).to_tuple(), dtype=np.float64)
-        return to_command(self.robot, u, obs, p["turn_gain"], p["stop_margin"])
+        return to_command(self.robot, u, obs, p)
 
 
 class SocialForce(_Planner):
@@ -253,7 +273,7 @@ class SocialForce(_Planner):
         if speed > self.robot.max_speed:
             u = u * (self.robot.max_speed / speed)
         self.u = u
-        return to_command(self.robot, u, obs, p["turn_gain"], p["stop_margin"])
+        return to_command(self.robot, u, obs, p)
 
 
     u: np.ndarray | None = None

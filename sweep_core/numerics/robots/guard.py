@@ -1,0 +1,74 @@
+"""The safety layer of the bundled planners (docs/robots.md): the fastest speed along a
+direction of travel from which the robot can still be at rest before any person it sees ahead
+reaches it, the passive motion safety of Fraichard (2007) and Bouraine, Fraichard & Salhi
+(2012): if a contact happens, the robot is not advancing into the person.
+
+Moving at speed v along the unit direction u, the robot advances towards a person j at
+v c_j (c_j = <u, e_j>, e_j the unit vector from the robot's centre to j's). Braking at its
+max_acceleration a it stops after v / a s, having advanced c_j v^2 / (2 a) towards j, while j
+may come v_h v / a closer (v_h = ``people_speed``, the speed at which people are assumed to
+close in). The gap g_j (edge to edge, m) less ``stop_margin`` g_0 must cover both:
+
+    c_j v^2 / (2 a) + v_h v / a <= g_j - g_0,
+    v <= 2 a (g_j - g_0) / (v_h + sqrt(v_h^2 + 2 a c_j (g_j - g_0))),
+
+for every person with c_j > 0 (the robot's motion takes it away from the others); 0 when
+g_j <= g_0. With v_h = 0 this is the braking bound sqrt(2 a (g_j - g_0) / c_j) of a person
+standing still.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: a direction whose cosine to a person is at most this is not towards them (a sideways
+#: direction's cosine of 1e-17 is rounding, not an advance)
+AHEAD = 1e-9
+
+
+def safe_speeds(pose: tuple[float, float, float], directions: np.ndarray, radius: float,
+                people: np.ndarray, people_radii: np.ndarray, accel: float, margin: float,
+                people_speed: float) -> np.ndarray:
+    """(K,) the largest speed (m/s; inf when no person is ahead) along each unit direction of
+    ``directions`` (K, 2) from the robot at ``pose`` (x, y, yaw) m, rad with ``radius`` m that
+    keeps passive safety (module docstring) against ``people`` (M, 2) m of radii
+    ``people_radii`` (M,) m; ``accel`` m/s^2, ``margin`` m, ``people_speed`` m/s."""
+    out = np.full(len(directions), math.inf)
+    if not len(people):
+        return out
+    rel = people - np.array(pose[:2])
+    d = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
+    c = (rel / d[:, None]) @ directions.T  # (M, K); within AHEAD of 0: not ahead (rounding)
+    gap = np.maximum(d - radius - people_radii - margin, 0.0)[:, None]
+    root = np.sqrt(people_speed * people_speed + 2.0 * accel * np.maximum(c, 0.0) * gap)
+    den = np.maximum(people_speed + root, 1e-300)
+    bound = np.where(gap > 0.0, 2.0 * accel * gap / den, 0.0)
+    return np.asarray(np.where(c > AHEAD, bound, math.inf).min(axis=0, initial=math.inf))
+
+
+def safe_speed(pose: tuple[float, float, float], direction: np.ndarray, radius: float,
+               people: np.ndarray, people_radii: np.ndarray, accel: float, margin: float,
+               people_speed: float) -> float:
+    """:func:`safe_speeds` along the one unit ``direction`` (2,)."""
+    return float(safe_speeds(pose, np.asarray(direction).reshape(1, 2), radius, people,
+                             people_radii, accel, margin, people_speed)[0])
+
+
+def nearest_safe(u: np.ndarray, pose: tuple[float, float, float], radius: float,
+                 people: np.ndarray, people_radii: np.ndarray, accel: float, margin: float,
+                 people_speed: float, directions: int = 72) -> np.ndarray:
+    """(2,) m/s: the velocity nearest the wished ``u`` (2,) m/s among ``directions`` evenly
+    spaced headings (the first one u's own), each at a speed within [0, its safe speed]: the
+    minimal change of u that keeps passive safety (a safety filter in the sense of Ames et
+    al. 2019, on a sampled velocity set)."""
+    speed = float(np.hypot(u[0], u[1]))
+    if speed <= 1e-12:
+        return np.zeros(2)
+    phi = math.atan2(u[1], u[0]) + np.arange(directions) * (2.0 * math.pi / directions)
+    dirs = np.column_stack([np.cos(phi), np.sin(phi)])
+    s = np.clip(dirs @ u, 0.0, safe_speeds(pose, dirs, radius, people, people_radii, accel,
+                                               margin, people_speed))
+    miss = (u[0] - s * dirs[:, 0]) ** 2 + (u[1] - s * dirs[:, 1]) ** 2
+    k = int(np.argmin(miss))
+    return np.asarray(s[k] * dirs[k])
