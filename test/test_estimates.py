@@ -1,9 +1,10 @@
 """Estimates that refuse work before it starts hold: each is checked against what the work
 measurably takes on a small case scaled up, within a factor 1.5 either way.
 
-- ``sweep render``'s GIF memory (:func:`sweep_core.analysis.render.gif_memory`) against the
-  increase of the render's peak resident memory (Linux's VmHWM, reset before the render):
-  the estimate of a byte per pixel per frame undercounted it about 3.4 times.
+- ``sweep render``'s GIF and MP4 memory (:mod:`sweep_core.analysis.animation`) against the
+  increase of the render's peak resident memory (Linux's VmHWM, reset before the render) plus
+  ffmpeg's peak: a byte per pixel per frame undercounted a GIF about 3.4 times; an MP4 had
+  no estimate (8192 x 8192 px takes about 8.5 GB).
 - ``sweep run``'s recording size (:func:`sweep_core.io.limits.check_run_size`) of a scene with
   a source against the bytes its recording holds: counting every agent the source may ever
   emit as present from the start overcounted it thousands of times.
@@ -49,39 +50,81 @@ def _env() -> dict[str, str]:
         [str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
 
 
-#: renders a GIF in a fresh process and prints the increase of its peak resident memory (MB)
-#: over the render: a small render first (imports, kernels), then the peak reset
-#: (/proc/self/clear_refs 5) and the render measured
-GIF_RUN = """
-import json, re, sys
-from sweep_core.analysis.render import RenderOptions, gif_memory, render
+#: an ffmpeg stand-in that runs the real one (REAL_FFMPEG) and appends its peak resident
+#: memory (bytes) to FFMPEG_PEAK: getrusage of a waited child, measured in this small process
+FFMPEG_WRAPPER = """#!{python}
+import os, resource, subprocess, sys
+code = subprocess.call([os.environ["REAL_FFMPEG"]] + sys.argv[1:])
+with open(os.environ["FFMPEG_PEAK"], "a") as f:
+    f.write(str(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024) + "\\n")
+sys.exit(code)
+"""
+
+#: renders a video in a fresh process and prints the increase of its peak resident memory
+#: (bytes) over the render, and ffmpeg's peak (an MP4): a small render first (imports,
+#: kernels), then the peak reset (/proc/self/clear_refs 5) and the render measured
+RENDER_RUN = """
+import json, os, re, sys
+from sweep_core.analysis.animation import gif_memory, mp4_memory
+from sweep_core.analysis.render import RenderOptions, render
 def status(key):
     text = open("/proc/self/status").read()
     return int(re.search(key + r":\\s+(\\d+)", text).group(1)) * 1024
 rec, out, size, frames = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
-render(rec, out + ".warm.gif", RenderOptions(width=160, end=0.0), progress=False)
+render(rec, out + ".warm" + out[-4:], RenderOptions(width=160, end=0.0), progress=False)
+open(os.environ["FFMPEG_PEAK"], "w").close()
 with open("/proc/self/clear_refs", "w") as f:
     f.write("5")
 before = status("VmRSS")
 render(rec, out, RenderOptions(width=size, height=size, end=(frames - 1) / 10, fps=10),
        progress=False)
-print(json.dumps({"measured": status("VmHWM") - before,
-                  "estimated": gif_memory(frames, (size, size))}))
+ffmpeg = [int(x) for x in open(os.environ["FFMPEG_PEAK"]).read().split()]
+estimate = (gif_memory if out.endswith(".gif") else mp4_memory)(frames, (size, size))
+print(json.dumps({"measured": status("VmHWM") - before + max(ffmpeg, default=0),
+                  "estimated": estimate}))
 """
 
 
-@pytest.mark.parametrize("size,frames", [(1200, 4), (1200, 16)])
-def test_the_gif_memory_estimate_holds(scene_file, tmp_path, size, frames):
-    """4 and 16 frames of 1200 x 1200 px: 43 and 78 MB estimated, 40-51 and 81 MB measured
-    (the old estimate: 6 and 23 MB)."""
-    run = tmp_path / "run.mcap"
-    assert main(["run", str(scene_file), "--t-end", "2.0", "--dt", "0.05", "--out", str(run),
+@pytest.fixture(scope="module")
+def recorded(scene_file, tmp_path_factory) -> Path:
+    """A 3 s run of the corridor, recorded every 0.05 s."""
+    run = tmp_path_factory.mktemp("recorded") / "run.mcap"
+    assert main(["run", str(scene_file), "--t-end", "3.0", "--dt", "0.05", "--out", str(run),
                  "--quiet"]) == 0
-    done = subprocess.run([sys.executable, "-c", GIF_RUN, str(run), str(tmp_path / "a.gif"),
-                           str(size), str(frames)], env=_env(), capture_output=True,
-                          text=True, timeout=600)
+    return run
+
+
+def _render_memory(recorded: Path, tmp_path: Path, name: str, size: int, frames: int) -> dict:
+    """The measured and estimated memory (bytes) of rendering ``frames`` frames of ``size``
+    x ``size`` px to ``name`` (.gif or .mp4)."""
+    wrapper = tmp_path / "ffmpeg"
+    wrapper.write_text(FFMPEG_WRAPPER.format(python=sys.executable))
+    wrapper.chmod(0o755)
+    import imageio_ffmpeg
+    env = dict(_env(), REAL_FFMPEG=imageio_ffmpeg.get_ffmpeg_exe(),
+               IMAGEIO_FFMPEG_EXE=str(wrapper), FFMPEG_PEAK=str(tmp_path / "peak.txt"))
+    done = subprocess.run([sys.executable, "-c", RENDER_RUN, str(recorded),
+                           str(tmp_path / name), str(size), str(frames)], env=env,
+                          capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
-    got = json.loads(done.stdout.splitlines()[-1])
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+@pytest.mark.parametrize("size,frames", [(2000, 2), (2000, 10)])
+def test_the_gif_memory_estimate_holds(recorded, tmp_path, size, frames):
+    """2 and 10 frames of 2000 x 2000 px: 104 and 168 MB estimated, 91 and 172 MB measured
+    (a byte per pixel per frame: 8 and 40 MB)."""
+    got = _render_memory(recorded, tmp_path, "a.gif", size, frames)
+    ratio = got["estimated"] / got["measured"]
+    assert 1 / FACTOR <= ratio <= FACTOR, got
+
+
+@pytest.mark.parametrize("size,frames", [(1600, 2), (1600, 30)])
+def test_the_mp4_memory_estimate_holds(recorded, tmp_path, size, frames):
+    """2 and 30 frames of 1600 x 1600 px, ffmpeg's memory included: x264's frames in flight
+    take about 5.5 bytes per pixel each (with its default threads, 1.5 per core, its memory
+    grew with the machine's cores: 283 MB for 1000 x 1000 px on 2 cores, 353 MB with 8)."""
+    got = _render_memory(recorded, tmp_path, "a.mp4", size, frames)
     ratio = got["estimated"] / got["measured"]
     assert 1 / FACTOR <= ratio <= FACTOR, got
 
@@ -111,3 +154,16 @@ def test_the_recording_estimate_counts_source_agents_when_they_enter(scene_file,
     capsys.readouterr()
     measured = _payload_bytes(run)
     assert 1 / FACTOR <= size.recording_bytes / measured <= FACTOR, (size, measured)
+
+
+@pytest.mark.parametrize("out", ["big.mp4", "big.gif"])
+def test_a_render_beyond_its_memory_bound_is_refused_before_drawing(recorded, tmp_path,
+                                                                    capsys, out):
+    """8192 x 8192 px: an MP4 needs about 8.5 GB (x264's frames in flight), a GIF of 31 frames
+    about 5.3 GB; each is refused in one line naming the output and the fix, nothing
+    written."""
+    code = main(["render", str(recorded), "--out", str(tmp_path / out), "--size", "8192x8192"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert "GB of memory" in err[0] and "--size" in err[0], err
+    assert not list(tmp_path.iterdir())
