@@ -23,6 +23,7 @@ from mcap.reader import make_reader
 
 from sweep_core.cli import main
 from sweep_core.io import limits
+from sweep_core.model.room import most_present
 from sweep_core.model.scene import load_scene
 from sweep_core.model.yaml_files import dump_yaml
 
@@ -167,3 +168,49 @@ def test_a_render_beyond_its_memory_bound_is_refused_before_drawing(recorded, tm
     assert code == 2 and len(err) == 1, err
     assert "GB of memory" in err[0] and "--size" in err[0], err
     assert not list(tmp_path.iterdir())
+
+
+#: a 4 x 4 m room fed by a source over all of it at 1000 agents/s: it fills within seconds
+FULL_ROOM = {"name": "room", "agents": {"positions": [[2.0, 2.0]], "radius": 0.2},
+        "walls": [{"kind": "polyline", "points": [[0, 0], [4, 0], [4, 4], [0, 4]],
+                   "closed": True}],
+        "drift": {"kind": "goal", "goal": [3.5, 2.0], "speed": 1.3},
+        "flows": {"sources": [{"region": {"kind": "rectangle", "min": [0, 0], "max": [4, 4]},
+                               "rate": 1000.0, "count": 100_000}]}}
+
+
+def _present(path: Path) -> list[int]:
+    """Agents present in each recorded state (/agents' point count)."""
+    out = []
+    with open(path, "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages():
+            if channel.topic == "/agents":
+                data = message.data
+                # sensor_msgs/PointCloud2 after the header: height, width (uint32 each)
+                end = 4 + 8 + 4 + int.from_bytes(data[12:16], "little")
+                end += -end % 4
+                out.append(int.from_bytes(data[end + 4:end + 8], "little"))
+    return out
+
+
+def test_the_recording_estimate_counts_no_more_agents_than_the_room_holds(tmp_path, capsys):
+    """5 s of the room at dt 0.05 s, every 5th step recorded: the source's schedule brings
+    5000 agents, the room holds about 90 (peak 92 here). Oler's bound, 112 agents of radius
+    0.2 m in the 4 x 4 m room, is within 1.5 of the peak and the estimate holds the recording
+    from above (1.45 times its bytes, the room filling during the first seconds); counting
+    every scheduled agent made it 33 times the recording."""
+    p = tmp_path / "room.yaml"
+    p.write_text(dump_yaml(FULL_ROOM))
+    run = tmp_path / "room.mcap"
+    assert main(["run", str(p), "--t-end", "5.0", "--dt", "0.05", "--record-every", "5",
+                 "--out", str(run), "--quiet"]) == 0
+    capsys.readouterr()
+    assert json.loads((tmp_path / "room.summary.json").read_text())["status"] == "completed"
+    scene = load_scene(str(p))
+    most = most_present(scene, 5.0)
+    present = _present(run)
+    assert most is not None and 1.0 <= most / max(present) <= FACTOR, (most, max(present))
+    size = limits.check_run_size(scene.n_agents, 0.05, 5.0, 5, entries=scene.flows.sources[0]
+                                 .times, most=most)
+    measured = _payload_bytes(run)
+    assert 1.0 <= size.recording_bytes / measured <= FACTOR, (size, measured)
