@@ -133,17 +133,7 @@ def _run(args: argparse.Namespace) -> int:
     meta = run_metadata(scene, sim, t_end, args.record_every)
     meta["path_dt"] = repr(args.path_dt) if args.path_dt else ""
 
-    stale = [summary_out]  # the summary of an earlier run to this --out, until this one runs
-
     def tally(s: Simulator) -> None:
-        if stale:  # the recording is open (locked) and its first state taken: the summary
-            # left by an earlier run would describe another recording
-            try:
-                stale.pop().unlink(missing_ok=True)
-            except OSError as err:
-                raise OutputError(str(summary_out), f"the summary of an earlier run cannot be "
-                                  f"removed ({err.strerror})", "remove it or give another "
-                                  "--out") from err
         if s.state.step:
             stats["steps"] += 1
             stats["min_gap"] = min(stats["min_gap"], s.state.min_gap)
@@ -154,6 +144,15 @@ def _run(args: argparse.Namespace) -> int:
         stop.check()
 
     try:
+        # the summary of an earlier run to this --out goes before the recording is opened,
+        # which empties it: a run killed at any moment after leaves no summary of another
+        # recording
+        try:
+            summary_out.unlink(missing_ok=True)
+        except OSError as err:
+            raise OutputError(str(summary_out), "the summary of an earlier run cannot be "
+                              f"removed ({err.strerror})", "remove it or give another --out"
+                              ) from err
         with StopOnSignal() as stop:
             run = record_run(sim, t_end, out, meta, record_every=args.record_every,
                              frame_id=args.frame_id, path_dt=args.path_dt or None,
