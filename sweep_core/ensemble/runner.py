@@ -15,6 +15,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from sweep_core import checks
@@ -24,6 +25,7 @@ from sweep_core.ensemble.task import RECORD, Task, simulate
 from sweep_core.errors import SceneError
 from sweep_core.io import limits
 from sweep_core.io.outputs import write_text
+from sweep_core.model.room import most_present
 from sweep_core.model.scene import DEFAULT_SCENE, Scene, copy_spec, load_scene
 from sweep_core.numerics import kernels
 from sweep_core.numerics.schemes import SCHEMES
@@ -100,6 +102,25 @@ def check_steps(t_end: float, dt: float, field: str) -> None:
                          if least <= limits.DT_MAX else shorter)
 
 
+def check_recording(scene: Scene, t_end: float, dt: float) -> None:
+    """Refuses runs whose recording, every step of ``t_end`` s at ``dt`` s written to a
+    temporary file on the worker and read back by the analysis, would pass ``sweep run``'s
+    bound :data:`limits.MAX_RECORDING_BYTES` (the same estimate: agents of sources counted
+    from their times on, at most what the room holds; the base scene's agents)."""
+    sources = scene.flows.sources if scene.flows is not None else ()
+    entries = np.concatenate([s.times for s in sources]) if sources else None
+    size = limits.check_run_size(scene.n_agents, dt, t_end, force=True, entries=entries,
+                                 most=most_present(scene, t_end) if sources else None)
+    if size.recording_bytes > limits.MAX_RECORDING_BYTES:
+        most = t_end * limits.MAX_RECORDING_BYTES / size.recording_bytes
+        raise SceneError("--t-end", f"{t_end:g} s at dt = {dt:g} s records {size.frames:g} "
+                         f"states of {scene.n_agents} agents per run, about "
+                         f"{size.recording_bytes / 1e9:.3g} GB uncompressed on its worker, "
+                         f"more than the limit {limits.MAX_RECORDING_BYTES / 1e9:g} GB",
+                         f"a shorter --t-end (at most about {most:.3g} s), a larger --dt, or "
+                         "fewer agents")
+
+
 def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0: int = 0,
         t_end: float = 60.0, dt: float = 0.01, scheme: str = "projected_euler",
         vary: Mapping[str, Sequence[Any]] | None = None, client: Any = None,
@@ -157,6 +178,7 @@ def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0:
     for point in points:
         if "dt" in point:
             check_steps(t_end, float(point["dt"]), "--vary dt")
+    check_recording(base, t_end, min(float(p.get("dt", dt)) for p in points))
     keys = list(points[0])
     out_dir = Path(out).resolve() if out is not None else None
     held = None  # DIR/.lock, held while this ensemble writes DIR
