@@ -251,3 +251,50 @@ def test_the_spawn_memory_estimate_holds(tmp_path):
     assert done.returncode == 0, done.stderr
     got = json.loads(done.stdout.splitlines()[-1])
     assert 1 / FACTOR <= got["estimated"] / got["measured"] <= FACTOR, got
+
+
+#: builds a scene of N sources of COUNT agents and steps it three times in a fresh process,
+#: and prints the increase of its peak resident memory (bytes) over the same with sources of
+#: one agent each
+SOURCES_RUN = """
+import json, re, sys
+from sweep_core.model.flows import SCHEDULE_BYTES_PER_AGENT
+from sweep_core.model.scene import Scene
+from sweep_core.numerics.simulator import Simulator
+def peak():
+    text = open("/proc/self/status").read()
+    return int(re.search(r"VmHWM:\\s+(\\d+)", text).group(1)) * 1024
+n, count = int(sys.argv[1]), int(sys.argv[2])
+def run(count):
+    sources = [{"region": {"kind": "rectangle", "min": [0.3 + 0.15 * k, 0.3],
+                           "max": [0.4 + 0.15 * k, 0.4]}, "rate": 1.0, "count": count}
+               for k in range(n)]
+    scene = Scene.from_dict({
+        "name": "s", "agents": {"positions": [[5.0, 3.5]], "radius": 0.04},
+        "walls": [{"kind": "polyline", "points": [[0, 0], [10, 0], [10, 4], [0, 4]],
+                   "closed": True}],
+        "drift": {"kind": "goal", "goal": [9.5, 2.0], "speed": 1.3},
+        "flows": {"sources": sources}})
+    sim = Simulator(scene, dt=0.05, seed=0)
+    for _ in range(3):
+        sim.step()
+run(1)
+with open("/proc/self/clear_refs", "w") as f:
+    f.write("5")
+before = peak()
+run(count)
+print(json.dumps({"measured": peak() - before,
+                  "estimated": SCHEDULE_BYTES_PER_AGENT * n * count}))
+"""
+
+
+def test_the_sources_memory_estimate_holds():
+    """The most sources a scene may have (64) of the most agents each (1e5): 51 MB estimated,
+    52 MB measured."""
+    from sweep_core.model.flows import MAX_SOURCE_COUNT, MAX_SOURCES
+    done = subprocess.run([sys.executable, "-c", SOURCES_RUN, str(MAX_SOURCES),
+                           str(MAX_SOURCE_COUNT)], env=_env(), capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr
+    got = json.loads(done.stdout.splitlines()[-1])
+    assert 1 / FACTOR <= got["estimated"] / got["measured"] <= FACTOR, got
