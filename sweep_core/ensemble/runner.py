@@ -49,9 +49,25 @@ def resolve_scene(scene: Scene | dict | str | Path | None) -> Scene:
 
 #: most runs (runs per grid point x grid points) of one ensemble: each run is a Dask task and
 #: a head and a task kept here before the first one is submitted (measured: 53 MB and 1.5 s
-#: per 1e5 runs, so 1e9 runs built lists until memory ran out), and Dask's scheduler adds
-#: its own state and scheduling time per task (about 1 ms, Dask's own figure)
+#: per 1e5 runs, so 1e9 runs built lists until memory ran out), its row gathered here and
+#: the table built from them (:func:`gathered_memory`), and Dask's scheduler adds its own
+#: state and scheduling time per task (about 1 ms, Dask's own figure)
 MAX_RUNS = 100_000
+#: memory of an ensemble's runs in the client (bytes): per run (its head and task), per
+#: column of its row (a float in the row's dict and in the table), per byte of its summary
+#: JSON (--record summary: the string in the row, the table's copy). Measured increase of
+#: the peak resident memory building the heads and tasks, gathering rows of the bundled room
+#: (52 columns, a summary of 2.3 kB) and building the table: 2e4 runs 128 MB, with summaries
+#: 306 MB; 1e5 runs with summaries 1.34 GB, so MAX_RUNS keeps it near 1.5 GB for such rows
+GATHER_PER_RUN, GATHER_PER_COLUMN, GATHER_PER_SUMMARY_BYTE = 550, 120, 4
+
+
+def gathered_memory(runs: int, columns: int, summary_bytes: int = 0) -> int:
+    """The memory (bytes) ``runs`` runs take in the client: their heads and tasks, their rows
+    of ``columns`` columns with summaries of ``summary_bytes`` bytes (0: --record none), and
+    the table of them (:data:`GATHER_PER_RUN` and the rest)."""
+    return runs * (GATHER_PER_RUN + GATHER_PER_COLUMN * columns
+                   + GATHER_PER_SUMMARY_BYTE * summary_bytes)
 
 #: largest seed: runs.parquet stores seeds as int64 (a seed of 2^64 failed after every run)
 MAX_SEED = 2**63 - 1
