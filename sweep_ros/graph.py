@@ -40,15 +40,31 @@ def wait_for_same_name(node: Any, deadline: float, poll_s: float = 0.05) -> int:
         time.sleep(poll_s)
 
 
-def check_unique_name(node: Any, deadline: float) -> None:
+#: how long (s) a node that sees another of its name at start waits for the other's start
+#: announcement (:class:`SameName`), which says which of the two started first
+ANNOUNCE_WAIT_S = 5.0
+
+
+def check_unique_name(node: Any, deadline: float, same: SameName) -> None:
     """Raises :class:`StartError` if another node with this node's name and namespace shows up
-    in the graph before ``deadline`` (time.monotonic(), s): services, parameters and commands
-    would reach both."""
-    if wait_for_same_name(node, deadline) > 1:
-        raise StartError([
-            f"another node named {node.get_fully_qualified_name()} is running on this ROS "
-            "domain; services and commands would reach both (fix: stop it, or give this one "
-            "another name or namespace: --ros-args -r __node:=NAME or -r __ns:=/NS)"])
+    in the graph before ``deadline`` (time.monotonic(), s) and started before this one, or
+    does not say when it started within :data:`ANNOUNCE_WAIT_S` (``same``: this node's
+    announcement and those heard): services, parameters and commands would reach both. A
+    node of this name that started after this one is let be: it stops (two started together
+    both stopped when each saw the other in the graph)."""
+    count = wait_for_same_name(node, deadline)
+    if count <= 1:
+        return
+    end = time.monotonic() + ANNOUNCE_WAIT_S
+    while same.problem is None and len(same.seen) < count - 1 and time.monotonic() < end:
+        time.sleep(0.05)
+        same.poll()
+    if same.problem is None and len(same.seen) >= count - 1:
+        return  # every other node of this name started after this one, and stops
+    raise StartError([same.problem or (
+        f"another node named {node.get_fully_qualified_name()} is running on this ROS "
+        "domain; services and commands would reach both (fix: stop it, or give this one "
+        "another name or namespace: --ros-args -r __node:=NAME or -r __ns:=/NS)")])
 
 
 #: the topic (relative to the node's name: one per fully qualified name) on which every node
@@ -71,12 +87,21 @@ class SameName:
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.seen: set[str] = set()
-        node.create_subscription(KeyValue, INSTANCE_TOPIC, self.take, QoSProfile(
-            depth=16, reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        #: why this node stops: an earlier node of its name heard (None: none)
+        self.problem: str | None = None
+        self.subscription = node.create_subscription(
+            KeyValue, INSTANCE_TOPIC, self.take, QoSProfile(
+                depth=16, reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self.publisher = node.create_publisher(KeyValue, INSTANCE_TOPIC, latched)
         self.publisher.publish(KeyValue(key=self.token, value=json.dumps(
             {"started_ns": self.started_ns, "pid": os.getpid()})))
+
+    def poll(self) -> None:
+        """Takes the announcements received so far, before the node spins (at its start)."""
+        with self.subscription.handle:
+            while (got := self.subscription.handle.take_message(KeyValue, False)) is not None:
+                self.take(got[0])
 
     def take(self, msg: KeyValue) -> None:
         """An announcement: ours, one already judged, or another node of this name."""
@@ -90,10 +115,11 @@ class SameName:
         name = self.node.get_fully_qualified_name()
         if (other, msg.key) < (self.started_ns, self.token):
             ago = (self.started_ns - other) / 1e9
-            self.on_later(f"another node named {name} is running on this ROS domain (started "
-                          f"{ago:.3g} s before this one); services and commands would reach "
-                          "both (fix: stop it, or give this one another name or namespace: "
-                          "--ros-args -r __node:=NAME or -r __ns:=/NS)")
+            self.problem = (f"another node named {name} is running on this ROS domain "
+                            f"(started {ago:.3g} s before this one); services and commands "
+                            "would reach both (fix: stop it, or give this one another name or "
+                            "namespace: --ros-args -r __node:=NAME or -r __ns:=/NS)")
+            self.on_later(self.problem)
         else:
             self.node.get_logger().error(
                 f"another node named {name} started on this ROS domain "
@@ -149,6 +175,6 @@ class UnknownGroups:
             self.subscriptions[topic] = box[0]
 
 
-__all__ = ["GRAPH_PERIOD_S", "MAX_UNKNOWN_GROUPS", "UnknownGroups", "check_unique_name",
-           "foreign_goal_topics", "same_name_count", "unknown_group_problem",
+__all__ = ["ANNOUNCE_WAIT_S", "GRAPH_PERIOD_S", "MAX_UNKNOWN_GROUPS", "SameName", "UnknownGroups",
+           "check_unique_name", "foreign_goal_topics", "same_name_count", "unknown_group_problem",
            "wait_for_same_name"]

@@ -190,8 +190,8 @@ class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin
         #: why this node stops: a node of its name started before it (:class:`graph.SameName`)
         self.duplicate: str | None = None
         if self._p["name_check_s"] > 0:  # 0: do not look
-            graph.check_unique_name(self, started + self._p["name_check_s"])
             self._same_name = graph.SameName(self, self._later_of_two)
+            graph.check_unique_name(self, started + self._p["name_check_s"], self._same_name)
         self._apply_sigma()
         # every kernel a step, a goal's navigation field or a map can call, compiled (first
         # run on this machine) or loaded now: no command waits for a compile once ready

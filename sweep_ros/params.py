@@ -101,9 +101,9 @@ SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("publish_clock", False, "Publish rosgraph_msgs/Clock (simulated time) on clock "
               "every tick.", False),
     ParamSpec("name_check_s", 1.0, "At start, watch the ROS graph this long (s) for another "
-              "node with this node's name and namespace, and refuse to start if one shows up; "
-              "later, the later of two such nodes stops when discovery joins them; 0 = do not "
-              "look.", False, 0.0, 60.0),
+              "node with this node's name and namespace, and refuse to start if one shows up "
+              "that started before this one; later, the later of two such nodes stops when "
+              "discovery joins them; 0 = do not look.", False, 0.0, 60.0),
     ParamSpec("noise_sigma", -1.0, "Noise intensity sigma, m/sqrt(s), for every agent; -1 = the "
               "scene's own (possibly per-agent) sigma.", True, -1.0, 100.0,
               "-1 or >= 0"),

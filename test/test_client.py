@@ -278,6 +278,36 @@ def test_a_later_node_of_the_same_name_stops_however_slow_discovery_is(  # noqa:
     assert codes[0] == 0, first.log
 
 
+def test_of_two_nodes_of_one_name_started_together_exactly_one_runs(  # noqa: F811
+        installed, tmp_path):  # noqa: F811
+    """Two /sweep_node started together see each other in the graph at once: each waits for
+    the other's start announcement, and the later of the two stops (one line, exit 2) while
+    the earlier runs on. Before: each refused on seeing the other, and neither ran."""
+    scene_path = tmp_path / "scene.yaml"
+    scene_path.write_text(yaml.safe_dump(SCENE))
+    base = {"scene": str(scene_path), "dt": DT, "rate_hz": 50.0, "publish_markers": False,
+            "name_check_s": 5.0}
+    nodes = [Running(installed, tmp_path, base, name=name) for name in ("a", "b")]
+    try:
+        # one of them stops; the other must still run once the stopped one is gone
+        end = time.monotonic() + START_S + 60.0
+        while time.monotonic() < end and all(n.proc.poll() is None for n in nodes):
+            time.sleep(0.2)
+        stopped = [n for n in nodes if n.proc.poll() is not None]
+        assert len(stopped) == 1, [n.log for n in nodes]
+        assert stopped[0].proc.returncode == 2, stopped[0].log
+        errors = [ln for ln in stopped[0].log.splitlines()
+                  if ln.startswith("sweep_node: error:")]
+        assert len(errors) == 1 and "another node named /sweep_node is running" in errors[0], \
+            stopped[0].log
+        running = next(n for n in nodes if n is not stopped[0])
+        time.sleep(2.0)  # the running one is still running a little later
+        assert running.alive(), running.log
+    finally:
+        codes = [n.stop(signal.SIGTERM) for n in nodes]
+    assert sorted(codes) == [0, 2], (codes, [n.log for n in nodes])
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--namespace", "bad//ns", "pause"],
      "argument --namespace: --namespace = 'bad//ns' is not a ROS namespace: namespace must "

@@ -21,6 +21,7 @@ from sweep_core.analysis.run import load_run  # noqa: E402
 from sweep_core.cli import main  # noqa: E402
 from sweep_core.ensemble import cluster, run, store  # noqa: E402
 from sweep_core.ensemble.task import Task, digest, flatten, simulate  # noqa: E402
+from sweep_core.errors import SceneError  # noqa: E402
 from sweep_core.io.recording import read_metadata
 
 SCENE = """
@@ -302,3 +303,31 @@ def test_resume_after_a_real_kill(tmp_path, scene):
     cols = ["seed", "final_sha256"]
     assert table.sort_values("seed")[cols].reset_index(drop=True).equals(
         fresh.sort_values("seed")[cols].reset_index(drop=True))
+
+
+def test_runs_whose_recording_passes_the_bound_are_refused_before_any_starts(tmp_path):
+    """Every run records every step to a temporary file on its worker: 1e4 s of the bundled
+    room (200 agents) at dt 0.01 is about 18 GB per run, refused as sweep run refuses it,
+    before a cluster is asked for anything (the client here answers nothing: the old code
+    reached it)."""
+    with pytest.raises(SceneError, match=r"^--t-end: 10000 s at dt = 0.01 s records .* GB "
+                                         r"uncompressed on its worker, more than the limit 2 GB"):
+        run(None, runs=2, t_end=10000.0, dt=0.01, client=object(), out=tmp_path / "o")
+    assert not (tmp_path / "o").exists()
+
+
+#: a worker's peak resident memory (bytes, Linux's VmHWM)
+def _worker_memory() -> int:
+    with open("/proc/self/status") as f:
+        return next(int(ln.split()[1]) for ln in f if ln.startswith("VmHWM:")) * 1024
+
+
+def test_a_workers_memory_is_what_the_worker_bound_assumes(client):
+    """After runs of the bundled room (200 agents, 1 s) each worker's peak resident memory is
+    within 1.5 of cluster.WORKER_BYTES (240 MB; measured 246 MB), the figure --workers is
+    bounded by."""
+    table = run(None, runs=2, t_end=1.0, dt=0.05, client=client, plots=False)
+    assert (table["status"] == "ok").all(), table["error"].tolist()
+    peaks = client.run(_worker_memory).values()
+    for peak in peaks:
+        assert 1 / 1.5 <= cluster.WORKER_BYTES / peak <= 1.5, (cluster.WORKER_BYTES, peaks)

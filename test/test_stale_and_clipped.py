@@ -2,9 +2,10 @@
 
 - A source region crossed by a wall is refused: part of it lies outside the room, and the
   source placed agents there, where they stayed.
-- A run to an ``--out`` of an earlier run removes that run's ``OUT.summary.json`` once the
-  new recording is open: a kill -9 of the rerun left the earlier summary ("completed")
-  beside the new, cut-short recording.
+- A run to an ``--out`` of an earlier run removes that run's ``OUT.summary.json`` before
+  the new recording is opened (which empties it): a kill -9 of the rerun left the earlier
+  summary ("completed") beside the new, cut-short recording, also when it came between the
+  opening and the first recorded state.
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ import numpy as np
 import pytest
 
 from sweep_core import Scene, SceneError, Simulator
+from sweep_core.cli import main
 from sweep_core.model.yaml_files import dump_yaml
 
 REPO = Path(__file__).resolve().parents[1]
@@ -97,4 +99,40 @@ def test_a_rerun_killed_leaves_no_summary_of_the_earlier_run(tmp_path):
     finally:
         rerun.send_signal(signal.SIGKILL)
         rerun.wait()
+    assert not summary.exists(), summary.read_text()
+
+
+#: runs ``sweep run`` with the process killed (os._exit, as SIGKILL: nothing cleaned up) right
+#: after the recording is opened, which empties it, before any state is recorded
+KILLED_AT_OPEN = """
+import os, sys
+from sweep_core.io.recording import runs
+opened = runs.BackgroundRecorder.__enter__
+def enter(self):
+    opened(self)
+    os._exit(9)
+runs.BackgroundRecorder.__enter__ = enter
+from sweep_core.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_rerun_killed_as_its_recording_opens_leaves_no_summary(tmp_path):
+    """The rerun is killed once its recording is opened (emptied) and before its first state
+    is recorded, the seconds a large scene's walls and navigation field take: the earlier
+    run's summary ("completed") went only with the first recorded state, and stayed beside
+    the emptied recording."""
+    scene = tmp_path / "scene.yaml"
+    data = corridor(SOURCE)
+    data.pop("flows")
+    scene.write_text(dump_yaml(data))
+    out, summary = tmp_path / "run.mcap", tmp_path / "run.summary.json"
+    args = ["run", str(scene), "--dt", "0.01", "--t-end", "0.05", "--out", str(out), "--quiet"]
+    assert main(args) == 0
+    assert json.loads(summary.read_text())["status"] == "completed"
+    size = out.stat().st_size
+    killed = subprocess.run([sys.executable, "-c", KILLED_AT_OPEN, *args, "--overwrite"],
+                            env=_env(), capture_output=True, text=True, timeout=600)
+    assert killed.returncode == 9, killed.stderr
+    assert out.stat().st_size < size  # emptied: the earlier recording is gone
     assert not summary.exists(), summary.read_text()

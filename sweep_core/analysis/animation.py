@@ -1,6 +1,7 @@
 """Video files from RGB frames: MP4 (H.264, yuv420p) through imageio-ffmpeg's ffmpeg, GIF
 through Pillow (:func:`open_writer`), and the output's path and format (:func:`output_path`:
-a name ending in .mp4 or .gif). Both write to the temporary file of
+a name ending in .mp4 or .gif), and the memory a render takes, refused before it starts above
+a bound (:func:`check_memory`). Both write to the temporary file of
 :func:`sweep_core.io.outputs.replacing`, renamed over the output once every frame is in."""
 from __future__ import annotations
 
@@ -17,6 +18,29 @@ from sweep_core.io.outputs import replacing
 #: the highest frame rate of a GIF (1/s): it holds each frame a whole number of 10 ms, and a
 #: frame shorter than that is shown for 100 ms by browsers
 GIF_MAX_FPS = 100.0
+#: x264's encoding threads and the frames it looks ahead (:class:`Mp4Writer`)
+X264_THREADS, X264_LOOKAHEAD = 2, 10
+#: the most memory (bytes) a GIF's render may take (:func:`gif_memory`)
+GIF_BYTES = 1_000_000_000
+#: memory of a GIF's render, bytes per pixel of the frame: once (the figure's RGBA canvas,
+#: its RGB copy, the quantizing and Pillow's writer) and per frame (the quantized frame held
+#: until the file is written, and the writer's copy of it). Measured increase of the peak
+#: resident memory over the render: 1000 x 1000 px, 2 / 4 / 10 / 30 frames: 20 / 31 / 42 /
+#: 71 MB; 1200 x 1200 px, 4 / 16 frames: 40-51 / 81 MB; 2000 x 2000 px, 2 / 10 frames: 91 /
+#: 172 MB; 8192 x 8192 px, 11 frames: 3 GB (test/test_estimates.py checks it)
+GIF_ONCE_PER_PX, GIF_FRAME_PER_PX = 22, 2
+#: the most memory (bytes) an MP4's render may take, the render and its ffmpeg together
+#: (:func:`mp4_memory`)
+MP4_BYTES = 2_000_000_000
+#: memory of an MP4's render: ffmpeg's own (MP4_BASE bytes) and bytes per pixel of the frame
+#: once (the figure's canvas and RGB copy, about 10; x264's buffers, about 12) and per frame
+#: sent, up to MP4_FRAMES frames (x264's frames in flight, with 2 threads and 10 frames of
+#: lookahead, :data:`X264_THREADS`). Measured peak resident
+#: memory of ffmpeg (through a wrapper process) plus the increase of the render's: 2000 x
+#: 2000 px, 1 / 2 / 5 / 10 / 15 / 20 / 30 / 80 frames: ffmpeg 88 / 125 / 208 / 309 / 385 /
+#: 416 / 447 / 474 MB, the render 41 MB; 1000 x 1000 px, 1 / 80 frames: 56 / 163 MB and
+#: 8-13 MB (test/test_estimates.py checks it)
+MP4_BASE, MP4_ONCE_PER_PX, MP4_FRAME_PER_PX, MP4_FRAMES = 50_000_000, 22, 5.5, 19
 
 
 def has_encoder() -> bool:
@@ -27,6 +51,33 @@ def has_encoder() -> bool:
     except (ImportError, RuntimeError, OSError):
         return False
     return True
+
+
+def gif_memory(frames: int, size: tuple[int, int]) -> int:
+    """The memory (bytes) a GIF of ``frames`` frames of ``size`` (width, height) px takes
+    while it is rendered and written (:data:`GIF_ONCE_PER_PX`, :data:`GIF_FRAME_PER_PX`)."""
+    return size[0] * size[1] * (GIF_ONCE_PER_PX + frames * GIF_FRAME_PER_PX)
+
+
+def mp4_memory(frames: int, size: tuple[int, int]) -> int:
+    """The memory (bytes) an MP4 of ``frames`` frames of ``size`` (width, height) px takes
+    while it is rendered and encoded, ffmpeg's included (:data:`MP4_BASE` and the rest)."""
+    per_px = MP4_ONCE_PER_PX + min(frames, MP4_FRAMES) * MP4_FRAME_PER_PX
+    return int(MP4_BASE + size[0] * size[1] * per_px)
+
+
+def check_memory(path: str, fmt: str, frames: int, size: tuple[int, int]) -> None:
+    """Refuses, before any frame is drawn, a render of ``frames`` frames of ``size`` (width,
+    height) px whose memory estimate passes :data:`GIF_BYTES` (``fmt`` "gif", assembled in
+    memory) or :data:`MP4_BYTES` ("mp4")."""
+    if fmt == "gif" and (need := gif_memory(frames, size)) > GIF_BYTES:
+        raise SweepError(f"{path}: {frames} GIF frames of {size[0]} x {size[1]} px need "
+                         f"{need / 1e9:.1f} GB of memory (fix: write an MP4, or fewer frames "
+                         "with --fps, --from/--to, or a smaller --size)")
+    if fmt == "mp4" and (need := mp4_memory(frames, size)) > MP4_BYTES:
+        raise SweepError(f"{path}: an MP4 of {size[0]} x {size[1]} px needs "
+                         f"{need / 1e9:.1f} GB of memory, more than {MP4_BYTES / 1e9:g} GB "
+                         "(fix: a smaller --size, e.g. --size 1920x1080)")
 
 
 class FrameWriter:
@@ -59,7 +110,12 @@ class Mp4Writer(FrameWriter):
         self._gen: Any = imageio_ffmpeg.write_frames(
             path, size, fps=fps, codec="libx264", pix_fmt_in="rgb24", pix_fmt_out="yuv420p",
             quality=7, macro_block_size=2, ffmpeg_log_level="error",
-            output_params=["-f", "mp4"])  # the temporary file's name has no .mp4 ending
+            # "-f mp4": the temporary file's name has no .mp4 ending; the encoder's threads
+            # and lookahead fixed, so that its memory is the same on every machine (x264's
+            # default, 1.5 threads per core and 40 frames ahead, held 283 MB for 1000 x 1000
+            # px on 2 cores, 353 MB with 8 threads; render.mp4_memory)
+            output_params=["-f", "mp4", "-threads", str(X264_THREADS), "-rc-lookahead",
+                           str(X264_LOOKAHEAD)])
         self._gen.send(None)
 
     def _write(self, rgb: np.ndarray) -> None:

@@ -17,8 +17,8 @@ Outputs go through :mod:`sweep_core.io.outputs` (never over the recording, writt
 temporary file and renamed).
 
 Longer than the usual module: the frame's drawing, its colour modes (speeds over the
-analysis's window among them) and the memory estimate share one figure's state; the writers
-are apart, in :mod:`sweep_core.analysis.animation`."""
+analysis's window among them) share one figure's state; the writers and their memory
+estimates are apart, in :mod:`sweep_core.analysis.animation`."""
 from __future__ import annotations
 
 import math
@@ -63,17 +63,6 @@ MIN_SIZE = 160
 #: the lowest frame rate (1/s), a frame every 100 s: ffmpeg takes the rate as a fraction of
 #: denominator at most 1e6, so a rate below 5e-7 reached it as 0 and the encoder failed
 MIN_FPS = 0.01
-#: the most memory (bytes) a GIF's render may take (:func:`gif_memory`)
-GIF_BYTES = 1_000_000_000
-#: memory of a GIF's render, bytes per pixel of the frame: once (the figure's RGBA canvas,
-#: its RGB copy, the quantizing and Pillow's writer) and per frame (the quantized frame held
-#: until the file is written, and the writer's copy of it). Measured increase of the peak
-#: resident memory over the render: 1000 x 1000 px, 2 / 4 / 10 / 30 frames: 20 / 31 / 42 /
-#: 71 MB; 1200 x 1200 px, 4 / 16 frames: 40-51 / 81 MB; 2000 x 2000 px, 2 / 10 frames: 91 /
-#: 172 MB; 8192 x 8192 px, 11 frames: 3 GB (test/test_estimates.py checks it)
-GIF_ONCE_PER_PX, GIF_FRAME_PER_PX = 22, 2
-
-
 @dataclass(frozen=True)
 class RenderOptions:
     """fps: video frames per second; start, end: the window (s on the recording's clock, None:
@@ -328,7 +317,7 @@ def render(recording: str, out: str | None = None, opts: RenderOptions | None = 
            progress: bool = True, encoder: bool | None = None) -> tuple[str, int]:
     """Writes the animation of ``recording``; returns its path and its number of frames.
     encoder: whether MP4 can be written (None: look for imageio-ffmpeg's ffmpeg)."""
-    from sweep_core.analysis.animation import has_encoder, output_path
+    from sweep_core.analysis.animation import check_memory, has_encoder, output_path
     opts = opts or RenderOptions()
     opts.check()
     meta = load_run(recording)
@@ -345,11 +334,7 @@ def render(recording: str, out: str | None = None, opts: RenderOptions | None = 
                          f"{float(clock[-1]):g} s (fix: give --from at most that)")
     times = frame_times(opts.start, end, opts.fps, opts.speed)
     size = _size(opts, sv.view)
-    need = gif_memory(len(times), size)  # a GIF is assembled in memory
-    if fmt == "gif" and need > GIF_BYTES:
-        raise SweepError(f"{path}: {len(times)} GIF frames of {size[0]} x {size[1]} px need "
-                         f"{need / 1e9:.1f} GB of memory (fix: write an MP4, or fewer frames "
-                         "with --fps, --from/--to, or a smaller --size)")
+    check_memory(path, fmt, len(times), size)
     painter = Painter(meta, sv, opts, size)
     try:
         with open_writer(path, fmt, size, opts.fps, [meta.path]) as writer:
@@ -357,12 +342,6 @@ def render(recording: str, out: str | None = None, opts: RenderOptions | None = 
     finally:
         painter.close()
     return path, len(times)
-
-
-def gif_memory(frames: int, size: tuple[int, int]) -> int:
-    """The memory (bytes) a GIF of ``frames`` frames of ``size`` (width, height) px takes
-    while it is rendered and written (:data:`GIF_ONCE_PER_PX`, :data:`GIF_FRAME_PER_PX`)."""
-    return size[0] * size[1] * (GIF_ONCE_PER_PX + frames * GIF_FRAME_PER_PX)
 
 
 def _size(opts: RenderOptions, view: tuple[float, float, float, float]) -> tuple[int, int]:

@@ -25,6 +25,7 @@ from sweep_core.io.metadata import run_metadata
 from sweep_core.io.outputs import check_output, write_text
 from sweep_core.io.recording.runs import record_run
 from sweep_core.model.gallery import resolve_scene_path
+from sweep_core.model.room import most_present
 from sweep_core.model.scene import Scene, load_scene
 from sweep_core.numerics import kernels, paths
 from sweep_core.numerics.projection import SolverOptions
@@ -109,7 +110,8 @@ def _run(args: argparse.Namespace) -> int:
     sources = scene.flows.sources if scene.flows is not None else ()
     limits.check_run_size(scene.n_agents, dt, t_end, args.record_every,
                           path_dt=args.path_dt or None, frame_id=args.frame_id, force=args.force,
-                          entries=np.concatenate([s.times for s in sources]) if sources else None)
+                          entries=np.concatenate([s.times for s in sources]) if sources else None,
+                          most=most_present(scene, t_end) if sources else None)
     inputs = scene_files(args.scene, scene)
     out = check_output(args.out, inputs)
     if out.exists() and not args.overwrite:
@@ -131,17 +133,7 @@ def _run(args: argparse.Namespace) -> int:
     meta = run_metadata(scene, sim, t_end, args.record_every)
     meta["path_dt"] = repr(args.path_dt) if args.path_dt else ""
 
-    stale = [summary_out]  # the summary of an earlier run to this --out, until this one runs
-
     def tally(s: Simulator) -> None:
-        if stale:  # the recording is open (locked) and its first state taken: the summary
-            # left by an earlier run would describe another recording
-            try:
-                stale.pop().unlink(missing_ok=True)
-            except OSError as err:
-                raise OutputError(str(summary_out), f"the summary of an earlier run cannot be "
-                                  f"removed ({err.strerror})", "remove it or give another "
-                                  "--out") from err
         if s.state.step:
             stats["steps"] += 1
             stats["min_gap"] = min(stats["min_gap"], s.state.min_gap)
@@ -152,6 +144,15 @@ def _run(args: argparse.Namespace) -> int:
         stop.check()
 
     try:
+        # the summary of an earlier run to this --out goes before the recording is opened,
+        # which empties it: a run killed at any moment after leaves no summary of another
+        # recording
+        try:
+            summary_out.unlink(missing_ok=True)
+        except OSError as err:
+            raise OutputError(str(summary_out), "the summary of an earlier run cannot be "
+                              f"removed ({err.strerror})", "remove it or give another --out"
+                              ) from err
         with StopOnSignal() as stop:
             run = record_run(sim, t_end, out, meta, record_every=args.record_every,
                              frame_id=args.frame_id, path_dt=args.path_dt or None,
@@ -214,7 +215,8 @@ def _write_summary(summary_path: Path, out: Path, scene: Scene, sim: Simulator,
     ``active_rows_*``: rows of a step's linearised constraint set (agent pairs near enough to
     be built, walls, obstacles) that hold with equality after its projection. ``min_gap_m`` is
     null when no constraint exists (one agent and no walls), ``steps_per_s`` when no wall time
-    was measured.
+    was measured, ``bound_max_m`` when some step's projection was left uncertified (its bound
+    infinite: only proven feasible).
     """
     steps = stats["steps"]
     summary = {
@@ -229,7 +231,7 @@ def _write_summary(summary_path: Path, out: Path, scene: Scene, sim: Simulator,
         "active_rows_mean": stats["active_rows_sum"] / steps if steps else 0.0,
         "active_rows_max": stats["active_rows_max"],
         "backend_agents_max": stats["backend_agents_max"],
-        "bound_max_m": stats["bound_max_m"], "tol_m": solver.tol, "recording": str(out),
+        "bound_max_m": _finite(stats["bound_max_m"]), "tol_m": solver.tol, "recording": str(out),
         "recording_bytes": out.stat().st_size if out.exists() else 0,
     }
     try:
@@ -314,7 +316,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         help=f"run even beyond {limits.MAX_STEPS:g} steps or a recording of "
                              f"more than {limits.MAX_RECORDING_BYTES / 1e9:g} GB (estimated "
                              "uncompressed: 88 bytes per agent present per recorded step, an "
-                             "entering agent counted from its source time on)")
+                             "entering agent counted from its source time on, never more at "
+                             "once than a closed room around them holds)")
     parser.add_argument("--marker-rate", type=float, default=markers.MARKER_RATE_HZ,
                         metavar="HZ",
                         help="record /markers (people as disks, robots) at HZ of simulated "

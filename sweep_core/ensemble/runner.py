@@ -15,6 +15,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from sweep_core import checks
@@ -24,6 +25,7 @@ from sweep_core.ensemble.task import RECORD, Task, simulate
 from sweep_core.errors import SceneError
 from sweep_core.io import limits
 from sweep_core.io.outputs import write_text
+from sweep_core.model.room import most_present
 from sweep_core.model.scene import DEFAULT_SCENE, Scene, copy_spec, load_scene
 from sweep_core.numerics import kernels
 from sweep_core.numerics.schemes import SCHEMES
@@ -47,9 +49,25 @@ def resolve_scene(scene: Scene | dict | str | Path | None) -> Scene:
 
 #: most runs (runs per grid point x grid points) of one ensemble: each run is a Dask task and
 #: a head and a task kept here before the first one is submitted (measured: 53 MB and 1.5 s
-#: per 1e5 runs, so 1e9 runs built lists until memory ran out), and Dask's scheduler adds
-#: its own state and scheduling time per task (about 1 ms, Dask's own figure)
+#: per 1e5 runs, so 1e9 runs built lists until memory ran out), its row gathered here and
+#: the table built from them (:func:`gathered_memory`), and Dask's scheduler adds its own
+#: state and scheduling time per task (about 1 ms, Dask's own figure)
 MAX_RUNS = 100_000
+#: memory of an ensemble's runs in the client (bytes): per run (its head and task), per
+#: column of its row (a float in the row's dict and in the table), per byte of its summary
+#: JSON (--record summary: the string in the row, the table's copy). Measured increase of
+#: the peak resident memory building the heads and tasks, gathering rows of the bundled room
+#: (52 columns, a summary of 2.3 kB) and building the table: 2e4 runs 128 MB, with summaries
+#: 306 MB; 1e5 runs with summaries 1.34 GB, so MAX_RUNS keeps it near 1.5 GB for such rows
+GATHER_PER_RUN, GATHER_PER_COLUMN, GATHER_PER_SUMMARY_BYTE = 550, 120, 4
+
+
+def gathered_memory(runs: int, columns: int, summary_bytes: int = 0) -> int:
+    """The memory (bytes) ``runs`` runs take in the client: their heads and tasks, their rows
+    of ``columns`` columns with summaries of ``summary_bytes`` bytes (0: --record none), and
+    the table of them (:data:`GATHER_PER_RUN` and the rest)."""
+    return runs * (GATHER_PER_RUN + GATHER_PER_COLUMN * columns
+                   + GATHER_PER_SUMMARY_BYTE * summary_bytes)
 
 #: largest seed: runs.parquet stores seeds as int64 (a seed of 2^64 failed after every run)
 MAX_SEED = 2**63 - 1
@@ -98,6 +116,25 @@ def check_steps(t_end: float, dt: float, field: str) -> None:
                          f"per run, more than the limit {limits.MAX_STEPS:g}",
                          f"a dt of at least {least:g} s, or {shorter}"
                          if least <= limits.DT_MAX else shorter)
+
+
+def check_recording(scene: Scene, t_end: float, dt: float) -> None:
+    """Refuses runs whose recording, every step of ``t_end`` s at ``dt`` s written to a
+    temporary file on the worker and read back by the analysis, would pass ``sweep run``'s
+    bound :data:`limits.MAX_RECORDING_BYTES` (the same estimate: agents of sources counted
+    from their times on, at most what the room holds; the base scene's agents)."""
+    sources = scene.flows.sources if scene.flows is not None else ()
+    entries = np.concatenate([s.times for s in sources]) if sources else None
+    size = limits.check_run_size(scene.n_agents, dt, t_end, force=True, entries=entries,
+                                 most=most_present(scene, t_end) if sources else None)
+    if size.recording_bytes > limits.MAX_RECORDING_BYTES:
+        most = t_end * limits.MAX_RECORDING_BYTES / size.recording_bytes
+        raise SceneError("--t-end", f"{t_end:g} s at dt = {dt:g} s records {size.frames:g} "
+                         f"states of {scene.n_agents} agents per run, about "
+                         f"{size.recording_bytes / 1e9:.3g} GB uncompressed on its worker, "
+                         f"more than the limit {limits.MAX_RECORDING_BYTES / 1e9:g} GB",
+                         f"a shorter --t-end (at most about {most:.3g} s), a larger --dt, or "
+                         "fewer agents")
 
 
 def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0: int = 0,
@@ -157,6 +194,7 @@ def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0:
     for point in points:
         if "dt" in point:
             check_steps(t_end, float(point["dt"]), "--vary dt")
+    check_recording(base, t_end, min(float(p.get("dt", dt)) for p in points))
     keys = list(points[0])
     out_dir = Path(out).resolve() if out is not None else None
     held = None  # DIR/.lock, held while this ensemble writes DIR

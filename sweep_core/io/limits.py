@@ -66,26 +66,32 @@ class RunSize:
 
 
 def recording_bytes(n_agents: int, frames: int, every_s: float,
-                    entries: np.ndarray | None = None, frame_id: str = "map") -> int:
+                    entries: np.ndarray | None = None, frame_id: str = "map",
+                    most: int | None = None) -> int:
     """Bytes (uncompressed) of ``frames`` states recorded every ``every_s`` s from t = 0 of a
     run of ``n_agents`` initial agents, and of the agents entering at their sources: an agent
     counts from its source time on (``entries``, s; it enters then or later, never before),
-    as if it never left (sinks are not counted: an upper bound)."""
+    as if it never left (sinks are not counted), and never more than ``most`` agents at once
+    (what the room holds, :func:`sweep_core.model.room.most_present`; None: no bound): an
+    upper bound."""
     if entries is None or not len(entries):
         return frames * frame_bytes(n_agents, frame_id)
     base = frame_bytes(n_agents, frame_id)
     per_agent = frame_bytes(n_agents + 1, frame_id) - base
     t = np.arange(frames, dtype=np.float64) * every_s
-    entered = int(np.searchsorted(np.sort(entries), t * (1 + 1e-12), side="right").sum())
-    return frames * base + entered * per_agent
+    entered = np.searchsorted(np.sort(entries), t * (1 + 1e-12), side="right")
+    if most is not None:
+        entered = np.minimum(entered, max(most - n_agents, 0))
+    return frames * base + int(entered.sum()) * per_agent
 
 
 def check_run_size(n_agents: int, dt: float, t_end: float, record_every: int = 1, *,
                    path_dt: float | None = None, frame_id: str = "map",
-                   force: bool = False, entries: np.ndarray | None = None) -> RunSize:
+                   force: bool = False, entries: np.ndarray | None = None,
+                   most: int | None = None) -> RunSize:
     """The size of a run of ``t_end`` s at ``dt`` s recording every ``record_every``-th step,
     with ``n_agents`` initial agents and agents entering at the times ``entries`` (s; a
-    source's times, :func:`recording_bytes`).
+    source's times), at most ``most`` present at once (:func:`recording_bytes`).
 
     Raises:
         SceneError: unless ``force``, when the run takes more than :data:`MAX_STEPS` steps (or
@@ -98,7 +104,7 @@ def check_run_size(n_agents: int, dt: float, t_end: float, record_every: int = 1
     # frames counted one by one up to MAX_STEPS + 1 of them (a forced longer run: scaled)
     counted = min(frames, MAX_STEPS + 1)
     size = RunSize(steps, frames, recording_bytes(n_agents, counted, record_every * dt,
-                                                  entries, frame_id) * frames // counted)
+                                                  entries, frame_id, most) * frames // counted)
     if force:
         return size
     if steps > MAX_STEPS:
@@ -118,6 +124,8 @@ def check_run_size(n_agents: int, dt: float, t_end: float, record_every: int = 1
         fix = "fewer agents or --force"
         more = (f" and up to {len(entries)} entering at sources" if entries is not None
                 and len(entries) else "")
+        if most is not None and more:
+            more += f", at most {most} present at once in the room"
         if room > 0:
             k = max(record_every + 1, math.ceil(steps / room))
             fix = f"--record-every {k} or more, a shorter --t-end, or --force"

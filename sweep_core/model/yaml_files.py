@@ -52,11 +52,16 @@ MAX_ALIASES = 1000
 #: nodes that aliases may repeat in one document, counted as composed (an alias of a list of
 #: 3 numbers repeats 4 nodes)
 MAX_ALIAS_NODES = 100_000
-#: nodes (scalars, keys and collections) in one document. Composing a node costs about 450 B
-#: (a list of 2e6 numbers, 6 MB of text, took 974 MB), so a file within the scene's size limit
-#: could otherwise take tens of GB; this bounds it near 2 GB. A scene listing the positions,
+#: nodes (scalars, keys and collections) in one document. Loading a node costs about
+#: :data:`BYTES_PER_NODE` (measured increase of the peak resident memory over loading 3e5
+#: nodes: 430 B a node for a list of numbers, 530 B for a list of points, 730 B for a list of
+#: small mappings; 550 B for 9e5 nodes of points), so a file within the scene's size limit
+#: could otherwise take tens of GB; this bounds it near 2.5 GB. A scene listing the positions,
 #: radii and speeds of 1e5 agents has about 5e5 nodes
 MAX_NODES = 1 << 22
+#: memory (bytes) a loaded node takes, the estimate behind :data:`MAX_NODES`
+#: (test/test_estimates.py checks it)
+BYTES_PER_NODE = 600
 
 
 class YAMLLimitError(yaml.MarkedYAMLError):
