@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -76,13 +77,24 @@ def _template(start: int, sec: int, nanosec: int, frame: bytes, batch: MarkerBat
               ) -> tuple[bytes, dict[str, int], int]:
     """One marker of the batch written at payload offset ``start`` (a multiple of 4): its
     bytes up to the next marker's start (the trailing padding included), the offsets of the
-    columns and of the end of the marker proper (``end``)."""
+    columns and of the end of the marker proper (``end``). The layout depends on ``start``
+    only through its alignment (start mod 8) and is kept (:func:`_layout`); the stamp, the
+    marker's first 8 bytes, is written into it."""
+    unit, offsets, size = _layout(start % 8, frame, batch.ns, int(batch.type), int(batch.action))
+    return struct.pack("<iI", sec, nanosec) + unit[8:], offsets, size
+
+
+@lru_cache(maxsize=256)
+def _layout(start: int, frame: bytes, ns: str, kind: int, action: int
+            ) -> tuple[bytes, dict[str, int], int]:
+    """A marker's template (stamp 0) written at a payload offset of ``start`` mod 8: see
+    :func:`_template` (the offsets are not to be changed by callers)."""
     w = _Writer(start)
-    w.put("iI", sec, nanosec)  # header.stamp
+    w.put("iI", 0, 0)  # header.stamp (the first 8 bytes: start is a multiple of 4)
     w.string(frame)
-    w.string(batch.ns.encode("utf-8"))
+    w.string(ns.encode("utf-8"))
     w.put("i", 0, key="id")
-    w.put("ii", int(batch.type), int(batch.action))
+    w.put("ii", kind, action)
     w.put("ddd", 0.0, 0.0, 0.0, key="position")
     w.put("dddd", 0.0, 0.0, 0.0, 1.0, key="orientation")
     w.put("ddd", 0.0, 0.0, 0.0, key="scale")
