@@ -262,6 +262,37 @@ def test_background_recorder_writes_in_order_and_keeps_errors(tmp_path):
     assert [m.log_time_ns for m in read_recording(tmp_path / "bad.mcap")] == [5]
 
 
+def test_background_recorder_batches_keep_order_and_errors(tmp_path):
+    """``write_many``: each batch one queue entry, its messages written in order among
+    single writes; a bad message stops recording there (those before it stay), later batches
+    are dropped."""
+    path = tmp_path / "many.mcap"
+    with BackgroundRecorder(path, max_backlog=2, flush_interval_s=None) as rec:
+        rec.add_channel("/clock", cdr.CLOCK)
+        rec.add_channel("/other", cdr.CLOCK)
+        expected = []
+        for i in range(0, N_STEPS, 4):
+            batch = [("/clock" if k % 2 else "/other", _stamp(i + k),
+                      cdr.encode_clock(_stamp(i + k))) for k in range(3)]
+            rec.write_many(batch)
+            rec.write("/clock", _stamp(i + 3), cdr.encode_clock(_stamp(i + 3)))
+            expected += [(t, s) for t, s, _ in batch] + [("/clock", _stamp(i + 3))]
+        rec.write_many([])  # nothing queued
+    assert rec.error is None and rec.written == len(expected) and rec.backlog == 0
+    got = [(m.topic, cdr.decode_clock(m.data)) for m in read_recording(path)]
+    assert got == expected
+
+    rec = BackgroundRecorder(tmp_path / "bad_many.mcap", flush_interval_s=None)
+    rec.add_channel("/clock", cdr.CLOCK)
+    rec.write_many([("/clock", 5, cdr.encode_clock(5)), ("/nope", 6, b""),
+                    ("/clock", 7, cdr.encode_clock(7))])
+    rec.flush()
+    rec.write_many([("/clock", 8, cdr.encode_clock(8))])  # dropped, no exception
+    rec.close()
+    assert "'/nope' has no channel" in rec.error and rec.written == 1
+    assert [m.log_time_ns for m in read_recording(tmp_path / "bad_many.mcap")] == [5]
+
+
 def test_errors(tmp_path):
     assert issubclass(RecordingError, SweepError)
     rec = Recorder(tmp_path / "e.mcap", flush_interval_s=None)

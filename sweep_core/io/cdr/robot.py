@@ -25,7 +25,17 @@ from sweep_core.io.cdr.msgdefs import (
 from sweep_core.io.cdr.stream import CdrReader, CdrWriter
 
 
-def _finite(values: Sequence[float] | np.ndarray, size: int, name: str) -> np.ndarray:
+def _finite(values: Sequence[float] | np.ndarray, size: int, name: str
+            ) -> np.ndarray | list[float]:
+    """``size`` finite float64 values, checked (ValueError naming ``name``)."""
+    # the common cases (a tuple of floats, a float64 array), without numpy's per-call cost
+    if type(values) is tuple and len(values) == size \
+            and all(type(v) is float and math.isfinite(v) for v in values):
+        return list(values)
+    if type(values) is np.ndarray and values.shape == (size,) and values.dtype == np.float64:
+        out = values.tolist()
+        if all(map(math.isfinite, out)):
+            return out
     try:
         arr = np.asarray(values, dtype=np.float64)
     except (TypeError, ValueError) as err:
@@ -37,10 +47,16 @@ def _finite(values: Sequence[float] | np.ndarray, size: int, name: str) -> np.nd
     return arr
 
 
-def _covariance(values: Sequence[float] | np.ndarray | None, name: str) -> np.ndarray:
+#: 36 float64 zeros: a covariance not given
+_ZERO_COVARIANCE = bytes(8 * 36)
+
+
+def _covariance(w: CdrWriter, values: Sequence[float] | np.ndarray | None, name: str) -> None:
+    """A 6x6 row-major covariance (36 values; zeros when None) written to ``w``."""
     if values is None:
-        return np.zeros(36)
-    return _finite(np.asarray(values, dtype=np.float64).ravel(), 36, name)
+        w.raw(_ZERO_COVARIANCE, 8)
+    else:
+        w.pack("36d", *_finite(np.asarray(values, dtype=np.float64).ravel(), 36, name))
 
 
 def yaw_quaternion(yaw: float) -> tuple[float, float, float, float]:
@@ -157,10 +173,10 @@ def encode_odometry(stamp_ns: int, frame_id: str, child_frame_id: str,
     w.header(stamp_ns, frame_id)
     w.string(child_frame_id, "child_frame_id")
     _pose(w, pose, "pose")
-    w.pack("36d", *_covariance(pose_covariance, "pose_covariance"))
+    _covariance(w, pose_covariance, "pose_covariance")
     vx, vy, omega = _finite(twist, 3, "twist")
     w.pack("6d", vx, vy, 0.0, 0.0, 0.0, omega)
-    w.pack("36d", *_covariance(twist_covariance, "twist_covariance"))
+    _covariance(w, twist_covariance, "twist_covariance")
     return w.bytes()
 
 
@@ -247,7 +263,7 @@ def encode_pose_with_covariance_stamped(
     w = CdrWriter()
     w.header(stamp_ns, frame_id)
     _pose(w, pose, "pose")
-    w.pack("36d", *_covariance(covariance, "covariance"))
+    _covariance(w, covariance, "covariance")
     return w.bytes()
 
 

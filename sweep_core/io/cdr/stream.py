@@ -4,11 +4,18 @@ size relative to the first payload byte, padding zero."""
 from __future__ import annotations
 
 import struct
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
-from sweep_core.io.cdr.wire import ENCAPSULATION, NS_PER_S, PAD, split_stamp
+from sweep_core.io.cdr.wire import ENCAPSULATION, NS_PER_S, PAD, frame_bytes, split_stamp
+
+
+@lru_cache(maxsize=128)
+def _packer(fmt: str) -> tuple[Any, int]:
+    """(pack function, alignment in bytes) of ``fmt``: one primitive type, repeated."""
+    return struct.Struct("<" + fmt).pack, struct.calcsize("<" + fmt[-1])
 
 
 class CdrWriter:
@@ -29,16 +36,17 @@ class CdrWriter:
 
     def pack(self, fmt: str, *values: Any) -> None:
         """Values of one primitive type (``fmt`` a single struct code, repeated)."""
-        size = struct.calcsize("<" + fmt[-1])
+        pack, size = _packer(fmt)
         self.align(size)
-        self._put(struct.pack("<" + fmt, *values))
+        self._put(pack(*values))
+
+    def raw(self, data: bytes, size: int) -> None:
+        """Bytes already encoded (e.g. a run of zeros), aligned to ``size`` first."""
+        self.align(size)
+        self._put(data)
 
     def string(self, text: str, name: str) -> None:
-        if not isinstance(text, str):
-            raise ValueError(f"{name}: must be a str, got {type(text).__name__}")
-        if "\x00" in text:
-            raise ValueError(f"{name}: must not contain a NUL character, got {text!r}")
-        raw = text.encode("utf-8") + b"\x00"
+        raw = frame_bytes(text, name)  # checked, UTF-8, NUL-terminated
         self.pack("I", len(raw))
         self._put(raw)
 

@@ -51,7 +51,9 @@ def _string_block(frame_id: str, name: str) -> bytes:
     return raw + b"\x00"
 
 
-def _frame_bytes(frame_id: Any, name: str) -> bytes:
+def frame_bytes(frame_id: Any, name: str) -> bytes:
+    """A CDR string's bytes (UTF-8 + NUL) of ``frame_id``, checked (ValueError naming
+    ``name``); kept for the strings seen last."""
     if not isinstance(frame_id, str):
         raise ValueError(f"{name}: must be a str, got {type(frame_id).__name__}")
     return _string_block(frame_id, name)
@@ -82,7 +84,7 @@ def scratch(key: tuple, size: int) -> list:
 def header_prefix(stamp_ns: Any, frame_id: Any) -> bytes:
     """Encapsulation + std_msgs/Header, padded to a 4-byte boundary of the payload."""
     sec, nanosec = split_stamp(stamp_ns, "stamp_ns")
-    fid = _frame_bytes(frame_id, "frame_id")
+    fid = frame_bytes(frame_id, "frame_id")
     # payload offset after the string: 12 + len(fid); pad to 4
     return b"".join(
         (ENCAPSULATION, _pack_time_strlen(sec, nanosec, len(fid)), fid, PAD[-len(fid) % 4])

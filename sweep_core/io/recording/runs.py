@@ -74,8 +74,9 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
                on_state: Callable[[Simulator], None] | None = None,
                inputs: Iterable[str | os.PathLike[str] | None] = ()) -> RecordedRun:
     """Steps ``sim`` to ``t_end`` (s), on a Brownian path drawn at ``path_dt`` when given,
-    recording to ``out`` (a writer thread compresses and writes; at most 64 messages wait, so
-    a writer that falls behind slows the run instead of filling the memory). ``on_state(sim)``
+    recording to ``out`` (a writer thread compresses and writes; each state's messages are
+    handed to it at once, and at most 16 states' wait, so a writer that falls behind slows the
+    run instead of filling the memory). ``on_state(sim)``
     is called after each state is recorded, the first included; a KeyboardInterrupt (or
     subclass, e.g. a signal turned into one) it raises ends the run as ``interrupted``. The
     run never raises once the recording is open: the outcome, written as the ``sweep_status``
@@ -89,7 +90,7 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
     failure: BaseException | None = None
     steps = 0
     wall = 0.0
-    with BackgroundRecorder(out, metadata=metadata, max_backlog=64, inputs=inputs) as rec:
+    with BackgroundRecorder(out, metadata=metadata, max_backlog=16, inputs=inputs) as rec:
         def channel(name: str, msgtype: str, latched: bool = False) -> None:
             if latched:
                 rec.add_channel(name, msgtype,
@@ -99,10 +100,18 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
             if live is not None:
                 live.add_channel(name, msgtype, latched)
 
+        pending: list[tuple[str, int, bytes]] = []  # a state's messages, handed over at once
+
         def write(name: str, ns: int, data: bytes) -> None:
-            rec.write(name, ns, data)
+            pending.append((name, ns, data))
             if live is not None:
                 live.write(name, ns, data)
+
+        def hand_over() -> None:
+            """The messages written since the last call to the writer thread, in one entry."""
+            if pending:
+                rec.write_many(pending.copy())
+                pending.clear()
 
         for name, msgtype in topics.TYPES.items():
             channel("/" + name, msgtype)
@@ -122,9 +131,26 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
             ns0 = topics.stamp_ns(sim.t)
             write(robot_topics.TF_STATIC, ns0,
                       robot_topics.encode_static(sim.scene, ns0, frame_id))
+            hand_over()
 
         def record(s: Simulator) -> None:
-            nonlocal steps, recorded
+            nonlocal steps
+            try:
+                encode(s)
+            finally:
+                hand_over()
+            if rec.error:
+                raise RecordingError(rec.error)
+            if live is not None and s.state.step % record_every == 0:
+                live.pace(s.state.t)
+            if s.state.step:
+                steps += 1
+            if on_state is not None:
+                on_state(s)
+
+        def encode(s: Simulator) -> None:
+            """The messages of the state ``s`` is in, to ``write``."""
+            nonlocal recorded
             state = s.state
             if s.robots is not None:  # their messages; the applied commands every step
                 ns = topics.stamp_ns(state.t)
@@ -147,14 +173,6 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
                     ns = topics.stamp_ns(state.t)
                     write("/" + topics.NAVIGATION, ns,
                               topics.encode_navigation(ns, frame_id, s.drift, state.t))
-                if rec.error:
-                    raise RecordingError(rec.error)
-                if live is not None:
-                    live.pace(state.t)
-            if state.step:
-                steps += 1
-            if on_state is not None:
-                on_state(s)
 
         start = time.perf_counter()
         try:
