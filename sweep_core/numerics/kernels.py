@@ -156,6 +156,9 @@ def _exercise() -> None:
     schemes.log_each(v)
     one = np.zeros(1, dtype=np.int64)
     dual.slacks(np.zeros((2, 2)), one, one - 1, np.ones((1, 2)), np.zeros(1))
+    # the crossing test of a path that reaches a wall segment (no step of the jam does)
+    wall_kernels.paths_meet_exactly(np.zeros((1, 2)), np.ones((1, 2)), np.array([[0.0, 1.0]]),
+                                    np.array([[1.0, 0.0]]))
     # the exact path of small clusters: two agents pressed together against a wall
     rows = sp.csr_matrix(np.array([[1.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0]]))
     solve_active(np.array([0.1, -0.2, -0.1, 0.0]), rows, np.array([0.05, 0.0]))
