@@ -223,9 +223,14 @@ def test_path_dt_is_refused_when_agents_enter_or_leave(recorded, capsys):
 
 
 def test_run_size_counts_the_agents_sources_may_add(tmp_path, capsys):
+    """100 000 agents entering at 1000 /s into a hall that holds them all: up to 100 000
+    present, 100 s at dt 0.01 is far more than 2 GB (in the 10 m x 4 m corridor at most a
+    few hundred are present at once, and the same run fits: test_estimates)."""
     scene = tmp_path / "big.yaml"
     data = corridor({"sources": [{**SOURCE, "rate": 1000.0, "count": 100_000}]},
                     positions=[[5.0, 2.0]])
+    data["walls"] = [{"kind": "polyline", "points": [[0, 0], [400, 0], [400, 400], [0, 400]],
+                      "closed": True}]
     scene.write_text(Scene.from_dict(data).to_yaml())
     assert main(["run", str(scene), "--t-end", "100", "--dt", "0.01",
                  "--out", str(tmp_path / "big.mcap"), "--quiet"]) != 0
