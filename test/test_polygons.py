@@ -62,7 +62,7 @@ def test_non_convex_polygon_keeps_agents_out() -> None:
     sim = sc.Simulator(scene, dt=0.01, seed=3)
     for _ in range(300):
         sim.step()
-        gaps = sc.model.geometry.gaps(scene.geometry, sim.t, sim.positions, scene.radii(sim.t))
+        gaps = sc.model.gaps.gaps(scene.geometry, sim.t, sim.positions, scene.radii(sim.t))
         assert gaps.min_gap >= -1e-9
     # they reached the notch: an agent sits in its corner, touching both inner edges (centre
     # near (1.2, 1.2), 0.2 sqrt 2 from the reflex vertex)
@@ -153,7 +153,7 @@ def test_rotating_bar_sweeps_agents_aside() -> None:
     sim = sc.Simulator(scene, dt=0.005, seed=0)
     for _ in range(400):
         sim.step()
-        g = sc.model.geometry.gaps(scene.geometry, sim.t, sim.positions, scene.radii(sim.t))
+        g = sc.model.gaps.gaps(scene.geometry, sim.t, sim.positions, scene.radii(sim.t))
         assert g.min_gap >= -1e-9
     moved = np.hypot(*(sim.positions - np.array(pos)).T)
     assert moved.min() > 0.1

@@ -4,7 +4,7 @@ import pytest
 
 import sweep_core as sc
 from sweep_core.errors import SceneError
-from sweep_core.model.geometry import gaps
+from sweep_core.model.gaps import gaps
 
 ROOM = {"kind": "polyline", "points": [[0, 0], [10, 0], [10, 6], [0, 6]], "closed": True}
 PILLAR = {"kind": "polygon", "points": [[4, 2], [6, 2], [6, 4], [4, 4]]}

@@ -4,7 +4,7 @@ import pytest
 
 import sweep_core as sc
 from sweep_core.errors import SceneError
-from sweep_core.model.geometry import gaps
+from sweep_core.model.gaps import gaps
 
 
 class Ellipse:

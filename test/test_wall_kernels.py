@@ -88,15 +88,15 @@ def test_gaps_from_every_value_equal_the_doubling_search(monkeypatch: pytest.Mon
                                                          spread: float) -> None:
     """gaps() takes every value at once for a few segments; the search that doubles its reach
     (the path of many segments, forced here) finds the same minimum, contacts and near pairs."""
-    from sweep_core.model import geometry
+    from sweep_core.model import gaps as summary
 
     geom = _scene().geometry
     rng = np.random.default_rng(3)
     q = rng.uniform(-spread, spread, (60, 2))
     r = np.full(60, 0.2)
-    fast = geometry.gaps(geom, 0.0, q, r)
-    monkeypatch.setattr(geometry, "DENSE_SEGMENTS", -1)
-    slow = geometry.gaps(geom, 0.0, q, r)
+    fast = summary.gaps(geom, 0.0, q, r)
+    monkeypatch.setattr(summary, "DENSE_SEGMENTS", -1)
+    slow = summary.gaps(geom, 0.0, q, r)
     assert (fast.min_single, fast.contacts, fast.worst_single, fast.reach) == \
         (slow.min_single, slow.contacts, slow.worst_single, slow.reach)
     assert sorted(zip(fast.near_agent.tolist(), fast.near_segment.tolist())) == \
@@ -107,7 +107,7 @@ def test_gaps_from_every_value_equal_the_doubling_search(monkeypatch: pytest.Mon
 def test_gaps_pairs_are_the_numpy_forms_bits() -> None:
     """The compiled pair gaps of gaps() hold the numpy form's bits, its contacts and its
     first smallest pair; agents touching and overlapping included."""
-    from sweep_core.model.geometry import gaps
+    from sweep_core.model.gaps import gaps
 
     rng = np.random.default_rng(4)
     q = rng.uniform(0.0, 6.0, (200, 2))
@@ -134,7 +134,7 @@ def test_crossings_in_one_pass_are_the_searched_ones(monkeypatch: pytest.MonkeyP
     search (forced here) finds: paths through walls, a polygon's edges, a
     path ending on a wall, paths that stay put."""
     from sweep_core.model import crossing
-    from sweep_core.model.geometry import gaps
+    from sweep_core.model.gaps import gaps
 
     geom = _scene().geometry
     rng = np.random.default_rng(5)

@@ -54,7 +54,8 @@ from sweep_core.analysis.speed import (
 )
 from sweep_core.analysis.speed import SPEED_BIN as SPEED_BIN  # re-exported
 from sweep_core.errors import RecordingError, SweepError
-from sweep_core.model.geometry import Geometry, gaps
+from sweep_core.model.gaps import gaps
+from sweep_core.model.geometry import Geometry
 
 #: a constraint whose true value is at most this (m) counts as an active contact
 CONTACT_TOL = 1e-6

@@ -1,7 +1,7 @@
 """Centre paths through walls: the check that no agent's centre went through a wall segment
 during a step, decided exactly.
 
-The post-step check (:func:`sweep_core.model.geometry.gaps`) evaluates the constraints at the
+The post-step check (:func:`sweep_core.model.gaps.gaps`) evaluates the constraints at the
 step's end; an agent whose centre jumped through a thin wall in one step ends on the far side
 with a positive distance, which that check alone cannot tell from a feasible position. The
 straight path [q0_i, q1_i] of each centre is therefore tested against every static wall
@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sweep_core.model.geometry import Gaps, Geometry
+from sweep_core.model.gaps import Gaps
+from sweep_core.model.geometry import Geometry
 from sweep_core.model.neighbours import segments_within
 from sweep_core.model.outlines import segments_meet
 from sweep_core.model.wall_kernels import crossing_pairs, paths_meet_exactly

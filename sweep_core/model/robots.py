@@ -30,7 +30,8 @@ import numpy as np
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.controller_spec import controller_from_spec
-from sweep_core.model.geometry import Geometry, gaps
+from sweep_core.model.gaps import gaps
+from sweep_core.model.geometry import Geometry
 
 KINEMATICS = ("diff_drive", "holonomic")
 REACTIONS = ("none", "avoid")

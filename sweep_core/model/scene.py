@@ -41,7 +41,8 @@ from sweep_core.model.drift import field_from_spec, scene_drift
 from sweep_core.model.fields import DEFAULT_SPEED, Field
 from sweep_core.model.flows import Flows, flows_from_spec
 from sweep_core.model.gallery import resolve_scene_path
-from sweep_core.model.geometry import Geometry, gaps
+from sweep_core.model.gaps import gaps
+from sweep_core.model.geometry import Geometry
 from sweep_core.model.layout import geometry_from_spec
 from sweep_core.model.maps import map_from_spec, read_bounded
 from sweep_core.model.radii import RadiusLaw, radius_law_from_spec

@@ -11,7 +11,7 @@ bounding boxes compared exactly, the four orientation determinants in float with
 error filter; a pair whose sign the filter cannot vouch for is returned as unsure, for the
 exact rational evaluation in Python (:func:`sweep_core.model.outlines.orientation`).
 
-:func:`pair_gaps` and :func:`single_gaps` are :func:`sweep_core.model.geometry.gaps`' summary
+:func:`pair_gaps` and :func:`single_gaps` are :func:`sweep_core.model.gaps.gaps`' summary
 (smallest value, its place, contacts, the segment pairs near the agents) in one pass each, the
 values the bits of :func:`near_rows` and of the numpy form; :func:`crossing_pairs` gathers the
 crossing test's candidate pairs (:func:`sweep_core.model.crossing.crossings`) and tests them.

@@ -11,8 +11,9 @@ from sweep_core import checks
 from sweep_core.errors import InfeasibleError, SceneError
 from sweep_core.model.crossing import crossings
 from sweep_core.model.fields import Field
+from sweep_core.model.gaps import gaps
 from sweep_core.model.geodesic import navigation_fields
-from sweep_core.model.geometry import SEGMENT, gaps, single_rows
+from sweep_core.model.geometry import SEGMENT, single_rows
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise

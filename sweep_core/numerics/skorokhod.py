@@ -5,7 +5,7 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import SceneError
-from sweep_core.model.geometry import gaps
+from sweep_core.model.gaps import gaps
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.projection import SolverOptions, project
 

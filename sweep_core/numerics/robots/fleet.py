@@ -36,7 +36,8 @@ import numpy as np
 
 from sweep_core.errors import InfeasibleError, SceneError, show
 from sweep_core.model.crossing import crossings
-from sweep_core.model.geometry import CIRCLE, Geometry, gaps
+from sweep_core.model.gaps import gaps
+from sweep_core.model.geometry import CIRCLE, Geometry
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.robots import Robot, overlap
 from sweep_core.model.scene import Scene

@@ -1,0 +1,132 @@
+"""The true constraint values' summary at (t, q) after a step (:func:`gaps`, :class:`Gaps`): the
+smallest pair and wall/obstacle gaps, the contacts, the worst constraints and the (agent,
+segment) pairs near each other for the crossing check (:mod:`sweep_core.model.crossing`).
+Exact values (no linearisation), m; positions (N, 2). The compiled passes are
+:func:`~sweep_core.model.wall_kernels.pair_gaps` and
+:func:`~sweep_core.model.wall_kernels.single_gaps`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sweep_core.model.geometry import (
+    DENSE_SEGMENTS,
+    SEGMENT,
+    Geometry,
+    inside_polygons,
+    single_rows,
+)
+from sweep_core.model.neighbours import pairs_within
+from sweep_core.model.wall_kernels import pair_gaps, single_gaps
+
+_NO_POLYGON = np.zeros((0, 0), dtype=np.bool_)
+_EMPTY = np.empty(0, dtype=np.intp)
+
+
+@dataclass(frozen=True)
+class Gaps:
+    """True (non-linearised) constraint values at (t, q), m.
+
+    min_pair, min_single: smallest gap (inf if none); contacts: number of constraints with
+    gap <= contact_tol; worst_pair: (i, j, gap) or None; worst_single: (agent, kind, item, gap)
+    or None. near_agent, near_segment: the (agent, segment) pairs whose value is within
+    ``reach`` (m), the distance searched (for the crossing check of
+    :mod:`sweep_core.model.crossing`).
+    """
+
+    min_pair: float
+    min_single: float
+    contacts: int
+    worst_pair: tuple[int, int, float] | None
+    worst_single: tuple[int, int, int, float] | None
+    pair_i: np.ndarray
+    pair_j: np.ndarray
+    pair_gap: np.ndarray
+    near_agent: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.intp))
+    near_segment: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.intp))
+    reach: float = 0.0
+
+    @property
+    def min_gap(self) -> float:
+        return min(self.min_pair, self.min_single)
+
+
+def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
+         contact_tol: float = 1e-6) -> Gaps:
+    """Evaluate every constraint that can be violated or touching at (t, q)."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    r = np.ascontiguousarray(r, dtype=np.float64)
+    r_max = float(r.max(initial=0.0))
+    i, j = pairs_within(q, 2.0 * r_max + contact_tol)
+    pg = np.empty(len(i))
+    contacts, w = pair_gaps(q, r, i, j, float(contact_tol), pg)
+    worst_pair = None
+    min_pair = np.inf
+    if w >= 0:
+        min_pair = float(pg[w])
+        worst_pair = (int(i[w]), int(j[w]), min_pair)
+    min_single, worst_single = np.inf, None
+    reach, near = 0.0, (_EMPTY, _EMPTY)
+    if not geom.is_empty and len(q):
+        # the smallest value over all (agent, item): searched within a reach that grows
+        # eightfold until something is found (what is not found is larger than what is)
+        reach = max(contact_tol, 2.0 * r_max, 1e-3)
+        here = geom.at(t)
+        summary = None
+        if not here.user and (len(here.segment_a) == 0
+                              or len(q) * len(here.segment_a) <= DENSE_SEGMENTS):
+            summary = _dense_gaps(here, t, q, r, contact_tol, reach)
+        if summary is not None:
+            reach, count, min_single, worst_single, near = summary
+            contacts += count
+        else:
+            found = _found_rows(here, t, q, r, reach)
+            reach = found[-1]
+            near = found[SEGMENT][0], found[SEGMENT][1]
+            for kind, (a, k, g) in enumerate(found[:-1]):
+                if len(g) == 0:
+                    continue
+                contacts += int(np.count_nonzero(g <= contact_tol))
+                w = int(np.argmin(g))
+                if g[w] < min_single:
+                    min_single = float(g[w])
+                    worst_single = (int(a[w]), kind, int(k[w]), min_single)
+    return Gaps(min_pair, min_single, contacts, worst_pair, worst_single, i, j, pg, near[0],
+                near[1], reach)
+
+
+def _dense_gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, contact_tol: float,
+                reach: float) -> tuple | None:
+    """:func:`gaps`' wall and obstacle part, every value at once (compiled,
+    :func:`~sweep_core.model.wall_kernels.single_gaps`): (reach, contacts, smallest value,
+    worst_single, near segment pairs), or None when some value is NaN."""
+    hc = geom.offsets(t)
+    inside = inside_polygons(q, geom) if geom.has_polygons else _NO_POLYGON
+    hn, _, sa, sb, cc, cr = geom.packed
+    vals = np.empty(len(q) * (len(hc) + len(sa) + len(cr)))
+    near_a = np.empty(len(q) * len(sa), dtype=np.intp)
+    near_k = np.empty(len(q) * len(sa), dtype=np.intp)
+    out = np.empty(6)
+    found = single_gaps(q, r, hn, hc, sa, sb, inside, cc, cr, float(contact_tol), float(reach),
+                        vals, near_a, near_k, out)
+    if out[3] == -2.0:
+        return None
+    worst = None
+    if out[3] >= 0:
+        worst = (int(out[4]), int(out[3]), int(out[5]), float(out[2]))
+    return (float(out[0]), int(out[1]), float(out[2]), worst,
+            (near_a[:found], near_k[:found]))
+
+
+def _found_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: float
+                ) -> list:
+    """For each kind the rows (agent, item, value) within the reach at which the eightfold
+    growth from ``reach`` first finds one (the largest tried past 1e12 m), that reach last."""
+    while True:
+        rows = single_rows(geom, t, q, r, reach)
+        if any(len(a) for a, _, _, _, _ in rows) or reach > 1e12:
+            break
+        reach *= 8.0
+    return [(a, k, g) for a, k, g, _, _ in rows] + [reach]
