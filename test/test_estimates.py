@@ -60,6 +60,32 @@ def _env() -> dict[str, str]:
         [str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
 
 
+#: what every measuring script below starts with: its own resident memory's figures (bytes)
+#: from /proc/self/status (status("VmRSS"), and peak(): VmHWM)
+PRELUDE = """
+import re
+def status(key):
+    text = open("/proc/self/status").read()
+    return int(re.search(key + r":\\s+(\\d+)", text).group(1)) * 1024
+def peak():
+    return status("VmHWM")
+"""
+
+
+def _measured(script: str, *args: object, env: dict[str, str] | None = None) -> dict:
+    """The JSON line a measuring script (run after :data:`PRELUDE`, in a fresh process, with
+    ``args``) prints last."""
+    done = subprocess.run([sys.executable, "-c", PRELUDE + script, *map(str, args)],
+                          env=env or _env(), capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+def _holds(got: dict) -> None:
+    """The estimate within :data:`FACTOR` of the measure, either way."""
+    assert 1 / FACTOR <= got["estimated"] / got["measured"] <= FACTOR, got
+
+
 #: an ffmpeg stand-in that runs the real one (REAL_FFMPEG) and appends its peak resident
 #: memory (bytes) to FFMPEG_PEAK: getrusage of a waited child, measured in this small process
 FFMPEG_WRAPPER = """#!{python}
@@ -77,9 +103,6 @@ RENDER_RUN = """
 import json, os, re, sys
 from sweep_core.analysis.animation import gif_memory, mp4_memory
 from sweep_core.analysis.render import RenderOptions, render
-def status(key):
-    text = open("/proc/self/status").read()
-    return int(re.search(key + r":\\s+(\\d+)", text).group(1)) * 1024
 rec, out, size, frames = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
 render(rec, out + ".warm" + out[-4:], RenderOptions(width=160, end=0.0), progress=False)
 open(os.environ["FFMPEG_PEAK"], "w").close()
@@ -113,20 +136,14 @@ def _render_memory(recorded: Path, tmp_path: Path, name: str, size: int, frames:
     import imageio_ffmpeg
     env = dict(_env(), REAL_FFMPEG=imageio_ffmpeg.get_ffmpeg_exe(),
                IMAGEIO_FFMPEG_EXE=str(wrapper), FFMPEG_PEAK=str(tmp_path / "peak.txt"))
-    done = subprocess.run([sys.executable, "-c", RENDER_RUN, str(recorded),
-                           str(tmp_path / name), str(size), str(frames)], env=env,
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout.splitlines()[-1])
+    return _measured(RENDER_RUN, recorded, tmp_path / name, size, frames, env=env)
 
 
 @pytest.mark.parametrize("size,frames", [(2000, 2), (2000, 6)])
 def test_the_gif_memory_estimate_holds(recorded, tmp_path, size, frames):
     """2 and 6 frames of 2000 x 2000 px: 104 and 136 MB estimated, 84-91 MB measured for 2
     frames (a byte per pixel per frame: 8 and 24 MB)."""
-    got = _render_memory(recorded, tmp_path, "a.gif", size, frames)
-    ratio = got["estimated"] / got["measured"]
-    assert 1 / FACTOR <= ratio <= FACTOR, got
+    _holds(_render_memory(recorded, tmp_path, "a.gif", size, frames))
 
 
 @pytest.mark.parametrize("size,frames", [(1600, 2), (1600, 20)])
@@ -135,9 +152,7 @@ def test_the_mp4_memory_estimate_holds(recorded, tmp_path, size, frames):
     on), ffmpeg's memory included: x264's frames in flight
     take about 5.5 bytes per pixel each (with its default threads, 1.5 per core, its memory
     grew with the machine's cores: 283 MB for 1000 x 1000 px on 2 cores, 353 MB with 8)."""
-    got = _render_memory(recorded, tmp_path, "a.mp4", size, frames)
-    ratio = got["estimated"] / got["measured"]
-    assert 1 / FACTOR <= ratio <= FACTOR, got
+    _holds(_render_memory(recorded, tmp_path, "a.mp4", size, frames))
 
 
 def _payload_bytes(path: Path) -> int:
@@ -235,9 +250,6 @@ SPAWN_RUN = """
 import json, re, sys
 from sweep_core.model.layout import geometry_from_spec
 from sweep_core.model.spawn import spawn, spawn_memory
-def status(key):
-    text = open("/proc/self/status").read()
-    return int(re.search(key + r":\\s+(\\d+)", text).group(1)) * 1024
 count, side = int(sys.argv[1]), float(sys.argv[2])
 geometry = geometry_from_spec({"walls": []})[0]
 def region(s):
@@ -256,11 +268,7 @@ print(json.dumps({"measured": status("VmHWM") - before,
 def test_the_spawn_memory_estimate_holds(tmp_path):
     """1e5 agents of radius 0.2 m in a 300 m square: 94 MB estimated, 83 MB measured (its
     first batch of 4e5 candidates; MAX_BATCH's note counted 3 floats, 10 MB)."""
-    done = subprocess.run([sys.executable, "-c", SPAWN_RUN, "100000", "300"], env=_env(),
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr
-    got = json.loads(done.stdout.splitlines()[-1])
-    assert 1 / FACTOR <= got["estimated"] / got["measured"] <= FACTOR, got
+    _holds(_measured(SPAWN_RUN, "100000", "300"))
 
 
 #: builds a scene of N sources of COUNT agents and steps it three times in a fresh process,
@@ -271,9 +279,6 @@ import json, re, sys
 from sweep_core.model.flows import SCHEDULE_BYTES_PER_AGENT
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.simulator import Simulator
-def peak():
-    text = open("/proc/self/status").read()
-    return int(re.search(r"VmHWM:\\s+(\\d+)", text).group(1)) * 1024
 n, count = int(sys.argv[1]), int(sys.argv[2])
 def run(count):
     sources = [{"region": {"kind": "rectangle", "min": [0.3 + 0.15 * k, 0.3],
@@ -302,12 +307,7 @@ def test_the_sources_memory_estimate_holds():
     """The most sources a scene may have (64) of the most agents each (1e5): 51 MB estimated,
     52 MB measured."""
     from sweep_core.model.flows import MAX_SOURCE_COUNT, MAX_SOURCES
-    done = subprocess.run([sys.executable, "-c", SOURCES_RUN, str(MAX_SOURCES),
-                           str(MAX_SOURCE_COUNT)], env=_env(), capture_output=True, text=True,
-                          timeout=600)
-    assert done.returncode == 0, done.stderr
-    got = json.loads(done.stdout.splitlines()[-1])
-    assert 1 / FACTOR <= got["estimated"] / got["measured"] <= FACTOR, got
+    _holds(_measured(SOURCES_RUN, str(MAX_SOURCES), str(MAX_SOURCE_COUNT)))
 
 
 #: loads a YAML document of about N nodes of one shape in a fresh process and prints the
@@ -315,9 +315,6 @@ def test_the_sources_memory_estimate_holds():
 YAML_RUN = """
 import json, re, sys
 from sweep_core.model.yaml_files import BYTES_PER_NODE, dump_yaml, load_yaml
-def peak():
-    text = open("/proc/self/status").read()
-    return int(re.search(r"VmHWM:\\s+(\\d+)", text).group(1)) * 1024
 shape, n = sys.argv[1], int(sys.argv[2])
 if shape == "numbers":  # one node each
     text = dump_yaml({"radius": [0.2 + k * 1e-6 for k in range(n)]})
@@ -337,11 +334,7 @@ print(json.dumps({"measured": peak() - before, "estimated": BYTES_PER_NODE * n})
 def test_the_yaml_node_memory_estimate_holds(shape):
     """1e5 nodes, a list of numbers (the cheapest per node) and a list of small mappings (the
     dearest): 60 MB estimated; the old figure, 450 B a node, undercounted mappings 1.6 times."""
-    done = subprocess.run([sys.executable, "-c", YAML_RUN, shape, "100000"], env=_env(),
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr
-    got = json.loads(done.stdout.splitlines()[-1])
-    assert 1 / FACTOR <= got["estimated"] / got["measured"] <= FACTOR, got
+    _holds(_measured(YAML_RUN, shape, "100000"))
 
 
 #: an ensemble's client-side memory in a fresh process: N heads and tasks as the runner
@@ -353,9 +346,6 @@ from sweep_core.ensemble import grid, store
 from sweep_core.ensemble.runner import _table, gathered_memory, resolve_scene
 from sweep_core.ensemble.task import Task, simulate
 from sweep_core.model.scene import copy_spec
-def peak():
-    text = open("/proc/self/status").read()
-    return int(re.search(r"VmHWM:\\s+(\\d+)", text).group(1)) * 1024
 n, summary = int(sys.argv[1]), sys.argv[2] == "summary"
 base = resolve_scene(None)
 spec = copy_spec(base)
@@ -389,11 +379,7 @@ def test_the_gathered_memory_estimate_of_an_ensemble_holds(record):
     """1e4 runs of the bundled room, rows alone and with summaries: 68 and 160 MB estimated
     (at 2e4 runs 136 and 323 MB against 128 and 306 MB measured; MAX_RUNS's note counted the
     heads and tasks alone, 5.5 MB per 1e4)."""
-    done = subprocess.run([sys.executable, "-c", GATHER_RUN, "10000", record], env=_env(),
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr
-    got = json.loads(done.stdout.splitlines()[-1])
-    assert 1 / FACTOR <= got["estimated"] / got["measured"] <= FACTOR, got
+    _holds(_measured(GATHER_RUN, "10000", record))
 
 
 #: builds K CrowdNav environments in one vector environment and steps them to the end of
@@ -403,9 +389,6 @@ VECTOR_RUN = """
 import json, re, sys
 import numpy as np
 from sweep_core.envs.vector import CrowdNavVectorEnv
-def status(key):
-    text = open("/proc/self/status").read()
-    return int(re.search(key + r":\\s+(\\d+)", text).group(1)) * 1024
 k, steps = int(sys.argv[1]), int(sys.argv[2])
 warm = CrowdNavVectorEnv(num_envs=1, max_steps=steps)
 warm.reset(seed=0)
@@ -426,8 +409,4 @@ def test_the_vector_environment_memory_estimate_holds():
     """96 environments stepped to the end of 40-step episodes: 57 MB estimated, 52 MB
     measured (256 of 30 steps: 144 and 138 MB); the traced peak of a first environment, the
     earlier estimate, counted its imports and compiled kernels once per environment (6-8x)."""
-    done = subprocess.run([sys.executable, "-c", VECTOR_RUN, "96", "40"], env=_env(),
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr
-    got = json.loads(done.stdout.splitlines()[-1])
-    assert 1 / FACTOR <= got["estimated"] / got["measured"] <= FACTOR, got
+    _holds(_measured(VECTOR_RUN, "96", "40"))
