@@ -115,3 +115,16 @@ def points_in_polygon(q: np.ndarray, points: np.ndarray) -> np.ndarray:
     dy = np.where(b[:, 1] != a[:, 1], b[:, 1] - a[:, 1], 1.0)
     x_cross = a[:, 0][None] + (y - a[:, 1][None]) * (b[:, 0] - a[:, 0])[None] / dy
     return (np.count_nonzero(straddle & (x_cross > q[:, 0:1]), axis=1) % 2) == 1
+
+
+def signed_area(points: np.ndarray) -> float:
+    """Signed area (m^2) of the closed polygon ``points`` (M, 2), positive anticlockwise (the
+    shoelace formula)."""
+    nxt = np.roll(points, -1, axis=0)
+    return 0.5 * float(np.sum(points[:, 0] * nxt[:, 1] - nxt[:, 0] * points[:, 1]))
+
+
+def perimeter(points: np.ndarray) -> float:
+    """Length (m) of the closed polygon ``points`` (M, 2)."""
+    edge = np.roll(points, -1, axis=0) - points
+    return float(np.sum(np.hypot(edge[:, 0], edge[:, 1])))

@@ -12,7 +12,7 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
-from sweep_core.model.outlines import chain_points, points_in_polygon
+from sweep_core.model.outlines import chain_points, points_in_polygon, signed_area
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,9 +47,7 @@ class Region:
     @property
     def area(self) -> float:
         """Area (m^2) of the outline."""
-        p = self.points
-        nxt = np.roll(p, -1, axis=0)
-        return abs(0.5 * float(np.sum(p[:, 0] * nxt[:, 1] - nxt[:, 0] * p[:, 1])))
+        return abs(signed_area(self.points))
 
 
 def region_from_spec(value: Any, field: str) -> Region:

@@ -23,20 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from sweep_core.model.outlines import points_in_polygon
+from sweep_core.model.outlines import perimeter, points_in_polygon, signed_area
 
 __all__ = ["most_present"]
-
-
-def _area(points: np.ndarray) -> float:
-    """Signed area (m^2) of the closed polygon ``points`` (M, 2), positive anticlockwise."""
-    nxt = np.roll(points, -1, axis=0)
-    return 0.5 * float(np.sum(points[:, 0] * nxt[:, 1] - nxt[:, 0] * points[:, 1]))
-
-
-def _perimeter(points: np.ndarray) -> float:
-    edge = np.roll(points, -1, axis=0) - points
-    return float(np.sum(np.hypot(edge[:, 0], edge[:, 1])))
 
 
 def _convex(points: np.ndarray) -> bool:
@@ -50,7 +39,7 @@ def _convex(points: np.ndarray) -> bool:
 def _shrunk(points: np.ndarray, r: float) -> np.ndarray:
     """The convex polygon ``points`` (M, 2) shrunk by r (m): the intersection of its edges'
     half-planes each moved r inwards (an empty (0, 2) array when nothing is left)."""
-    pts = points if _area(points) > 0 else points[::-1]
+    pts = points if signed_area(points) > 0 else points[::-1]
     out = pts.copy()
     for a, b in zip(pts, np.roll(pts, -1, axis=0)):
         e = b - a
@@ -80,9 +69,9 @@ def _room_bound(points: np.ndarray, r: float) -> int:
         if len(inner) < 3:
             return 1
         d = 2.0 * r
-        return int(math.floor(2.0 * abs(_area(inner)) / (math.sqrt(3.0) * d * d)
-                              + _perimeter(inner) / (2.0 * d) + 1.0))
-    return int(math.floor(abs(_area(points)) / (math.pi * r * r)))
+        return int(math.floor(2.0 * abs(signed_area(inner)) / (math.sqrt(3.0) * d * d)
+                              + perimeter(inner) / (2.0 * d) + 1.0))
+    return int(math.floor(abs(signed_area(points)) / (math.pi * r * r)))
 
 
 def most_present(scene: Any, t_end: float) -> int | None:

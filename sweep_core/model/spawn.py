@@ -40,7 +40,7 @@ from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.geometry import Geometry, single_rows
 from sweep_core.model.maps import OccupancyMap
-from sweep_core.model.outlines import chain_points, points_in_polygon
+from sweep_core.model.outlines import chain_points, perimeter, points_in_polygon, signed_area
 
 #: jamming coverage of random sequential addition of equal disks (Hinrichsen, Feder and
 #: Jossang 1986; Feder 1980 estimated 0.547)
@@ -89,15 +89,13 @@ def grown_area(points: np.ndarray, r: float) -> float:
     """An upper bound (m^2) on the area of the closed polygon ``points`` (M, 2) grown by r (m):
     area + perimeter r + r^2 / 2 x (sum of the turns at its convex corners); exact when the
     polygon is convex."""
-    nxt = np.roll(points, -1, axis=0)
-    signed = 0.5 * float(np.sum(points[:, 0] * nxt[:, 1] - nxt[:, 0] * points[:, 1]))
-    edge = nxt - points
-    perimeter = float(np.sum(np.hypot(edge[:, 0], edge[:, 1])))
+    signed = signed_area(points)
+    edge = np.roll(points, -1, axis=0) - points
     prev = np.roll(edge, 1, axis=0)
     turn = np.arctan2(prev[:, 0] * edge[:, 1] - prev[:, 1] * edge[:, 0],
                       prev[:, 0] * edge[:, 0] + prev[:, 1] * edge[:, 1])
     convex = np.clip(np.sign(signed) * turn, 0.0, None)  # turns towards the inside
-    return abs(signed) + perimeter * r + 0.5 * r * r * float(np.sum(convex))
+    return abs(signed) + perimeter(points) * r + 0.5 * r * r * float(np.sum(convex))
 
 
 def spawn(value: Any, field: str, geometry: Geometry, grid: OccupancyMap | None
