@@ -25,6 +25,8 @@ from sweep_core.cli import main
 from sweep_core.errors import OutputError
 from sweep_core.io import cdr
 from sweep_core.io.recording import BackgroundRecorder, Recorder, read_metadata
+from sweep_core.model.json_text import dump_json
+from sweep_core.model.scene import scene_data
 
 REPO = Path(__file__).resolve().parents[1]
 #: a line no error message may quote
@@ -279,7 +281,8 @@ def test_a_recording_never_makes_replay_read_a_local_path(tmp_path, run_file, ca
 
     def scene_with_map(name: str, md: dict) -> dict:
         if name == "sweep_ros":
-            md = {**md, "scene": md["scene"] + f"map: {{yaml: {fifo}}}\n"}
+            md = {**md, "scene": dump_json({**scene_data(md["scene"]),
+                                            "map": {"yaml": str(fifo)}})}
         return md
 
     _rewrite(run_file, tampered, metadata=scene_with_map)

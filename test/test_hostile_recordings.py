@@ -26,7 +26,11 @@ from mcap.writer import CompressionType, Writer
 
 from sweep_core.cli import main
 from sweep_core.io import cdr
-from sweep_core.model.yaml_files import dump_yaml, load_yaml
+from sweep_core.model.budget import MAX_GROUPS, MAX_PIECES, MAX_SEGMENTS
+from sweep_core.model.json_text import dump_json
+from sweep_core.model.outlines import MAX_OUTLINE_PAIRS
+from sweep_core.model.scene import scene_data
+from sweep_core.model.yaml_files import MAX_RECORDED_YAML_NODES, dump_yaml
 
 REPO = Path(__file__).resolve().parents[1]
 #: peak resident memory (MB) a refusal may reach: the interpreter, numpy, numba and the
@@ -54,9 +58,10 @@ def run_file(tmp_path_factory) -> Path:
     return out
 
 
-def rewrite(src: Path, dst: Path, edit=None, agent_ids=None) -> Path:
-    """``src`` written again with its recorded scene replaced by ``edit(scene dict)`` and,
-    with ``agent_ids``, the /agents ids of every state replaced by ``agent_ids(ids)``."""
+def rewrite(src: Path, dst: Path, edit=None, agent_ids=None, dump=dump_json) -> Path:
+    """``src`` written again with its recorded scene replaced by ``edit(scene dict)`` (as
+    text by ``dump``: JSON, as sweep records it, or YAML) and, with ``agent_ids``, the
+    /agents ids of every state replaced by ``agent_ids(ids)``."""
     with open(src, "rb") as f, open(dst, "wb") as o:
         reader = make_reader(f)
         summary = reader.get_summary()
@@ -70,7 +75,7 @@ def rewrite(src: Path, dst: Path, edit=None, agent_ids=None) -> Path:
         for md in reader.iter_metadata():
             meta = dict(md.metadata)
             if md.name == "sweep_ros" and edit is not None:
-                meta["scene"] = dump_yaml(edit(load_yaml(meta["scene"])))
+                meta["scene"] = dump(edit(scene_data(meta["scene"])))
             w.add_metadata(md.name, meta)
         for _, ch, m in reader.iter_messages(log_time_order=False):
             data = m.data
@@ -213,3 +218,59 @@ def test_agent_ids_beyond_what_the_scene_numbers_are_refused(run_file, tmp_path)
     bad = rewrite(run_file, tmp_path / "ids.mcap", agent_ids=lambda ids: ids + 1e9)
     refused_everywhere(bad, run_file, ["/agents id", "[0, 11)"], tmp_path,
                        ("analyze", "compare"))
+
+
+def _chain(n: int, x0: float = 12.0) -> list[list[float]]:
+    """An open chain of n points east of the corridor (it touches no agent)."""
+    return [[x0 + 1e-4 * k, 0.5 + 0.25 * (k % 2)] for k in range(n)]
+
+
+def _circle(n: int) -> list[list[float]]:
+    t = 2 * np.pi * np.arange(n) / n
+    return np.c_[20 + 5 * np.cos(t), 5 + 5 * np.sin(t)].tolist()
+
+
+#: recorded scenes that would cost too much to read or build, each with the words its refusal
+#: names (the field and the bound) and how its text is written
+COSTLY = {
+    # 3 nodes a point: YAML composes about 600 B a node (19 s and 700 MB for 3e5 points)
+    "yaml": (lambda s: {**s, "walls": s["walls"] + [{"kind": "polyline",
+                                                       "points": _chain(90_000)}]},
+             ["MAX_RECORDED_YAML_NODES", str(MAX_RECORDED_YAML_NODES)], dump_yaml),
+    "segments": (lambda s: {**s, "walls": s["walls"] + [{"kind": "polyline",
+                                                           "points": _chain(MAX_SEGMENTS)}]},
+                 ["walls", str(MAX_SEGMENTS)], dump_json),
+    "pieces": (lambda s: {**s, "walls": s["walls"] + [
+        {"kind": "segment", "a": [12.0 + 1e-3 * k, 0.0], "b": [12.0 + 1e-3 * k, 1.0]}
+        for k in range(MAX_PIECES)]}, ["walls", str(MAX_PIECES)], dump_json),
+    "groups": (lambda s: {**s, "agents": {**s["agents"], "groups": [
+        {"name": f"g{k}", "agents": [0], "drift": {"kind": "goal", "goal": [9.5, 2.0]}}
+        for k in range(MAX_GROUPS + 1)]}}, ["agents.groups", str(MAX_GROUPS)], dump_json),
+    "outline": (lambda s: {**s, "walls": s["walls"] + [{"kind": "polyline", "closed": True,
+                                                          "points": _circle(4500)}]},
+                ["walls[1].points", "MAX_OUTLINE_PAIRS", str(MAX_OUTLINE_PAIRS)], dump_json),
+}
+
+
+@pytest.mark.parametrize("case", list(COSTLY))
+def test_recorded_scenes_that_cost_too_much_to_build_are_refused(run_file, tmp_path, case):
+    """Counted before they are built: YAML nodes in a recorded scene, wall segments and
+    pieces, groups, and the pairs of edges a closed outline's simple-polygon test compares
+    (a 10 000-point outline took 22 s before the bound). One line, exit 2, under PEAK_MB."""
+    edit, words, dump = COSTLY[case]
+    bad = rewrite(run_file, tmp_path / f"{case}.mcap", edit, dump=dump)
+    refused_everywhere(bad, run_file, words, tmp_path, ("analyze", "replay"))
+
+
+def test_a_large_scene_as_sweep_records_it_is_read_within_the_bound(run_file, tmp_path):
+    """A recorded wall chain of 240 000 points (JSON, 5 MB), within every bound: analyze and
+    replay read and rebuild it under PEAK_MB (as YAML the same text composed to 700 MB)."""
+    def chained(scene: dict) -> dict:
+        scene["walls"] = scene["walls"] + [{"kind": "polyline", "points": _chain(240_000)}]
+        return scene
+
+    big = rewrite(run_file, tmp_path / "big.mcap", chained)
+    runs, peak = sweep([["analyze", str(big), "--no-plots", "--quiet"], ["replay", str(big)]],
+                       tmp_path)
+    assert [code for code, _ in runs] == [0, 0], runs
+    assert peak < PEAK_MB, peak

@@ -234,7 +234,7 @@ def test_hostile_recorded_metadata_is_refused_not_expanded(tmp_path, capsys):
     f = tmp_path / "hostile.mcap"
     sim = sc.Simulator(SCENE, dt=DT, seed=SEED)
     meta = run_metadata(SCENE, sim, None, 1)
-    meta["scene"] = meta["scene"] + "description: {" + ", ".join(bomb) + "}\n"
+    meta["scene"] = SCENE.to_yaml() + "description: {" + ", ".join(bomb) + "}\n"  # YAML
     with Recorder(f, metadata=meta) as rec:
         rec.add_channel("/poses", "geometry_msgs/msg/PoseArray")
         rec.write("/poses", 0, topics.encode_state(sim.state)["poses"])

@@ -218,7 +218,7 @@ def load_run(path: str | Path) -> RunMeta:
         try:
             # a recording is data: its scene is rebuilt from what it carries, and a map it
             # names by path is refused, never read from this machine
-            data = scene_data(raw["scene"], source="the recorded scene")
+            data = scene_data(raw["scene"], source="the recorded scene", recorded=True)
             older = recorded_headway(data)  # a speed law recorded before some keys existed
             scene = Scene.from_dict(data if older is None else older, files=False)
         except CostError as err:  # refused outright: nothing of it is rebuilt

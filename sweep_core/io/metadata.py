@@ -13,7 +13,7 @@ def run_metadata(scene: Scene, sim: Simulator, t_end: float | None,
                  record_every: int | None = None) -> dict[str, str]:
     """What a recording needs to be re-simulated: scene, seed, dt, scheme, solver, versions,
     and the platform it was made on (``sweep replay`` elsewhere names the differences)."""
-    return {"scene": scene.to_yaml(), "seed": str(sim.seed), "dt": repr(sim.dt),
+    return {"scene": scene.to_json(), "seed": str(sim.seed), "dt": repr(sim.dt),
             "t_end": "" if t_end is None else repr(t_end),
             "record_every": "" if record_every is None else str(record_every),
             "scheme": sim.scheme.name,

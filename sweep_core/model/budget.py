@@ -1,4 +1,5 @@
-"""What a scene's navigation fields will cost, bounded before any is built: the grid nodes of
+"""What a scene costs to build, bounded before it is built: the counts of its wall and obstacle
+items, their segments and its groups (:func:`check_item_counts`), and the grid nodes of
 every geodesic or exits drift (the scene's drift, its groups' drifts), every journey leg and
 every exit of an exit choice, each at least the scene's extent (agents, walls, obstacles, the
 map) divided by its cell, summed and held to :data:`~sweep_core.model.travel.MAX_SCENE_NODES`
@@ -20,6 +21,44 @@ from sweep_core.model.travel import CELL, MAX_SCENE_NODES
 
 #: the drift kinds solved on a grid
 NAVIGATION_KINDS = ("geodesic", "exits")
+#: items of a scene's walls and obstacles together (each is validated on its own)
+MAX_PIECES = 16_384
+#: straight segments of a scene's walls and obstacles together (a polyline or polygon of M
+#: points counts M; a map's own walls are bounded by its MAX_MAP_WALLS)
+MAX_SEGMENTS = 250_000
+#: groups of a scene (``agents.groups`` or a ``groups`` drift; each builds its own drift)
+MAX_GROUPS = 4_096
+
+
+def check_item_counts(data: dict) -> None:
+    """Refuse, before any is validated or built, a scene with more wall and obstacle items
+    than MAX_PIECES, more segments in them than MAX_SEGMENTS, or more groups than MAX_GROUPS
+    (CostError naming the list). Lists of another type are left to their validators."""
+    pieces = segments = 0
+    for key in ("walls", "obstacles"):
+        items = data.get(key)
+        if not isinstance(items, list):
+            continue
+        pieces += len(items)
+        if pieces > MAX_PIECES:
+            raise CostError(key, f"brings the walls and obstacles to {pieces} items, more "
+                            f"than {MAX_PIECES}", "join straight runs into polylines, or "
+                            "give a large layout as a map (map: an occupancy grid)")
+        for item in items:
+            points = item.get("points") if isinstance(item, dict) else None
+            segments += len(points) if isinstance(points, list) else 1
+        if segments > MAX_SEGMENTS:
+            raise CostError(key, f"brings the segments of the walls and obstacles to "
+                            f"{segments}, more than {MAX_SEGMENTS}", "give the outlines with "
+                            "fewer points, or a large layout as a map (an occupancy grid)")
+    agents, drift = data.get("agents"), data.get("drift")
+    for field, groups in (("agents.groups", agents.get("groups") if isinstance(agents, dict)
+                           else None),
+                          ("drift.groups", drift.get("groups") if isinstance(drift, dict)
+                           else None)):
+        if isinstance(groups, list) and len(groups) > MAX_GROUPS:
+            raise CostError(field, f"lists {len(groups)} groups, more than {MAX_GROUPS}",
+                            "give agents that share a drift and a speed one group")
 
 
 def _cell(value: Any) -> float | None:

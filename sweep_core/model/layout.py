@@ -3,6 +3,8 @@ walls of its map's blocked cells) validated and built into a :class:`Geometry`, 
 normalised specs. Units: metres, seconds (a moving obstacle's velocity in m/s)."""
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from sweep_core import checks
@@ -21,23 +23,16 @@ def geometry_from_spec(data: dict, grid: OccupancyMap | None = None
     """The scene dict's ``walls`` and ``obstacles`` (and the boundary walls of ``grid``'s
     blocked cells) validated and built: the :class:`Geometry`, and the normalised walls and
     obstacles specs. Raises SceneError naming the field, the value and the fix."""
-    hp_n, hp_c, hp_v, hp_i, sa, sb, s_i, cc, cr, c_i = ([] for _ in range(10))
-    s_poly: list[int] = []
-    s_part: list[int] = []
-    s_kind: list[str] = []
-    s_m: list[int] = []
+    hp_n, hp_c, hp_v, hp_i, cc, cr, c_i = ([] for _ in range(7))
+    # the segments, one entry per chain: (starts (k, 2), ends (k, 2), item index, polygon
+    # index, kind, motion row), laid out in order at the end
+    chains: list[tuple[np.ndarray, np.ndarray, int, int, str, int]] = []
     walls_spec, obstacles_spec = [], []
 
-    def add_chain(points: np.ndarray, closed: bool, index: int, kind: str, polygon: int) -> None:
+    def add_chain(points: np.ndarray, closed: bool, index: int, kind: str, polygon: int,
+                  row: int = -1) -> None:
         ends = np.roll(points, -1, axis=0) if closed else points[1:]
-        for part, (a, b) in enumerate(zip(points[: len(ends)], ends)):
-            sa.append(a)
-            sb.append(b)
-            s_i.append(index)
-            s_poly.append(polygon)
-            s_part.append(part)
-            s_kind.append(kind)
-            s_m.append(-1)
+        chains.append((points[: len(ends)], ends, index, polygon, kind, row))
 
     walls = checks.items(data.get("walls"), "walls", _LIST_FIX.format("walls"))
     for k, wall in enumerate(walls):
@@ -105,10 +100,8 @@ def geometry_from_spec(data: dict, grid: OccupancyMap | None = None
         if checks.kind(obs, field, ("circle", "polygon")) == "polygon":
             checks.mapping(obs, field, allowed={"kind", "points"} | moving, required={"points"})
             points = chain_points(obs["points"], f"{field}.points", True, 3)
-            first = len(sa)
-            add_chain(points, True, k, "polygon", k)
             row, keys = motion(obs, field, points.mean(axis=0))
-            s_m[first:] = [row] * (len(sa) - first)
+            add_chain(points, True, k, "polygon", k, row)
             obstacles_spec.append({"kind": "polygon", "points": points.tolist(), **keys})
             continue
         # the key is spelt either way (centre, as the prose of the docs; center, as before)
@@ -129,18 +122,24 @@ def geometry_from_spec(data: dict, grid: OccupancyMap | None = None
                                **keys})
 
     if grid is not None:
-        for part, (a, b) in enumerate(zip(*grid.segments())):
-            sa.append(a)
-            sb.append(b)
-            s_i.append(-1)
-            s_poly.append(-1)
-            s_part.append(part)
-            s_kind.append("map")
-            s_m.append(-1)
+        starts, ends = grid.segments()
+        chains.append((np.asarray(starts, dtype=np.float64).reshape(-1, 2),
+                       np.asarray(ends, dtype=np.float64).reshape(-1, 2), -1, -1, "map", -1))
 
-    def arr(x: list, shape: tuple) -> np.ndarray:
+    def arr(x: Any, shape: tuple) -> np.ndarray:
         return np.array(x, dtype=np.float64).reshape(shape)
 
+    counts = [len(c[0]) for c in chains]
+
+    def each(j: int) -> np.ndarray:  # chain j's value repeated on its segments, (S,) int
+        return np.repeat(np.array([c[j] for c in chains], dtype=np.intp), counts)
+
+    sa = np.concatenate([c[0] for c in chains]) if chains else np.zeros((0, 2))
+    sb = np.concatenate([c[1] for c in chains]) if chains else np.zeros((0, 2))
+    s_i, s_poly, s_m = each(2), each(3), each(5)
+    s_part = np.concatenate([np.arange(n, dtype=np.intp) for n in counts]) if chains \
+        else np.zeros(0, dtype=np.intp)
+    s_kind = [kind for c, n in zip(chains, counts) for kind in [c[4]] * n]
     geom = Geometry(arr(hp_n, (-1, 2)), arr(hp_c, (-1,)), arr(hp_v, (-1,)), arr(sa, (-1, 2)),
                     arr(sb, (-1, 2)), arr(cc, (-1, 2)), arr(cr, (-1,)),
                     np.array(hp_i, dtype=np.intp), np.array(s_i, dtype=np.intp),

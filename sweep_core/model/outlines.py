@@ -2,13 +2,56 @@
 Coordinates in m, points (M, 2)."""
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from fractions import Fraction
 from typing import Any
 
 import numpy as np
 
 from sweep_core import checks
-from sweep_core.errors import SceneError
+from sweep_core.errors import CostError, SceneError
+
+#: pairs of edges the simple-outline tests of one scene's closed outlines (rooms, polygons,
+#: regions) may examine, a closed outline of M points counting M^2 / 2; an edge pair whose
+#: turns must be decided in exact arithmetic counts :data:`EXACT_PAIRS`. At about 0.3 us a
+#: pair (the worst case, every pair's bounding boxes overlapping) this bounds the tests near
+#: 3 s; one outline may have up to about 4 400 points
+MAX_OUTLINE_PAIRS = 10_000_000
+#: what one exact (rational) evaluation of a turn counts against MAX_OUTLINE_PAIRS
+EXACT_PAIRS = 100
+#: the scene's charge so far and the field being checked (None: nothing counted)
+_CHARGED: ContextVar[list | None] = ContextVar("outline_pairs", default=None)
+
+
+@contextmanager
+def pair_budget() -> Iterator[None]:
+    """Within it, the simple-outline tests count the pairs they examine against
+    :data:`MAX_OUTLINE_PAIRS` (a scene's build: :mod:`sweep_core.model.scene`)."""
+    token = _CHARGED.set([0, ""])
+    try:
+        yield
+    finally:
+        _CHARGED.reset(token)
+
+
+def _charge(pairs: int, field: str | None = None) -> None:
+    """Count ``pairs`` against the budget (``field``: the outline now checked); raise
+    CostError naming it when the scene's outlines pass MAX_OUTLINE_PAIRS."""
+    charged = _CHARGED.get()
+    if charged is None:
+        return
+    if field is not None:
+        charged[1] = field
+    charged[0] += pairs
+    if charged[0] > MAX_OUTLINE_PAIRS:
+        raise CostError(charged[1], f"brings the pairs of edges the scene's closed outlines "
+                        f"are checked for crossings to {charged[0]}, more than "
+                        f"{MAX_OUTLINE_PAIRS} (the limit MAX_OUTLINE_PAIRS; an outline of M "
+                        "points counts M^2 / 2)",
+                        "give long outlines with fewer points, or as open polylines "
+                        "(closed: false, which are not checked for crossings)")
 
 
 def chain_points(value: Any, field: str, closed: bool, least: int) -> np.ndarray:
@@ -31,6 +74,7 @@ def chain_points(value: Any, field: str, closed: bool, least: int) -> np.ndarray
                          f"[{points[k, 0]:g}, {points[k, 1]:g}] (an edge of zero length)",
                          "remove the repeated point")
     if closed:
+        _charge(len(points) * len(points) // 2, field)
         crossing = first_crossing(points)
         if crossing is not None:
             i, j = crossing
@@ -59,8 +103,9 @@ def orientation(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
     t2 = (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
     det = t1 - t2
     sign = np.sign(det).astype(np.int64)
-    unsure = np.abs(det) <= ORIENT_BOUND * (np.abs(t1) + np.abs(t2))
-    for at in np.flatnonzero(unsure):
+    unsure = np.flatnonzero(np.abs(det) <= ORIENT_BOUND * (np.abs(t1) + np.abs(t2)))
+    _charge(EXACT_PAIRS * len(unsure))
+    for at in unsure:
         (px, py), (qx, qy), (rx, ry) = (map(Fraction, v[at].tolist()) for v in (p, q, r))
         exact = (qx - px) * (ry - py) - (qy - py) * (rx - px)
         sign[at] = (exact > 0) - (exact < 0)
@@ -96,13 +141,26 @@ def first_crossing(points: np.ndarray) -> tuple[int, int] | None:
     ahead = u[:, 0] * v[:, 0] + u[:, 1] * v[:, 1]  # exact sign for parallel u, v
     for k in np.flatnonzero((turn == 0) & (ahead < 0)):
         return (int(k), int(nxt[k])) if nxt[k] > k else (int(nxt[k]), int(k))
-    for i in range(m - 2):
-        j = np.arange(i + 2, m if i > 0 else m - 1)
-        if len(j) == 0:
-            continue
-        hit = segments_meet(a[i], b[i], a[j], b[j])
-        if np.any(hit):
-            return i, int(j[np.argmax(hit)])
+    # two closed segments can meet only where their bounding boxes overlap (exact
+    # comparisons): the exact test runs on those pairs only, taken in blocks of rows and in
+    # the order (i, then j) so that the first pair found is the first in that order
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    cols = np.arange(m)
+    rows_per_block = max(1, (1 << 22) // m)
+    for start in range(0, m - 2, rows_per_block):
+        rows = np.arange(start, min(start + rows_per_block, m - 2))
+        near = ((cols[None] >= rows[:, None] + 2)
+                & (lo[None, :, 0] <= hi[rows, None, 0]) & (lo[rows, None, 0] <= hi[None, :, 0])
+                & (lo[None, :, 1] <= hi[rows, None, 1]) & (lo[rows, None, 1] <= hi[None, :, 1]))
+        if start == 0:
+            near[0, m - 1] = False  # the last edge ends where the first begins
+        ii, jj = np.nonzero(near)  # row-major: sorted by i, then j
+        for at in range(0, len(ii), 1 << 16):
+            i, j = rows[ii[at:at + (1 << 16)]], jj[at:at + (1 << 16)]
+            hit = segments_meet(a[i], b[i], a[j], b[j])
+            if np.any(hit):
+                first = int(np.argmax(hit))
+                return int(i[first]), int(j[first])
     return None
 
 

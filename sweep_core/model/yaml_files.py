@@ -59,6 +59,11 @@ MAX_ALIAS_NODES = 100_000
 #: could otherwise take tens of GB; this bounds it near 2.5 GB. A scene listing the positions,
 #: radii and speeds of 1e5 agents has about 5e5 nodes
 MAX_NODES = 1 << 22
+#: nodes in a recorded scene given as YAML. sweep records scenes as JSON
+#: (:mod:`sweep_core.model.json_text`), read up to MAX_NODES at a tenth of the memory; YAML in a
+#: recording (written by hand or by another tool) is read up to this count, about 160 MB and
+#: a few seconds
+MAX_RECORDED_YAML_NODES = 1 << 18
 #: memory (bytes) a loaded node takes, the estimate behind :data:`MAX_NODES`
 #: (test/test_estimates.py checks it)
 BYTES_PER_NODE = 600
@@ -70,11 +75,14 @@ class YAMLLimitError(yaml.MarkedYAMLError):
     ``fix`` what to write instead."""
 
     fix = ""
+    #: the bound exceeded is on what composing the text would cost (its node count)
+    cost = False
 
 
-def _refuse(problem: str, mark: Any, fix: str) -> YAMLLimitError:
+def _refuse(problem: str, mark: Any, fix: str, cost: bool = False) -> YAMLLimitError:
     err = YAMLLimitError(problem=problem, problem_mark=mark)
     err.fix = fix
+    err.cost = cost
     return err
 
 
@@ -83,14 +91,16 @@ def yaml_fix(err: yaml.YAMLError) -> str:
     return getattr(err, "fix", "") or "correct the YAML syntax at that line"
 
 
-def check_yaml(text: str | bytes) -> None:
+def check_yaml(text: str | bytes, max_nodes: int | None = None,
+               limit_name: str = "MAX_NODES", fix: str = "") -> None:
     """Walk the YAML events of ``text`` (no recursion, nothing composed) and refuse what
     :func:`load_yaml` must not compose.
 
     Raises:
         YAMLLimitError: nesting deeper than MAX_DEPTH, more than MAX_ALIASES aliases, aliases
-            repeating more than MAX_ALIAS_NODES nodes, more than MAX_NODES nodes, or a
-            mapping key given twice.
+            repeating more than MAX_ALIAS_NODES nodes, more than ``max_nodes`` nodes (default
+            MAX_NODES; named ``limit_name``, with ``fix`` or the default fix), or a mapping key
+            given twice.
         yaml.YAMLError: the text is not valid YAML.
     """
     # one frame per open collection: [nodes inside so far, anchor, children, keys seen or None]
@@ -116,16 +126,18 @@ def check_yaml(text: str | bytes) -> None:
             top[3][key] = event.start_mark.line + 1
         top[2] += 1
 
+    if max_nodes is None:
+        max_nodes = MAX_NODES
     scalar = yaml.ScalarEvent
     node_events = {scalar, yaml.SequenceStartEvent, yaml.MappingStartEvent, yaml.AliasEvent}
     for event in yaml.parse(text, Loader=SAFE_LOADER):
         if type(event) in node_events:
             nodes += 1
-            if nodes > MAX_NODES:
-                raise _refuse(f"more than {MAX_NODES} values, keys, lists and mappings in "
-                              "one document (the limit MAX_NODES)", event.start_mark,
-                              "give long per-agent lists by a rule instead (a spawn region, "
-                              "a speed distribution)")
+            if nodes > max_nodes:
+                raise _refuse(f"more than {max_nodes} values, keys, lists and mappings in "
+                              f"one document (the limit {limit_name})", event.start_mark,
+                              fix or "give long per-agent lists by a rule instead (a spawn "
+                              "region, a speed distribution)", cost=True)
         if type(event) is scalar and event.anchor is None and stack and stack[-1][3] is None:
             top = stack[-1]  # the common case, an item of a list: counted and nothing else
             top[0] += 1
@@ -160,15 +172,15 @@ def check_yaml(text: str | bytes) -> None:
             aliases = repeated = nodes = 0
 
 
-def load_yaml(text: str | bytes) -> Any:
+def load_yaml(text: str | bytes, **limits: Any) -> Any:
     """Parse one YAML document with :class:`SceneLoader` (plain data only: no Python tags;
-    ``1e5`` is a number), after :func:`check_yaml`.
+    ``1e5`` is a number), after :func:`check_yaml` (``limits``: its node limit's keywords).
 
     Raises:
         yaml.YAMLError: the text is not valid YAML, or exceeds a limit (YAMLLimitError);
             :func:`yaml_problem` describes it.
     """
-    check_yaml(text)
+    check_yaml(text, **limits)
     return yaml.load(text, Loader=SceneLoader)
 
 
