@@ -24,6 +24,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
+from sweep_core.analysis.run import RECORDED_BASE_NODES
 from sweep_core.cli import main
 from sweep_core.io import cdr
 from sweep_core.model.budget import MAX_GROUPS, MAX_PIECES, MAX_SEGMENTS
@@ -95,6 +96,7 @@ def rewrite(src: Path, dst: Path, edit=None, agent_ids=None, dump=dump_json) -> 
 #: forked it, as Linux keeps it across execve)
 RUNNER = """
 import contextlib, io, json, sys
+from sweep_core.analysis.run import RECORDED_BASE_NODES
 from sweep_core.cli import main
 out = []
 for args in json.loads(sys.argv[1]):
@@ -246,6 +248,10 @@ COSTLY = {
     "groups": (lambda s: {**s, "agents": {**s["agents"], "groups": [
         {"name": f"g{k}", "agents": [0], "drift": {"kind": "goal", "goal": [9.5, 2.0]}}
         for k in range(MAX_GROUPS + 1)]}}, ["agents.groups", str(MAX_GROUPS)], dump_json),
+    # a claim of 400 000 agents beside frames of 3: read within what the frames hold
+    "agents": (lambda s: {**s, "agents": {"positions": (20 + 0.5 * np.stack(np.meshgrid(
+        np.arange(640), np.arange(625)), -1).reshape(-1, 2)).tolist(), "radius": 0.2}},
+               ["first state holds 3 agents", str(RECORDED_BASE_NODES)], dump_json),
     "outline": (lambda s: {**s, "walls": s["walls"] + [{"kind": "polyline", "closed": True,
                                                           "points": _circle(4500)}]},
                 ["walls[1].points", "MAX_OUTLINE_PAIRS", str(MAX_OUTLINE_PAIRS)], dump_json),
@@ -254,9 +260,10 @@ COSTLY = {
 
 @pytest.mark.parametrize("case", list(COSTLY))
 def test_recorded_scenes_that_cost_too_much_to_build_are_refused(run_file, tmp_path, case):
-    """Counted before they are built: YAML nodes in a recorded scene, wall segments and
-    pieces, groups, and the pairs of edges a closed outline's simple-polygon test compares
-    (a 10 000-point outline took 22 s before the bound). One line, exit 2, under PEAK_MB."""
+    """Counted before they are built: YAML nodes in a recorded scene, JSON nodes beyond what
+    the recording's first state can need, wall segments and pieces, groups, and the pairs of
+    edges a closed outline's simple-polygon test compares (a 10 000-point outline took 22 s
+    before the bound). One line, exit 2, under PEAK_MB."""
     edit, words, dump = COSTLY[case]
     bad = rewrite(run_file, tmp_path / f"{case}.mcap", edit, dump=dump)
     refused_everywhere(bad, run_file, words, tmp_path, ("analyze", "replay"))

@@ -15,7 +15,7 @@ from typing import Any
 from sweep_core.errors import CostError, RecordingError, SweepError, show
 from sweep_core.io import cdr
 from sweep_core.io.metadata import describe_status
-from sweep_core.io.recording import ChannelInfo, scan_recording
+from sweep_core.io.recording import ChannelInfo, RecordingReader, scan_recording
 from sweep_core.model.maps import replace_map
 from sweep_core.model.scene import Scene, scene_data
 from sweep_core.model.speed_law import recorded_headway
@@ -23,6 +23,12 @@ from sweep_core.numerics.projection import SolverOptions
 
 #: nanoseconds per second
 NS = 1_000_000_000
+#: values, keys, lists and mappings a recorded scene may hold besides what its agents need
+#: (walls, obstacles, groups, flows, a packed map: a wall chain of 250 000 points is 750 000)
+RECORDED_BASE_NODES = 1 << 20
+#: and per agent of the recording's first state (a position is 3, its radius and speed 1
+#: each): a scene is read within what the recording's own frames hold, not what it claims
+RECORDED_NODES_PER_AGENT = 16
 
 
 @dataclass(frozen=True)
@@ -204,6 +210,20 @@ def _pick_topic(channels: dict[str, ChannelInfo], default: str, msgtype: str,
     return sorted(cands, key=len)[0] if cands else None
 
 
+def _first_count(path: str, topic: str | None) -> int:
+    """The poses in the first message of ``topic`` (0 when there is none or it does not
+    decode: its reader names the damage)."""
+    if topic is None:
+        return 0
+    try:
+        with RecordingReader(path, topics=[topic]) as reader:
+            for message in reader:
+                return len(cdr.decode_pose_array(message.data)[2])
+    except Exception:  # noqa: BLE001 - whatever the damage, the frames are read again later
+        return 0
+    return 0
+
+
 def load_run(path: str | Path) -> RunMeta:
     """Metadata, topics, frame count and truncation of a recording.
 
@@ -213,12 +233,19 @@ def load_run(path: str | Path) -> RunMeta:
     info = scan_recording(path)
     problems: list[str] = []
     raw = dict(info.metadata.get("sweep_ros", {}))
+    declared = _json(raw.get("topics"), "topics", problems)
+    poses = _pick_topic(info.channels, "/poses", cdr.POSE_ARRAY, declared)
     scene = None
     if raw.get("scene"):
+        first = _first_count(info.path, poses)
         try:
             # a recording is data: its scene is rebuilt from what it carries, and a map it
             # names by path is refused, never read from this machine
-            data = scene_data(raw["scene"], source="the recorded scene", recorded=True)
+            data = scene_data(raw["scene"], source="the recorded scene", recorded=True,
+                              max_nodes=RECORDED_BASE_NODES + RECORDED_NODES_PER_AGENT * first,
+                              limit_name=f"the limit for a recording whose first state holds "
+                                         f"{first} agents: {RECORDED_BASE_NODES} + "
+                                         f"{RECORDED_NODES_PER_AGENT} per agent")
             older = recorded_headway(data)  # a speed law recorded before some keys existed
             scene = Scene.from_dict(data if older is None else older, files=False)
         except CostError as err:  # refused outright: nothing of it is rebuilt
@@ -228,8 +255,6 @@ def load_run(path: str | Path) -> RunMeta:
             problems.append(f"the recorded scene does not load: {err}")
     dt = _number(raw, "dt", float, problems)
     seed = _number(raw, "seed", int, problems)
-    declared = _json(raw.get("topics"), "topics", problems)
-    poses = _pick_topic(info.channels, "/poses", cdr.POSE_ARRAY, declared)
     if info.message_count == 0 and poses is None:
         if os.path.getsize(info.path) == 0:
             raise RecordingError(f"{info.path}: the file is empty (0 bytes), not a recording "
