@@ -11,7 +11,7 @@ import pytest
 from sweep_core import Scene
 from sweep_core.numerics.robots.control import Observation
 from sweep_core.numerics.robots.guard import nearest_safe, safe_speed, safe_speeds
-from sweep_core.numerics.robots.planners import controller_for
+from sweep_core.numerics.robots.planners import controller_for, to_command
 
 LIMITS = {"max_speed": 1.0, "max_angular_speed": 1.5, "max_acceleration": 1.0,
           "max_angular_acceleration": 3.0}
@@ -96,3 +96,42 @@ def test_a_holonomic_robot_at_rest_never_advances_into_a_person_in_contact(contr
         p = p * 0.549 / np.hypot(*p[0])
         vx, vy, _ = controller_for(scene, robot)(_obs(p, 0.0))
         assert vx * p[0, 0] + vy * p[0, 1] <= 1e-12
+
+
+def test_people_who_move_by_noise_reach_sqrt_t_farther_and_the_bound_keeps_it():
+    # a person straight ahead at gap 0.5 m; margin 0.1, a = 1, v_h = 0.3 m/s, noise 0.3
+    # m/sqrt(s): at the bound the robot's braking advance v^2 / 2a, the drift v_h v / a and
+    # the noise's reach n sqrt(v / a) over its stopping time fill the gap less the margin
+    for c, n in ((1.0, 0.3), (0.5, 0.3), (1.0, 0.05), (1.0, 2.0), (0.05, 0.3)):
+        p = 1.05 * np.array([[c, math.sqrt(1.0 - c * c)]])
+        v = safe_speed((0.0, 0.0, 0.0), EAST, 0.3, p, np.array([0.25]), 1.0, 0.1, 0.3, n)
+        assert c * v * v / 2 + 0.3 * v + n * math.sqrt(v) == pytest.approx(0.4, rel=1e-12)
+    # slower than the drift-only bound, and no drift: the noise alone
+    drift = safe_speed((0.0, 0.0, 0.0), EAST, 0.3, np.array([[1.05, 0.0]]), np.array([0.25]),
+                       1.0, 0.1, 0.3)
+    noise = safe_speed((0.0, 0.0, 0.0), EAST, 0.3, np.array([[1.05, 0.0]]), np.array([0.25]),
+                       1.0, 0.1, 0.3, 0.3)
+    assert noise < drift
+    v = safe_speed((0.0, 0.0, 0.0), EAST, 0.3, np.array([[1.05, 0.0]]), np.array([0.25]),
+                   1.0, 0.1, 0.0, 0.3)
+    assert v * v / 2 + 0.3 * math.sqrt(v) == pytest.approx(0.4, rel=1e-12)
+    # within the margin, or in contact: no advance at all; sideways: no bound
+    dirs = np.array([[1.0, 0.0], [0.0, 1.0]])
+    for x in (0.549, 0.62):
+        s = safe_speeds((0.0, 0.0, 0.0), dirs, 0.3, np.array([[x, 0.0]]), np.array([0.25]),
+                        1.0, 0.1, 0.3, 0.3)
+        assert s[0] == 0.0 and math.isinf(s[1])
+
+
+@pytest.mark.parametrize("kind", ["diff_drive", "holonomic"])
+def test_the_layer_brakes_for_a_person_whose_noise_may_bring_them_close(kind):
+    # wishing to go on at 0.3 m/s, a person 0.25 m ahead (edge to edge), margin 0.1: people
+    # closing in at 0.3 m/s allow 0.32 m/s, but one who moves by noise of 0.3 m/sqrt(s) may
+    # cover 0.3 sqrt(0.3) = 0.16 m more in the 0.3 s it takes to stop: the robot brakes as
+    # hard as it may (0.3 - a dt)
+    u = np.array([0.3, 0.0])
+    for noise, want in ((0.0, 0.3), (0.3, 0.3 - 0.01)):
+        scene, robot = _robot(kind, {"kind": "orca", "stop_margin": 0.1, "people_speed": 0.3,
+                                     "people_noise": noise})
+        cmd = to_command(robot, u, _obs([[0.8, 0.0]], 0.3), robot.params)
+        assert cmd[0] == pytest.approx(want, abs=1e-12) and abs(cmd[1]) <= 1e-12

@@ -47,6 +47,8 @@ PARAMETERS: dict[str, dict[str, tuple[float | None, float, float, str, str]]] = 
         "stop_margin": (0.1, 0.0, 2.0, "m", "clearance it can always stop short of"),
         "people_speed": (0.0, 0.0, 5.0, "m/s", "speed at which people are assumed to close "
                          "in (the safety layer)"),
+        "people_noise": (0.0, 0.0, 5.0, "m/sqrt(s)", "people may also come closer by this "
+                         "times the square root of the time (the safety layer)"),
         "turn_gain": (3.0, 0.1, 20.0, "1/s", "turn rate per rad of heading error "
                       "(diff_drive)"),
     },
@@ -63,6 +65,8 @@ PARAMETERS: dict[str, dict[str, tuple[float | None, float, float, str, str]]] = 
         "stop_margin": (0.1, 0.0, 2.0, "m", "clearance it can always stop short of"),
         "people_speed": (0.0, 0.0, 5.0, "m/s", "speed at which people are assumed to close "
                          "in (the safety layer)"),
+        "people_noise": (0.0, 0.0, 5.0, "m/sqrt(s)", "people may also come closer by this "
+                         "times the square root of the time (the safety layer)"),
         "wall_strength": (2.0, 0.0, 50.0, "m/s^2", "repulsion of a wall at contact"),
         "wall_range": (0.2, 0.05, 5.0, "m", "decay length of the wall repulsion"),
         "turn_gain": (3.0, 0.1, 20.0, "1/s", "turn rate per rad of heading error "

@@ -15,6 +15,17 @@ close in). The gap g_j (edge to edge, m) less ``stop_margin`` g_0 must cover bot
 for every person with c_j > 0 (the robot's motion takes it away from the others); 0 when
 g_j <= g_0. With v_h = 0 this is the braking bound sqrt(2 a (g_j - g_0) / c_j) of a person
 standing still.
+
+People who move by noise (Brownian motion of sigma m/sqrt(s) per axis) come closer over a
+short time t by about sigma sqrt(t), far more than v_h t: over the 0.1 s a robot at 0.1 m/s
+takes to stop, sigma = 0.3 m/sqrt(s) gives 0.095 m, v_h = 0.3 m/s 0.03 m. With
+``people_noise`` n (m/sqrt(s)) a person's reach over t s is v_h t + n sqrt(t), and the bound
+is the largest v with
+
+    c_j v^2 / (2 a) + v_h v / a + n sqrt(v / a) <= g_j - g_0,
+
+found in s = sqrt(v / a) (the left side c_j a s^4 / 2 + v_h s^2 + n s, increasing and convex
+in s >= 0) by Newton's method from above (:func:`reach_root`); n = 0 gives the closed form.
 """
 from __future__ import annotations
 
@@ -27,13 +38,37 @@ import numpy as np
 AHEAD = 1e-9
 
 
+#: Newton steps of :func:`reach_root` (from within a factor 3 of the root, quadratic
+#: convergence: machine precision well before)
+NEWTON_STEPS = 12
+
+
+def reach_root(quartic: np.ndarray, square: float, linear: float, room: np.ndarray
+               ) -> np.ndarray:
+    """The root s >= 0 of quartic s^4 + square s^2 + linear s = room, elementwise (arrays of
+    one shape; quartic >= 0, square >= 0, linear > 0, room >= 0): Newton's method from the
+    smallest of the three one-term roots, an upper bound (each term alone is at most room);
+    the left side is increasing and convex in s >= 0, so every iterate stays at or above the
+    root and decreases to it."""
+    s = room / linear
+    if square > 0:
+        s = np.minimum(s, np.sqrt(room / square))
+    s = np.minimum(s, np.where(quartic > 0, (room / np.maximum(quartic, 1e-300)) ** 0.25,
+                               np.inf))
+    for _ in range(NEWTON_STEPS):
+        f = ((quartic * s * s + square) * s + linear) * s - room
+        s = np.maximum(s - f / ((4.0 * quartic * s * s + 2.0 * square) * s + linear), 0.0)
+    return np.asarray(s)
+
+
 def safe_speeds(pose: tuple[float, float, float], directions: np.ndarray, radius: float,
                 people: np.ndarray, people_radii: np.ndarray, accel: float, margin: float,
-                people_speed: float) -> np.ndarray:
+                people_speed: float, people_noise: float = 0.0) -> np.ndarray:
     """(K,) the largest speed (m/s; inf when no person is ahead) along each unit direction of
     ``directions`` (K, 2) from the robot at ``pose`` (x, y, yaw) m, rad with ``radius`` m that
     keeps passive safety (module docstring) against ``people`` (M, 2) m of radii
-    ``people_radii`` (M,) m; ``accel`` m/s^2, ``margin`` m, ``people_speed`` m/s."""
+    ``people_radii`` (M,) m; ``accel`` m/s^2, ``margin`` m, ``people_speed`` m/s,
+    ``people_noise`` m/sqrt(s)."""
     out = np.full(len(directions), math.inf)
     if not len(people):
         return out
@@ -41,6 +76,11 @@ def safe_speeds(pose: tuple[float, float, float], directions: np.ndarray, radius
     d = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
     c = (rel / d[:, None]) @ directions.T  # (M, K); within AHEAD of 0: not ahead (rounding)
     gap = np.maximum(d - radius - people_radii - margin, 0.0)[:, None]
+    if people_noise > 0:
+        room = np.broadcast_to(gap, c.shape)
+        s = reach_root(accel * np.maximum(c, 0.0) / 2.0, people_speed, people_noise, room)
+        bound = np.where(room > 0.0, accel * s * s, 0.0)
+        return np.asarray(np.where(c > AHEAD, bound, math.inf).min(axis=0, initial=math.inf))
     root = np.sqrt(people_speed * people_speed + 2.0 * accel * np.maximum(c, 0.0) * gap)
     den = np.maximum(people_speed + root, 1e-300)
     bound = np.where(gap > 0.0, 2.0 * accel * gap / den, 0.0)
@@ -49,15 +89,16 @@ def safe_speeds(pose: tuple[float, float, float], directions: np.ndarray, radius
 
 def safe_speed(pose: tuple[float, float, float], direction: np.ndarray, radius: float,
                people: np.ndarray, people_radii: np.ndarray, accel: float, margin: float,
-               people_speed: float) -> float:
+               people_speed: float, people_noise: float = 0.0) -> float:
     """:func:`safe_speeds` along the one unit ``direction`` (2,)."""
     return float(safe_speeds(pose, np.asarray(direction).reshape(1, 2), radius, people,
-                             people_radii, accel, margin, people_speed)[0])
+                             people_radii, accel, margin, people_speed, people_noise)[0])
 
 
 def nearest_safe(u: np.ndarray, pose: tuple[float, float, float], radius: float,
                  people: np.ndarray, people_radii: np.ndarray, accel: float, margin: float,
-                 people_speed: float, directions: int = 72) -> np.ndarray:
+                 people_speed: float, directions: int = 72, people_noise: float = 0.0
+                 ) -> np.ndarray:
     """(2,) m/s: the velocity nearest the wished ``u`` (2,) m/s among ``directions`` evenly
     spaced headings (the first one u's own), each at a speed within [0, its safe speed]: the
     minimal change of u that keeps passive safety (a safety filter in the sense of Ames et
@@ -68,7 +109,7 @@ def nearest_safe(u: np.ndarray, pose: tuple[float, float, float], radius: float,
     phi = math.atan2(u[1], u[0]) + np.arange(directions) * (2.0 * math.pi / directions)
     dirs = np.column_stack([np.cos(phi), np.sin(phi)])
     s = np.clip(dirs @ u, 0.0, safe_speeds(pose, dirs, radius, people, people_radii, accel,
-                                               margin, people_speed))
+                                               margin, people_speed, people_noise))
     miss = (u[0] - s * dirs[:, 0]) ** 2 + (u[1] - s * dirs[:, 1]) ** 2
     k = int(np.argmin(miss))
     return np.asarray(s[k] * dirs[k])

@@ -14,12 +14,12 @@ of the planner.
 Both turn a wished velocity u (m/s, map frame) into a command (:func:`to_command`) through
 the safety layer of :mod:`.guard` (passive motion safety: u replaced by the nearest velocity
 from which the robot can be at rest before any person seen ahead, closing in at
-``people_speed``, comes within ``stop_margin``): holonomic (u in the robot's frame, turning
-towards u, the change of command scaled as a whole into the acceleration limit); diff_drive
-(turn rate ``turn_gain`` times the heading error, speed |u| cos(error), never backwards, 0
-beyond 90 degrees of error, at most the safe speed along its heading), clipped to the robot's
-speed, angular speed and acceleration limits against its last command, so the fleet applies
-it unchanged.
+``people_speed`` and by noise of ``people_noise``, comes within ``stop_margin``): holonomic
+(u in the robot's frame, turning towards u, the change of command scaled as a whole into
+the acceleration limit); diff_drive (turn rate ``turn_gain`` times the heading error, speed
+|u| cos(error), never backwards, 0 beyond 90 degrees of error, at most the safe speed along
+its heading), clipped to the robot's speed, angular speed and acceleration limits against its
+last command, so the fleet applies it unchanged.
 """
 from __future__ import annotations
 
@@ -87,7 +87,8 @@ def to_command(robot: Robot, u: np.ndarray, obs: Observation, params: dict[str, 
     the safe speed along the direction the robot moves in, within the robot's limits."""
     yaw = obs.pose[2]
     u = nearest_safe(u, obs.pose, obs.radius, obs.people, obs.people_radii,
-                     robot.max_acceleration, params["stop_margin"], params["people_speed"])
+                     robot.max_acceleration, params["stop_margin"], params["people_speed"],
+                     people_noise=params["people_noise"])
     speed = float(math.hypot(u[0], u[1]))
     heading = math.atan2(u[1], u[0]) if speed > 1e-9 else yaw
     error = wrap(heading - yaw)
@@ -100,7 +101,7 @@ def to_command(robot: Robot, u: np.ndarray, obs: Observation, params: dict[str, 
         along = np.array([c, s])
     speed = min(speed, safe_speed(obs.pose, along, obs.radius, obs.people, obs.people_radii,
                                   robot.max_acceleration, params["stop_margin"],
-                                  params["people_speed"]))
+                                  params["people_speed"], params["people_noise"]))
     if robot.kinematics == "holonomic":
         return holonomic_command(robot, speed * along, omega, obs, params)
     return feasible(robot, (speed, 0.0, omega), obs)
@@ -125,7 +126,7 @@ def holonomic_command(robot: Robot, u: np.ndarray, omega: float, obs: Observatio
         world = np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]]) / speed
         if speed > safe_speed(obs.pose, world, obs.radius, obs.people, obs.people_radii,
                               robot.max_acceleration, params["stop_margin"],
-                              params["people_speed"]):
+                              params["people_speed"], params["people_noise"]):
             big = float(np.abs(last).max())
             v = last * (max(0.0, 1.0 - step / big) if big > 0 else 0.0)
     return feasible(robot, (float(v[0]), float(v[1]), omega), obs)
