@@ -204,3 +204,11 @@ def test_with_circles_is_replace_with_the_packed_arrays_carried() -> None:
     for a, b in zip(got.packed, want.packed):
         assert np.array_equal(a, b)
     assert len(got.circle_radius) == len(geom.circle_radius) + 2
+    # the index and motion columns kept per count of added disks: another count, then again
+    for m in (1, 2, 1):
+        more = geom.with_circles(centres[:m], radii[:m])
+        assert np.array_equal(more.circle_index, np.concatenate([geom.circle_index, [-1] * m]))
+        assert np.array_equal(more.circle_motion,
+                              np.concatenate([geom.circle_motion, [-1] * m]))
+        assert np.array_equal(more.circle_center, np.concatenate([geom.circle_center,
+                                                                  centres[:m]]))

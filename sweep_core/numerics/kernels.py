@@ -24,14 +24,15 @@ from numba.core.registry import CPUDispatcher
 
 from sweep_core.model import neighbours, wall_kernels
 from sweep_core.model.scene import Scene
-from sweep_core.numerics import csm, entry, exit_choice, headway, schemes
+from sweep_core.numerics import csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clusters import solve_active
 from sweep_core.numerics.robots import scan as robot_scan
 from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
-MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan)
+MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
+                                   noise)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -165,6 +166,8 @@ def _exercise() -> None:
     # a robot's scan (the ray cast against disks, segments and half-planes)
     robot_scan.ray_cast(0.0, 0.0, np.ones(2), np.zeros(2), np.ones((1, 2)), np.ones(1),
                         np.ones((1, 2)), 2 * np.ones((1, 2)), np.ones((1, 2)), np.ones(1), 5.0)
+    # its noise generator's seeding
+    noise.pcg64_state((0, 0, 1))
 
 
 def warm_up(notify: Callable[[str], None] | None = None) -> WarmUp:

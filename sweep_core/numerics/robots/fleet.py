@@ -41,6 +41,7 @@ from sweep_core.model.geometry import CIRCLE, Geometry
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.robots import Robot, overlap
 from sweep_core.model.scene import Scene
+from sweep_core.numerics import noise
 from sweep_core.numerics.projection import Projection, project
 from sweep_core.numerics.robots import kinematics
 from sweep_core.numerics.robots.control import observe
@@ -106,6 +107,7 @@ class Fleet:
         self.scene = scene
         self.dt = dt
         self.seed = seed
+        self._scan_rng = np.random.Generator(np.random.PCG64(0))  # reseeded per scan
         for k, robot in enumerate(scene.robots):
             if robot.max_speed * dt >= robot.radius:
                 raise SceneError(f"robots[{k}].kinematics.max_speed",
@@ -398,7 +400,8 @@ class Fleet:
             disks = np.concatenate([people, np.array([s.pose[:2] for s in others]
                                                      ).reshape(-1, 2)])
             disk_r = np.concatenate([radii, [s.robot.radius for s in others]])
-            rng = (np.random.Generator(np.random.PCG64([self.seed, k, self.step_index]))
+            # the stream of Generator(PCG64([seed, k, step])), on a kept generator
+            rng = (noise.reseed(self._scan_rng, (self.seed, k, self.step_index))
                    if spec.noise_std > 0 else None)
             st.scan = scan(spec, st.pose, t, self.step_index, self.scene.geometry, disks,
                            disk_r, rng)
