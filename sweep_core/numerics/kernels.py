@@ -24,7 +24,7 @@ from numba.core.registry import CPUDispatcher
 
 from sweep_core.model import neighbours, wall_kernels
 from sweep_core.model.scene import Scene
-from sweep_core.numerics import csm, entry, exit_choice, headway, noise, schemes
+from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clusters import solve_active
 from sweep_core.numerics.robots import scan as robot_scan
@@ -32,7 +32,7 @@ from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
 MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
-                                   noise)
+                                   noise, constraints)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
