@@ -96,3 +96,32 @@ def test_a_holonomic_robot_at_rest_never_advances_into_a_person_in_contact(contr
         p = p * 0.549 / np.hypot(*p[0])
         vx, vy, _ = controller_for(scene, robot)(_obs(p, 0.0))
         assert vx * p[0, 0] + vy * p[0, 1] <= 1e-12
+
+
+def test_safe_speeds_keep_the_bits_of_the_numpy_form() -> None:
+    """safe_speeds' compiled bound gives, bit for bit, what the numpy form below gives (the
+    same operations on arrays), on random robots, people and parameters."""
+    import math
+
+    from sweep_core.numerics.robots.guard import AHEAD
+
+    def numpy_form(pose, directions, radius, people, people_radii, accel, margin, ps):
+        if not len(people):
+            return np.full(len(directions), math.inf)
+        rel = people - np.array(pose[:2])
+        d = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
+        c = (rel / d[:, None]) @ directions.T
+        gap = np.maximum(d - radius - people_radii - margin, 0.0)[:, None]
+        root = np.sqrt(ps * ps + 2.0 * accel * np.maximum(c, 0.0) * gap)
+        bound = np.where(gap > 0.0, 2.0 * accel * gap / np.maximum(ps + root, 1e-300), 0.0)
+        return np.where(c > AHEAD, bound, math.inf).min(axis=0, initial=math.inf)
+
+    rng = np.random.default_rng(7)
+    for _ in range(500):
+        m, k = int(rng.integers(0, 25)), int(rng.integers(1, 80))
+        phi = rng.uniform(0.0, 2 * math.pi, k)
+        args = ((float(rng.normal()), float(rng.normal()), 0.0),
+                np.column_stack([np.cos(phi), np.sin(phi)]), 0.3, rng.normal(size=(m, 2)) * 3,
+                rng.uniform(0.1, 0.4, m), float(rng.uniform(0.5, 3.0)),
+                float(rng.uniform(0.0, 0.2)), float(rng.choice([0.0, 0.5, 1.0])))
+        assert safe_speeds(*args).tobytes() == numpy_form(*args).tobytes()

@@ -27,12 +27,13 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clusters import solve_active
+from sweep_core.numerics.robots import guard
 from sweep_core.numerics.robots import scan as robot_scan
 from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
 MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
-                                   noise, constraints)
+                                   noise, constraints, guard)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -168,6 +169,9 @@ def _exercise() -> None:
                         np.ones((1, 2)), 2 * np.ones((1, 2)), np.ones((1, 2)), np.ones(1), 5.0)
     # its noise generator's seeding
     noise.pcg64_state((0, 0, 1))
+    # the planners' safety layer
+    guard.safe_speeds((0.0, 0.0, 0.0), np.array([[1.0, 0.0]]), 0.3, np.ones((1, 2)),
+                      np.ones(1) * 0.2, 1.0, 0.05, 0.5)
 
 
 def warm_up(notify: Callable[[str], None] | None = None) -> WarmUp:

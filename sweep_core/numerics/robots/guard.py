@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 #: a direction whose cosine to a person is at most this is not towards them (a sideways
@@ -40,11 +41,37 @@ def safe_speeds(pose: tuple[float, float, float], directions: np.ndarray, radius
     rel = people - np.array(pose[:2])
     d = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
     c = (rel / d[:, None]) @ directions.T  # (M, K); within AHEAD of 0: not ahead (rounding)
-    gap = np.maximum(d - radius - people_radii - margin, 0.0)[:, None]
-    root = np.sqrt(people_speed * people_speed + 2.0 * accel * np.maximum(c, 0.0) * gap)
-    den = np.maximum(people_speed + root, 1e-300)
-    bound = np.where(gap > 0.0, 2.0 * accel * gap / den, 0.0)
-    return np.asarray(np.where(c > AHEAD, bound, math.inf).min(axis=0, initial=math.inf))
+    gap = np.maximum(d - radius - people_radii - margin, 0.0)
+    smallest_bounds(np.ascontiguousarray(c), gap, float(accel), float(people_speed), out)
+    return out
+
+
+@numba.njit(cache=True)
+def smallest_bounds(c: np.ndarray, gap: np.ndarray, accel: float, people_speed: float,
+                    out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """out[k] = the smallest over the people j with c[j, k] > AHEAD of the speed bound
+    2 a g_j / max(v_h + sqrt(v_h^2 + 2 a max(c, 0) g_j), 1e-300) (0 where g_j <= 0), inf
+    when there is none (a NaN bound propagates, as numpy's min): the module docstring's bound, each
+    operation in the order the numpy form took it, so the bits are the same. c (M, K) cosines,
+    gap (M,) m clipped at 0, out (K,) m/s."""
+    two_a = 2.0 * accel
+    for k in range(c.shape[1]):
+        low = math.inf
+        for j in range(c.shape[0]):
+            ck = c[j, k]
+            if not ck > AHEAD:  # NaN included: numpy's where gave inf there
+                continue
+            g = gap[j]
+            bound = 0.0
+            if g > 0.0:
+                root = math.sqrt(people_speed * people_speed + two_a * max(ck, 0.0) * g)
+                den = max(people_speed + root, 1e-300)
+                bound = two_a * g / den
+            if bound != bound:
+                low = math.nan
+                break
+            low = min(low, bound)
+        out[k] = low
 
 
 def safe_speed(pose: tuple[float, float, float], direction: np.ndarray, radius: float,
