@@ -27,13 +27,13 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clusters import solve_active
-from sweep_core.numerics.robots import guard
+from sweep_core.numerics.robots import guard, social_kernels
 from sweep_core.numerics.robots import scan as robot_scan
 from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
 MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
-                                   noise, constraints, guard)
+                                   noise, constraints, guard, social_kernels)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -172,6 +172,11 @@ def _exercise() -> None:
     # the planners' safety layer
     guard.safe_speeds((0.0, 0.0, 0.0), np.array([[1.0, 0.0]]), 0.3, np.ones((1, 2)),
                       np.ones(1) * 0.2, 1.0, 0.05, 0.5)
+    # the social-force planner's people term
+    grad = np.ones((1, 2))
+    social_kernels.people_terms(np.ones((1, 2)), np.zeros((1, 2)), np.empty(1), grad,
+                                np.empty((1, 2)))
+    social_kernels.pushes(grad, np.ones(1), np.ones(1), np.zeros(2))
 
 
 def warm_up(notify: Callable[[str], None] | None = None) -> WarmUp:

@@ -39,6 +39,7 @@ from sweep_core.numerics.robots.control import (
 )
 from sweep_core.numerics.robots.guard import nearest_safe, safe_speed
 from sweep_core.numerics.robots.kinematics import wrap
+from sweep_core.numerics.robots.social_kernels import people_terms, pushes
 
 #: the time (s) over which a tracked person's velocity is smoothed
 TRACK_TIME = 0.5
@@ -285,24 +286,20 @@ class SocialForce(_Planner):
         p = self.params
         d = o - obs.people  # (M, 2) from each person to the robot
         y = (v_people - v) * p["anticipation"]  # the person's step relative to the robot
-        dn = np.maximum(np.hypot(*d.T), 1e-9)
-        dy = d - y
-        dyn = np.maximum(np.hypot(*dy.T), 1e-9)
-        yn = np.hypot(*y.T)
-        b = 0.5 * np.sqrt(np.maximum((dn + dyn) ** 2 - yn ** 2, 1e-18))
-        grad = ((dn + dyn) / (4.0 * np.maximum(b, 1e-9)))[:, None] * (
-            d / dn[:, None] + dy / dyn[:, None])
+        m = len(d)
+        b, grad, n = np.empty(m), np.empty((m, 2)), np.empty((m, 2))
+        people_terms(np.ascontiguousarray(d), np.ascontiguousarray(y), b, grad, n)
         heading = np.array([math.cos(obs.pose[2]), math.sin(obs.pose[2])])
-        n = d / dn[:, None]
         cos_phi = -(n @ heading)
         lam = p["anisotropy"]
         w = lam + (1.0 - lam) * (1.0 + cos_phi) / 2.0
         mag = p["strength"] * np.exp((obs.radius + obs.people_radii - b) / p["range"]) * w
         # people ahead also push it to its right (the side convention that breaks the
         # head-on symmetry): the push turned by +90 degrees, weighted by side * max(0, cos phi)
-        turn = np.column_stack([-grad[:, 1], grad[:, 0]])
         side = p["side"] * np.maximum(cos_phi, 0.0)
-        return np.asarray((mag[:, None] * (grad + side[:, None] * turn)).sum(axis=0))
+        out = np.zeros(2)
+        pushes(grad, np.ascontiguousarray(mag, dtype=np.float64), side, out)
+        return out
 
 
 def controller_for(scene: Scene, robot: Robot) -> Controller | None:
