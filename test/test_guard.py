@@ -170,3 +170,55 @@ def test_social_force_people_term_keeps_the_bits_of_the_numpy_form() -> None:
         v_people = rng.normal(size=(m, 2))
         got = planner.people_force(obs, o, v, v_people)
         assert got.tobytes() == numpy_form(obs, o, v, v_people).tobytes()
+
+
+def test_tracker_and_wall_search_keep_the_bits_of_the_numpy_forms() -> None:
+    """The planners' Tracker.update and segments within the sensor range (compiled) give, bit
+    for bit, what their numpy forms below give, on random crowds (people appearing and
+    leaving, ties) and segments (the robot beyond either end, degenerate segments)."""
+    import math
+    from types import SimpleNamespace
+
+    from sweep_core.numerics.robots import planners
+
+    def track_numpy(old_t, old_xy, old_v, t, xy):
+        v = np.zeros_like(xy)
+        dt = t - old_t
+        dx = xy[:, None, 0] - old_xy[None, :, 0]
+        dy = xy[:, None, 1] - old_xy[None, :, 1]
+        d2 = dx * dx + dy * dy
+        j = np.argmin(d2, axis=1)
+        back = np.argmin(d2, axis=0)
+        ok = (back[j] == np.arange(len(xy))) & (d2[np.arange(len(xy)), j]
+                                                 <= planners.GATE ** 2)
+        a = 1.0 - math.exp(-dt / planners.TRACK_TIME)
+        step = (xy[ok] - old_xy[j[ok]]) / dt
+        v[ok] = old_v[j[ok]] + a * (step - old_v[j[ok]])
+        return v
+
+    rng = np.random.default_rng(5)
+    for _ in range(400):
+        m, k = int(rng.integers(1, 12)), int(rng.integers(1, 12))
+        old = np.round(rng.uniform(0, 3, (k, 2)), 1)  # rounded: ties of distance
+        xy = np.round(old[rng.integers(0, k, m)] + rng.normal(0, 0.2, (m, 2)), 2)
+        tracker = planners.Tracker()
+        tracker.t, tracker.xy, tracker.v = 1.0, old, rng.normal(size=(k, 2))
+        want = track_numpy(1.0, old, tracker.v, 1.1, xy)
+        assert tracker.update(1.1, xy).tobytes() == want.tobytes()
+
+    planner = planners._Planner.__new__(planners._Planner)
+    for _ in range(400):
+        s = int(rng.integers(1, 10))
+        a = rng.uniform(-5, 5, (s, 2))
+        b = a + rng.normal(size=(s, 2)) * rng.choice([0.0, 1.0, 4.0], (s, 1))
+        p = rng.uniform(-6, 6, 2)
+        reach = float(rng.uniform(0.5, 6.0))
+        geometry = SimpleNamespace(segment_a=a, segment_b=b)
+        planner.scene = SimpleNamespace(geometry=SimpleNamespace(at=lambda t, g=geometry: g))
+        planner.params = {"sensor_range": reach}
+        got = planner.segments(SimpleNamespace(t=0.0, pose=(p[0], p[1], 0.0)))
+        e = b - a
+        ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
+        u = np.clip(np.einsum("ij,ij->i", p - a, e) / ee, 0.0, 1.0)
+        near = np.hypot(*(a + u[:, None] * e - p).T) <= reach
+        assert got[0].tobytes() == a[near].tobytes() and got[1].tobytes() == b[near].tobytes()

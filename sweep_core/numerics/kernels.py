@@ -177,6 +177,11 @@ def _exercise() -> None:
     social_kernels.people_terms(np.ones((1, 2)), np.zeros((1, 2)), np.empty(1), grad,
                                 np.empty((1, 2)))
     social_kernels.pushes(grad, np.ones(1), np.ones(1), np.zeros(2))
+    social_kernels.track(np.ones((1, 2)), np.ones((1, 2)), np.zeros((1, 2)), 0.1, 0.2, 0.25,
+                         np.zeros((1, 2)))
+    social_kernels.near_segments(0.0, 0.0, np.zeros((1, 2)), np.ones((1, 2)), 1.0,
+                                 np.empty(1, dtype=np.bool_))
+    robot_scan.beam_directions(0.0, robot_scan.ScanSpec(0.1, 1.0, -1.0, 1.0, 0.5, 10.0, 0.0))
 
 
 def warm_up(notify: Callable[[str], None] | None = None) -> WarmUp:

@@ -39,7 +39,12 @@ from sweep_core.numerics.robots.control import (
 )
 from sweep_core.numerics.robots.guard import nearest_safe, safe_speed
 from sweep_core.numerics.robots.kinematics import wrap
-from sweep_core.numerics.robots.social_kernels import people_terms, pushes
+from sweep_core.numerics.robots.social_kernels import (
+    near_segments,
+    people_terms,
+    pushes,
+    track,
+)
 
 #: the time (s) over which a tracked person's velocity is smoothed
 TRACK_TIME = 0.5
@@ -68,16 +73,10 @@ class Tracker:
         v = np.zeros_like(xy)
         if self.t is not None and t > self.t and len(xy) and len(self.xy):
             dt = t - self.t
-            dx = xy[:, None, 0] - self.xy[None, :, 0]
-            dy = xy[:, None, 1] - self.xy[None, :, 1]
-            d2 = dx * dx + dy * dy  # squared distances: the same nearest, no square roots
-            j = np.argmin(d2, axis=1)
-            back = np.argmin(d2, axis=0)
-            ok = (back[j] == np.arange(len(xy))) & (d2[np.arange(len(xy)), j] <= GATE * GATE)
             a = 1.0 - math.exp(-dt / TRACK_TIME)
-            step = (xy[ok] - self.xy[j[ok]]) / dt
-            v[ok] = self.v[j[ok]] + a * (step - self.v[j[ok]])
-        self.t, self.xy, self.v = t, xy.copy(), v
+            track(np.ascontiguousarray(xy, dtype=np.float64), self.xy, self.v, dt, a,
+                  GATE * GATE, v)
+        self.t, self.xy, self.v = t, np.array(xy, dtype=np.float64), v
         return v
 
 
@@ -162,12 +161,9 @@ class _Planner:
         a, b = g.segment_a.reshape(-1, 2), g.segment_b.reshape(-1, 2)
         if not len(a):
             return a, b
-        p = np.array(obs.pose[:2])
-        e = b - a
-        ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
-        s = np.clip(np.einsum("ij,ij->i", p - a, e) / ee, 0.0, 1.0)
-        d = np.hypot(*(a + s[:, None] * e - p).T)
-        near = d <= self.params["sensor_range"]
+        near = np.empty(len(a), dtype=np.bool_)
+        near_segments(float(obs.pose[0]), float(obs.pose[1]), np.ascontiguousarray(a),
+                      np.ascontiguousarray(b), float(self.params["sensor_range"]), near)
         return a[near], b[near]
 
     def circles(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:

@@ -48,3 +48,64 @@ def pushes(grad: np.ndarray, mag: np.ndarray, side: np.ndarray, out: np.ndarray
         else:
             out[0] += p0
             out[1] += p1
+
+
+@numba.njit(cache=True)
+def _first_min(values: np.ndarray) -> int:  # pragma: no cover - compiled
+    """numpy's argmin of a 1-D array: the first NaN, else the first smallest."""
+    best = 0
+    for k in range(len(values)):
+        if values[best] != values[best]:
+            return best
+        if values[k] != values[k] or values[k] < values[best]:
+            best = k
+    return best
+
+
+@numba.njit(cache=True)
+def track(xy: np.ndarray, old: np.ndarray, old_v: np.ndarray, dt: float, a: float,
+          gate2: float, v: np.ndarray) -> None:  # pragma: no cover - compiled
+    """The tracker's update (:class:`.planners.Tracker`): person i of ``xy`` (M, 2) m takes
+    the track j of ``old`` (M', 2) m nearest it when i is j's nearest too and the squared
+    distance is at most gate2 m^2; then v[i] = old_v[j] + a ((xy_i - old_j) / dt - old_v[j])
+    (m/s, dt s); v (M, 2) is left as given (zeros) elsewhere. Nearest by squared distance,
+    the first of equals (numpy's argmin)."""
+    m, n = xy.shape[0], old.shape[0]
+    d2 = np.empty((m, n))
+    for i in range(m):
+        for j in range(n):
+            dx = xy[i, 0] - old[j, 0]
+            dy = xy[i, 1] - old[j, 1]
+            d2[i, j] = dx * dx + dy * dy
+    column = np.empty(m)
+    for i in range(m):
+        j = _first_min(d2[i])
+        for k in range(m):
+            column[k] = d2[k, j]
+        if _first_min(column) != i or not d2[i, j] <= gate2:
+            continue
+        for c in range(2):
+            step = (xy[i, c] - old[j, c]) / dt
+            v[i, c] = old_v[j, c] + a * (step - old_v[j, c])
+
+
+@numba.njit(cache=True)
+def clip01(x: float) -> float:  # pragma: no cover - compiled
+    """numpy's clip of x to [0, 1]: NaN kept, max then min by strict comparisons (so -0.0
+    becomes 0.0, as numpy gives)."""
+    if x == x:
+        x = x if x > 0.0 else 0.0
+        x = x if x < 1.0 else 1.0
+    return x
+
+
+@numba.njit(cache=True)
+def near_segments(px: float, py: float, a: np.ndarray, b: np.ndarray, reach: float,
+                  near: np.ndarray) -> None:  # pragma: no cover - compiled
+    """near (S,) bool: segments [a, b] ((S, 2) m each) whose closest point to (px, py) lies
+    within reach m (its parameter clip((p - a).e / max(|e|^2, 1e-300), 0, 1), e = b - a)."""
+    for k in range(a.shape[0]):
+        e0, e1 = b[k, 0] - a[k, 0], b[k, 1] - a[k, 1]
+        ee = max(e0 * e0 + e1 * e1, 1e-300)
+        s = clip01(((px - a[k, 0]) * e0 + (py - a[k, 1]) * e1) / ee)
+        near[k] = np.hypot((a[k, 0] + s * e0) - px, (a[k, 1] + s * e1) - py) <= reach
