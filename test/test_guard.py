@@ -222,3 +222,27 @@ def test_tracker_and_wall_search_keep_the_bits_of_the_numpy_forms() -> None:
         u = np.clip(np.einsum("ij,ij->i", p - a, e) / ee, 0.0, 1.0)
         near = np.hypot(*(a + u[:, None] * e - p).T) <= reach
         assert got[0].tobytes() == a[near].tobytes() and got[1].tobytes() == b[near].tobytes()
+
+
+def test_social_force_wall_term_keeps_the_bits_of_the_numpy_form() -> None:
+    """The social force's wall term (compiled offsets and sum, numpy's exponential) gives, bit
+    for bit, the numpy form's force, on random segments and robots."""
+    from sweep_core.numerics.robots.social_kernels import scaled_sum, wall_offsets
+
+    rng = np.random.default_rng(9)
+    for _ in range(500):
+        s = int(rng.integers(1, 10))
+        a = rng.uniform(-5, 5, (s, 2))
+        b = a + rng.normal(size=(s, 2)) * rng.choice([0.0, 1.0, 4.0], (s, 1))
+        o = rng.uniform(-6, 6, 2)
+        e = b - a
+        ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
+        u = np.clip(np.einsum("ij,ij->i", o - a, e) / ee, 0.0, 1.0)
+        rel = o - (a + u[:, None] * e)
+        d = np.maximum(np.hypot(*rel.T), 1e-9)
+        mag = 2.0 * np.exp(-(d - 0.3) / 0.2)
+        want = (mag[:, None] * rel / d[:, None]).sum(axis=0)
+        got_rel, got_d = np.empty((s, 2)), np.empty(s)
+        wall_offsets(float(o[0]), float(o[1]), a, b, got_rel, got_d)
+        assert got_rel.tobytes() == rel.tobytes() and got_d.tobytes() == d.tobytes()
+        assert scaled_sum(mag, got_rel, got_d).tobytes() == want.tobytes()

@@ -182,6 +182,9 @@ def _exercise() -> None:
     social_kernels.near_segments(0.0, 0.0, np.zeros((1, 2)), np.ones((1, 2)), 1.0,
                                  np.empty(1, dtype=np.bool_))
     robot_scan.beam_directions(0.0, robot_scan.ScanSpec(0.1, 1.0, -1.0, 1.0, 0.5, 10.0, 0.0))
+    rel, d = np.empty((1, 2)), np.empty(1)
+    social_kernels.wall_offsets(0.0, 0.0, np.zeros((1, 2)), np.ones((1, 2)), rel, d)
+    social_kernels.scaled_sum(np.ones(1), rel, d)
 
 
 def warm_up(notify: Callable[[str], None] | None = None) -> WarmUp:

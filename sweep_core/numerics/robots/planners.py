@@ -43,7 +43,9 @@ from sweep_core.numerics.robots.social_kernels import (
     near_segments,
     people_terms,
     pushes,
+    scaled_sum,
     track,
+    wall_offsets,
 )
 
 #: the time (s) over which a tracked person's velocity is smoothed
@@ -250,14 +252,11 @@ class SocialForce(_Planner):
         if len(obs.people):
             force = force + self.people_force(obs, o, v, v_people)
         a, b = self.segments(obs)
-        if len(a):
-            e = b - a
-            ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
-            s = np.clip(np.einsum("ij,ij->i", o - a, e) / ee, 0.0, 1.0)
-            rel = o - (a + s[:, None] * e)
-            d = np.maximum(np.hypot(*rel.T), 1e-9)
+        if len(a):  # from the nearest point of each wall segment to the robot
+            rel, d = np.empty((len(a), 2)), np.empty(len(a))
+            wall_offsets(float(o[0]), float(o[1]), a, b, rel, d)
             mag = p["wall_strength"] * np.exp(-(d - obs.radius) / p["wall_range"])
-            force = force + (mag[:, None] * rel / d[:, None]).sum(axis=0)
+            force = force + scaled_sum(mag, rel, d)
         c, r = self.circles(obs)
         if len(c):
             rel = o - c

@@ -12,6 +12,14 @@ import numpy as np
 
 
 @numba.njit(cache=True)
+def _maximum(x: float, y: float) -> float:  # pragma: no cover - compiled
+    """numpy's maximum of two floats: a NaN propagates."""
+    if x != x or x >= y:
+        return x
+    return y
+
+
+@numba.njit(cache=True)
 def people_terms(d: np.ndarray, y: np.ndarray, b: np.ndarray, grad: np.ndarray,
                  unit: np.ndarray) -> None:  # pragma: no cover - compiled
     """For each person j: d (M, 2) m from j to the robot, y (M, 2) m j's step relative to
@@ -20,14 +28,14 @@ def people_terms(d: np.ndarray, y: np.ndarray, b: np.ndarray, grad: np.ndarray,
     |d - y| at least 1e-9 m)."""
     for j in range(d.shape[0]):
         d0, d1 = d[j, 0], d[j, 1]
-        dn = max(np.hypot(d0, d1), 1e-9)
+        dn = _maximum(np.hypot(d0, d1), 1e-9)
         e0, e1 = d0 - y[j, 0], d1 - y[j, 1]
-        dyn = max(np.hypot(e0, e1), 1e-9)
+        dyn = _maximum(np.hypot(e0, e1), 1e-9)
         yn = np.hypot(y[j, 0], y[j, 1])
         s = dn + dyn
-        bj = 0.5 * math.sqrt(max(s * s - yn * yn, 1e-18))
+        bj = 0.5 * math.sqrt(_maximum(s * s - yn * yn, 1e-18))
         b[j] = bj
-        coef = s / (4.0 * max(bj, 1e-9))
+        coef = s / (4.0 * _maximum(bj, 1e-9))
         grad[j, 0] = coef * (d0 / dn + e0 / dyn)
         grad[j, 1] = coef * (d1 / dn + e1 / dyn)
         unit[j, 0] = d0 / dn
@@ -106,6 +114,35 @@ def near_segments(px: float, py: float, a: np.ndarray, b: np.ndarray, reach: flo
     within reach m (its parameter clip((p - a).e / max(|e|^2, 1e-300), 0, 1), e = b - a)."""
     for k in range(a.shape[0]):
         e0, e1 = b[k, 0] - a[k, 0], b[k, 1] - a[k, 1]
-        ee = max(e0 * e0 + e1 * e1, 1e-300)
+        ee = _maximum(e0 * e0 + e1 * e1, 1e-300)
         s = clip01(((px - a[k, 0]) * e0 + (py - a[k, 1]) * e1) / ee)
         near[k] = np.hypot((a[k, 0] + s * e0) - px, (a[k, 1] + s * e1) - py) <= reach
+
+
+@numba.njit(cache=True)
+def wall_offsets(ox: float, oy: float, a: np.ndarray, b: np.ndarray, rel: np.ndarray,
+                 d: np.ndarray) -> None:  # pragma: no cover - compiled
+    """rel (S, 2) m: from the nearest point of each segment [a, b] ((S, 2) m each) to (ox, oy);
+    d (S,) m its length, at least 1e-9 m."""
+    for k in range(a.shape[0]):
+        e0, e1 = b[k, 0] - a[k, 0], b[k, 1] - a[k, 1]
+        ee = _maximum(e0 * e0 + e1 * e1, 1e-300)
+        s = clip01(((ox - a[k, 0]) * e0 + (oy - a[k, 1]) * e1) / ee)
+        r0, r1 = ox - (a[k, 0] + s * e0), oy - (a[k, 1] + s * e1)
+        rel[k, 0], rel[k, 1] = r0, r1
+        d[k] = _maximum(np.hypot(r0, r1), 1e-9)
+
+
+@numba.njit(cache=True)
+def scaled_sum(mag: np.ndarray, rel: np.ndarray, d: np.ndarray
+               ) -> np.ndarray:  # pragma: no cover - compiled
+    """(2,) sum over k, in order, of mag_k rel_k / d_k (mag (S,), rel (S, 2), d (S,))."""
+    out = np.zeros(2)
+    for k in range(len(mag)):
+        p0, p1 = mag[k] * rel[k, 0] / d[k], mag[k] * rel[k, 1] / d[k]
+        if k == 0:
+            out[0], out[1] = p0, p1
+        else:
+            out[0] += p0
+            out[1] += p1
+    return out
