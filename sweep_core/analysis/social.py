@@ -11,13 +11,13 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
 
 from sweep_core.errors import SweepError
 from sweep_core.model.geodesic import CELL, NEIGHBOURS, buffer_cells, navigation_from_spec
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.scene import Scene
+from sweep_core.numerics.robots.social_kernels import nearest_pass
 
 #: Hall's proxemic zones on the clearance to the nearest person (m): [low, high)
 ZONES = (("intimate", 0.0, 0.45), ("personal", 0.45, 1.2), ("social", 1.2, 3.6),
@@ -74,49 +74,11 @@ def nearest(position: np.ndarray, velocity: np.ndarray, radius: float, people: n
     if len(people) == 0:
         return math.inf, math.inf
     out = np.empty(3)
-    _nearest(float(position[0]), float(position[1]), float(velocity[0]), float(velocity[1]),
-             float(radius), np.ascontiguousarray(people, dtype=np.float64),
-             np.ascontiguousarray(radii, dtype=np.float64),
-             np.ascontiguousarray(velocities, dtype=np.float64), out)
+    nearest_pass(float(position[0]), float(position[1]), float(velocity[0]),
+                 float(velocity[1]), float(radius), np.ascontiguousarray(people, dtype=np.float64),
+                 np.ascontiguousarray(radii, dtype=np.float64),
+                 np.ascontiguousarray(velocities, dtype=np.float64), out)
     return float(out[0]), float(out[1]) if out[2] > 0 else math.nan
-
-
-@numba.njit(cache=True)
-def _nearest(x: float, y: float, vx: float, vy: float, radius: float, people: np.ndarray,
-             radii: np.ndarray, velocities: np.ndarray, out: np.ndarray
-             ) -> None:  # pragma: no cover - compiled
-    """:func:`nearest` in one pass: out = (smallest clearance, smallest time to collision
-    over the people of finite velocity, how many they are); each value computed as
-    :func:`clearance` and :func:`time_to_collision` compute it (same operations, same order:
-    the same bits), a NaN propagating to the minimum as numpy's does."""
-    low_c, low_t, known = math.inf, math.inf, 0
-    for j in range(people.shape[0]):
-        c = np.hypot(x - people[j, 0], y - people[j, 1]) - radius - radii[j]
-        if c != c or low_c != low_c:
-            low_c = math.nan
-        elif c < low_c:
-            low_c = c
-        wx, wy = velocities[j, 0], velocities[j, 1]
-        if not (math.isfinite(wx) and math.isfinite(wy)):
-            continue
-        known += 1
-        px, py = people[j, 0] - x, people[j, 1] - y
-        ux, uy = wx - vx, wy - vy
-        reach = radius + radii[j]
-        pw = px * ux + py * uy
-        ww = ux * ux + uy * uy
-        cc = (px * px + py * py) - reach * reach
-        disc = pw * pw - ww * cc
-        tau = math.inf
-        if pw < 0 and disc >= 0 and ww > 0:
-            tau = cc / (-pw + math.sqrt(disc))
-        if cc <= 0:
-            tau = 0.0
-        if tau != tau or low_t != low_t:
-            low_t = math.nan
-        elif tau < low_t:
-            low_t = tau
-    out[0], out[1], out[2] = low_c, low_t, known
 
 
 def wrap(angle: np.ndarray) -> np.ndarray:

@@ -185,6 +185,8 @@ def _exercise() -> None:
     rel, d = np.empty((1, 2)), np.empty(1)
     social_kernels.wall_offsets(0.0, 0.0, np.zeros((1, 2)), np.ones((1, 2)), rel, d)
     social_kernels.scaled_sum(np.ones(1), rel, d)
+    social_kernels.nearest_pass(0.0, 0.0, 0.0, 0.0, 0.3, np.ones((1, 2)), np.ones(1),
+                                np.zeros((1, 2)), np.empty(3))
 
 
 def warm_up(notify: Callable[[str], None] | None = None) -> WarmUp:

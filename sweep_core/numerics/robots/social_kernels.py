@@ -1,8 +1,10 @@
-"""Compiled parts of the social-force planner's people term (:class:`.planners.SocialForce`):
-the elliptical distances and their gradients, and the weighted sum of the pushes. Each
-operation is the one, in the order, the numpy form took (numpy's ``hypot`` is the C
-library's, as numba's is; the exponentials and the heading's product stay numpy's), so the
-planner's commands keep their bits (test_guard compares them)."""
+"""The robots' per-step compiled arithmetic: the social-force planner's people and wall terms
+(:class:`.planners.SocialForce`), the tracker's matching, the walls within sensor range, and
+the clearance and time to collision of a robot's episode record (``nearest_pass``, for
+:func:`sweep_core.analysis.social.nearest`). Each operation is the one, in the order, the
+numpy form took (numpy's ``hypot`` is the C library's, as numba's is; the exponentials and
+the heading's product stay numpy's), so the commands and records keep their bits (test_guard
+and test_social_metrics compare them)."""
 from __future__ import annotations
 
 import math
@@ -146,3 +148,43 @@ def scaled_sum(mag: np.ndarray, rel: np.ndarray, d: np.ndarray
             out[0] += p0
             out[1] += p1
     return out
+
+
+@numba.njit(cache=True)
+def nearest_pass(x: float, y: float, vx: float, vy: float, radius: float,
+                 people: np.ndarray, radii: np.ndarray, velocities: np.ndarray, out: np.ndarray
+                 ) -> None:  # pragma: no cover - compiled
+    """``analysis.social.nearest`` in one pass: out = (smallest clearance, smallest time to
+    collision over the people of finite velocity, how many they are), m, s; each value
+    computed as ``analysis.social``'s ``clearance`` and ``time_to_collision`` compute it
+    (same operations, same order: the same bits), a NaN propagating to the minimum as
+    numpy's does. (x, y) m and (vx, vy) m/s the robot's, people (N, 2) m, radii (N,) m,
+    velocities (N, 2) m/s."""
+    low_c, low_t, known = math.inf, math.inf, 0
+    for j in range(people.shape[0]):
+        c = np.hypot(x - people[j, 0], y - people[j, 1]) - radius - radii[j]
+        if c != c or low_c != low_c:
+            low_c = math.nan
+        elif c < low_c:
+            low_c = c
+        wx, wy = velocities[j, 0], velocities[j, 1]
+        if not (math.isfinite(wx) and math.isfinite(wy)):
+            continue
+        known += 1
+        px, py = people[j, 0] - x, people[j, 1] - y
+        ux, uy = wx - vx, wy - vy
+        reach = radius + radii[j]
+        pw = px * ux + py * uy
+        ww = ux * ux + uy * uy
+        cc = (px * px + py * py) - reach * reach
+        disc = pw * pw - ww * cc
+        tau = math.inf
+        if pw < 0 and disc >= 0 and ww > 0:
+            tau = cc / (-pw + math.sqrt(disc))
+        if cc <= 0:
+            tau = 0.0
+        if tau != tau or low_t != low_t:
+            low_t = math.nan
+        elif tau < low_t:
+            low_t = tau
+    out[0], out[1], out[2] = low_c, low_t, known
