@@ -246,3 +246,32 @@ def test_social_force_wall_term_keeps_the_bits_of_the_numpy_form() -> None:
         wall_offsets(float(o[0]), float(o[1]), a, b, got_rel, got_d)
         assert got_rel.tobytes() == rel.tobytes() and got_d.tobytes() == d.tobytes()
         assert scaled_sum(mag, got_rel, got_d).tobytes() == want.tobytes()
+
+
+def test_nearest_safe_keeps_the_bits_of_the_numpy_form() -> None:
+    """nearest_safe (its choice compiled) gives, bit for bit, the numpy form's velocity, on
+    random wished velocities and crowds, some with no room (safe speeds of 0)."""
+    import math
+
+    def numpy_form(u, pose, radius, people, radii, accel, margin, ps, directions=72):
+        if float(np.hypot(u[0], u[1])) <= 1e-12:
+            return np.zeros(2)
+        phi = math.atan2(u[1], u[0]) + np.arange(directions) * (2.0 * math.pi / directions)
+        dirs = np.column_stack([np.cos(phi), np.sin(phi)])
+        s = np.clip(dirs @ u, 0.0, safe_speeds(pose, dirs, radius, people, radii, accel,
+                                               margin, ps))
+        miss = (u[0] - s * dirs[:, 0]) ** 2 + (u[1] - s * dirs[:, 1]) ** 2
+        k = int(np.argmin(miss))
+        return np.asarray(s[k] * dirs[k])
+
+    rng = np.random.default_rng(13)
+    for case in range(600):
+        m = int(rng.integers(0, 15))
+        u = rng.normal(size=2) * rng.choice([1.0, 1e-13])
+        if case % 7 == 0:
+            u[int(rng.integers(0, 2))] = 0.0  # along an axis: components of -0.0 and 0.0
+        people = rng.normal(size=(m, 2)) * rng.choice([0.5, 3.0])
+        args = (u, (0.0, 0.0, float(rng.uniform(-3, 3))), 0.3, people, rng.uniform(0.1, 0.4, m),
+                float(rng.uniform(0.5, 3.0)), float(rng.uniform(0.0, 0.2)),
+                float(rng.choice([0.0, 0.5])))
+        assert nearest_safe(*args).tobytes() == numpy_form(*args).tobytes()

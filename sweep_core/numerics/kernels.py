@@ -170,8 +170,8 @@ def _exercise() -> None:
     # its noise generator's seeding
     noise.pcg64_state((0, 0, 1))
     # the planners' safety layer
-    guard.safe_speeds((0.0, 0.0, 0.0), np.array([[1.0, 0.0]]), 0.3, np.ones((1, 2)),
-                      np.ones(1) * 0.2, 1.0, 0.05, 0.5)
+    guard.nearest_safe(np.array([1.0, 0.0]), (0.0, 0.0, 0.0), 0.3, np.ones((1, 2)),
+                       np.ones(1) * 0.2, 1.0, 0.05, 0.5)
     # the social-force planner's people term
     grad = np.ones((1, 2))
     social_kernels.people_terms(np.ones((1, 2)), np.zeros((1, 2)), np.empty(1), grad,

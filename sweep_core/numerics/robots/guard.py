@@ -94,8 +94,32 @@ def nearest_safe(u: np.ndarray, pose: tuple[float, float, float], radius: float,
         return np.zeros(2)
     phi = math.atan2(u[1], u[0]) + np.arange(directions) * (2.0 * math.pi / directions)
     dirs = np.column_stack([np.cos(phi), np.sin(phi)])
-    s = np.clip(dirs @ u, 0.0, safe_speeds(pose, dirs, radius, people, people_radii, accel,
-                                               margin, people_speed))
-    miss = (u[0] - s * dirs[:, 0]) ** 2 + (u[1] - s * dirs[:, 1]) ** 2
-    k = int(np.argmin(miss))
-    return np.asarray(s[k] * dirs[k])
+    out = np.empty(2)
+    nearest_of(dirs @ u, safe_speeds(pose, dirs, radius, people, people_radii, accel, margin,
+                                     people_speed), dirs, float(u[0]), float(u[1]), out)
+    return out
+
+
+@numba.njit(cache=True)
+def nearest_of(along: np.ndarray, bound: np.ndarray, dirs: np.ndarray, ux: float, uy: float,
+               out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """out (2,) m/s: s_k dirs_k for the first k of least (ux - s_k dx_k)^2 + (uy - s_k
+    dy_k)^2, s = clip(along, 0, bound) (along (K,) the wished velocity's components along the
+    unit dirs (K, 2), bound (K,) their safe speeds); numpy's clip, squares and argmin (the
+    first NaN, else the first least), so the bits are the same."""
+    best, low = 0, 0.0
+    for k in range(len(along)):
+        s = along[k]
+        if s == s:
+            s = s if s > 0.0 else 0.0
+            s = s if (s != s or s < bound[k]) else bound[k]
+        a = ux - s * dirs[k, 0]
+        b = uy - s * dirs[k, 1]
+        miss = a * a + b * b
+        if k == 0 or (low == low and (miss != miss or miss < low)):
+            best, low = k, miss
+    s = along[best]
+    if s == s:
+        s = s if s > 0.0 else 0.0
+        s = s if (s != s or s < bound[best]) else bound[best]
+    out[0], out[1] = s * dirs[best, 0], s * dirs[best, 1]
