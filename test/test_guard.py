@@ -135,3 +135,182 @@ def test_the_layer_brakes_for_a_person_whose_noise_may_bring_them_close(kind):
                                      "people_noise": noise})
         cmd = to_command(robot, u, _obs([[0.8, 0.0]], 0.3), robot.params)
         assert cmd[0] == pytest.approx(want, abs=1e-12) and abs(cmd[1]) <= 1e-12
+
+
+def test_safe_speeds_keep_the_bits_of_the_numpy_form() -> None:
+    """safe_speeds' compiled bound gives, bit for bit, what the numpy form below gives (the
+    same operations on arrays), on random robots, people and parameters."""
+    import math
+
+    from sweep_core.numerics.robots.guard import AHEAD
+
+    def numpy_form(pose, directions, radius, people, people_radii, accel, margin, ps):
+        if not len(people):
+            return np.full(len(directions), math.inf)
+        rel = people - np.array(pose[:2])
+        d = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
+        c = (rel / d[:, None]) @ directions.T
+        gap = np.maximum(d - radius - people_radii - margin, 0.0)[:, None]
+        root = np.sqrt(ps * ps + 2.0 * accel * np.maximum(c, 0.0) * gap)
+        bound = np.where(gap > 0.0, 2.0 * accel * gap / np.maximum(ps + root, 1e-300), 0.0)
+        return np.where(c > AHEAD, bound, math.inf).min(axis=0, initial=math.inf)
+
+    rng = np.random.default_rng(7)
+    for _ in range(500):
+        m, k = int(rng.integers(0, 25)), int(rng.integers(1, 80))
+        phi = rng.uniform(0.0, 2 * math.pi, k)
+        args = ((float(rng.normal()), float(rng.normal()), 0.0),
+                np.column_stack([np.cos(phi), np.sin(phi)]), 0.3, rng.normal(size=(m, 2)) * 3,
+                rng.uniform(0.1, 0.4, m), float(rng.uniform(0.5, 3.0)),
+                float(rng.uniform(0.0, 0.2)), float(rng.choice([0.0, 0.5, 1.0])))
+        assert safe_speeds(*args).tobytes() == numpy_form(*args).tobytes()
+
+
+def test_social_force_people_term_keeps_the_bits_of_the_numpy_form() -> None:
+    """SocialForce.people_force (compiled terms, numpy's exponentials) gives, bit for bit,
+    what the numpy form below gives, on random people, velocities and headings."""
+    import math
+    from types import SimpleNamespace
+
+    from sweep_core.numerics.robots.planners import SocialForce
+
+    params = {"anticipation": 0.6, "anisotropy": 0.3, "strength": 2.1, "range": 0.35,
+              "side": 0.4}
+
+    def numpy_form(obs, o, v, v_people):
+        d = o - obs.people
+        y = (v_people - v) * params["anticipation"]
+        dn = np.maximum(np.hypot(*d.T), 1e-9)
+        dy = d - y
+        dyn = np.maximum(np.hypot(*dy.T), 1e-9)
+        yn = np.hypot(*y.T)
+        b = 0.5 * np.sqrt(np.maximum((dn + dyn) ** 2 - yn ** 2, 1e-18))
+        grad = ((dn + dyn) / (4.0 * np.maximum(b, 1e-9)))[:, None] * (
+            d / dn[:, None] + dy / dyn[:, None])
+        heading = np.array([math.cos(obs.pose[2]), math.sin(obs.pose[2])])
+        cos_phi = -((d / dn[:, None]) @ heading)
+        lam = params["anisotropy"]
+        w = lam + (1.0 - lam) * (1.0 + cos_phi) / 2.0
+        mag = params["strength"] * np.exp((obs.radius + obs.people_radii - b)
+                                          / params["range"]) * w
+        turn = np.column_stack([-grad[:, 1], grad[:, 0]])
+        side = params["side"] * np.maximum(cos_phi, 0.0)
+        return (mag[:, None] * (grad + side[:, None] * turn)).sum(axis=0)
+
+    planner = SocialForce.__new__(SocialForce)
+    planner.params = params
+    rng = np.random.default_rng(3)
+    for _ in range(500):
+        m = int(rng.integers(1, 30))
+        obs = SimpleNamespace(people=rng.normal(size=(m, 2)) * 3,
+                              people_radii=rng.uniform(0.1, 0.4, m), radius=0.3,
+                              pose=(0.0, 0.0, float(rng.uniform(-3.2, 3.2))))
+        o, v = rng.normal(size=2), rng.normal(size=2)
+        v_people = rng.normal(size=(m, 2))
+        got = planner.people_force(obs, o, v, v_people)
+        assert got.tobytes() == numpy_form(obs, o, v, v_people).tobytes()
+
+
+def test_tracker_and_wall_search_keep_the_bits_of_the_numpy_forms() -> None:
+    """The planners' Tracker.update and segments within the sensor range (compiled) give, bit
+    for bit, what their numpy forms below give, on random crowds (people appearing and
+    leaving, ties) and segments (the robot beyond either end, degenerate segments)."""
+    import math
+    from types import SimpleNamespace
+
+    from sweep_core.numerics.robots import planners
+
+    def track_numpy(old_t, old_xy, old_v, t, xy):
+        v = np.zeros_like(xy)
+        dt = t - old_t
+        dx = xy[:, None, 0] - old_xy[None, :, 0]
+        dy = xy[:, None, 1] - old_xy[None, :, 1]
+        d2 = dx * dx + dy * dy
+        j = np.argmin(d2, axis=1)
+        back = np.argmin(d2, axis=0)
+        ok = (back[j] == np.arange(len(xy))) & (d2[np.arange(len(xy)), j]
+                                                 <= planners.GATE ** 2)
+        a = 1.0 - math.exp(-dt / planners.TRACK_TIME)
+        step = (xy[ok] - old_xy[j[ok]]) / dt
+        v[ok] = old_v[j[ok]] + a * (step - old_v[j[ok]])
+        return v
+
+    rng = np.random.default_rng(5)
+    for _ in range(400):
+        m, k = int(rng.integers(1, 12)), int(rng.integers(1, 12))
+        old = np.round(rng.uniform(0, 3, (k, 2)), 1)  # rounded: ties of distance
+        xy = np.round(old[rng.integers(0, k, m)] + rng.normal(0, 0.2, (m, 2)), 2)
+        tracker = planners.Tracker()
+        tracker.t, tracker.xy, tracker.v = 1.0, old, rng.normal(size=(k, 2))
+        want = track_numpy(1.0, old, tracker.v, 1.1, xy)
+        assert tracker.update(1.1, xy).tobytes() == want.tobytes()
+
+    planner = planners._Planner.__new__(planners._Planner)
+    for _ in range(400):
+        s = int(rng.integers(1, 10))
+        a = rng.uniform(-5, 5, (s, 2))
+        b = a + rng.normal(size=(s, 2)) * rng.choice([0.0, 1.0, 4.0], (s, 1))
+        p = rng.uniform(-6, 6, 2)
+        reach = float(rng.uniform(0.5, 6.0))
+        geometry = SimpleNamespace(segment_a=a, segment_b=b)
+        planner.scene = SimpleNamespace(geometry=SimpleNamespace(at=lambda t, g=geometry: g))
+        planner.params = {"sensor_range": reach}
+        got = planner.segments(SimpleNamespace(t=0.0, pose=(p[0], p[1], 0.0)))
+        e = b - a
+        ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
+        u = np.clip(np.einsum("ij,ij->i", p - a, e) / ee, 0.0, 1.0)
+        near = np.hypot(*(a + u[:, None] * e - p).T) <= reach
+        assert got[0].tobytes() == a[near].tobytes() and got[1].tobytes() == b[near].tobytes()
+
+
+def test_social_force_wall_term_keeps_the_bits_of_the_numpy_form() -> None:
+    """The social force's wall term (compiled offsets and sum, numpy's exponential) gives, bit
+    for bit, the numpy form's force, on random segments and robots."""
+    from sweep_core.numerics.robots.social_kernels import scaled_sum, wall_offsets
+
+    rng = np.random.default_rng(9)
+    for _ in range(500):
+        s = int(rng.integers(1, 10))
+        a = rng.uniform(-5, 5, (s, 2))
+        b = a + rng.normal(size=(s, 2)) * rng.choice([0.0, 1.0, 4.0], (s, 1))
+        o = rng.uniform(-6, 6, 2)
+        e = b - a
+        ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
+        u = np.clip(np.einsum("ij,ij->i", o - a, e) / ee, 0.0, 1.0)
+        rel = o - (a + u[:, None] * e)
+        d = np.maximum(np.hypot(*rel.T), 1e-9)
+        mag = 2.0 * np.exp(-(d - 0.3) / 0.2)
+        want = (mag[:, None] * rel / d[:, None]).sum(axis=0)
+        got_rel, got_d = np.empty((s, 2)), np.empty(s)
+        wall_offsets(float(o[0]), float(o[1]), a, b, got_rel, got_d)
+        assert got_rel.tobytes() == rel.tobytes() and got_d.tobytes() == d.tobytes()
+        assert scaled_sum(mag, got_rel, got_d).tobytes() == want.tobytes()
+
+
+def test_nearest_safe_keeps_the_bits_of_the_numpy_form() -> None:
+    """nearest_safe (its choice compiled) gives, bit for bit, the numpy form's velocity, on
+    random wished velocities and crowds, some with no room (safe speeds of 0)."""
+    import math
+
+    def numpy_form(u, pose, radius, people, radii, accel, margin, ps, directions=72):
+        if float(np.hypot(u[0], u[1])) <= 1e-12:
+            return np.zeros(2)
+        phi = math.atan2(u[1], u[0]) + np.arange(directions) * (2.0 * math.pi / directions)
+        dirs = np.column_stack([np.cos(phi), np.sin(phi)])
+        s = np.clip(dirs @ u, 0.0, safe_speeds(pose, dirs, radius, people, radii, accel,
+                                               margin, ps))
+        miss = (u[0] - s * dirs[:, 0]) ** 2 + (u[1] - s * dirs[:, 1]) ** 2
+        k = int(np.argmin(miss))
+        return np.asarray(s[k] * dirs[k])
+
+    rng = np.random.default_rng(13)
+    for case in range(600):
+        m = int(rng.integers(0, 15))
+        u = rng.normal(size=2) * rng.choice([1.0, 1e-13])
+        if case % 7 == 0:
+            u[int(rng.integers(0, 2))] = 0.0  # along an axis: components of -0.0 and 0.0
+        people = rng.normal(size=(m, 2)) * rng.choice([0.5, 3.0])
+        args = (u, (0.0, 0.0, float(rng.uniform(-3, 3))), 0.3, people, rng.uniform(0.1, 0.4, m),
+                float(rng.uniform(0.5, 3.0)), float(rng.uniform(0.0, 0.2)),
+                float(rng.choice([0.0, 0.5])))
+        assert nearest_safe(*args).tobytes() == numpy_form(*args).tobytes()

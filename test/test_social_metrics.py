@@ -263,3 +263,31 @@ def test_cli_prints_the_robots_and_writes_their_frames(tmp_path, capsys):
     assert main(["analyze", str(path), "--quiet", "--no-plots", "--time-limit", "-1"]) == 2
     err = capsys.readouterr().err
     assert "--time-limit" in err and "Traceback" not in err
+
+
+def test_nearest_is_the_minimum_of_clearance_and_time_to_collision_bit_for_bit() -> None:
+    """nearest (one compiled pass) gives the bits of clearance(...).min() and of
+    time_to_collision(...).min() over the people of finite velocity, on random scenes with
+    unknown velocities, overlaps and people moving apart."""
+    import math
+
+    from sweep_core.analysis.social import clearance, nearest, time_to_collision
+
+    rng = np.random.default_rng(17)
+    for _ in range(3000):
+        m = int(rng.integers(1, 15))
+        pos, vel = rng.normal(size=2) * 3, rng.normal(size=2)
+        people, radii = rng.normal(size=(m, 2)) * 3, rng.uniform(0.1, 0.5, m)
+        v = rng.normal(size=(m, 2))
+        if rng.random() < 0.3:
+            v[rng.integers(0, m)] = np.nan
+        if rng.random() < 0.1:
+            v[:] = np.nan
+        if rng.random() < 0.2:
+            people[0] = pos + 0.1  # overlapping: a time to collision of 0
+        known = np.all(np.isfinite(v), axis=1)
+        ttc = time_to_collision(people[known] - pos, v[known] - vel, 0.3 + radii[known])
+        want = (float(clearance(pos[None], np.array([0.3]), people, radii)[0].min()),
+                float(ttc.min()) if len(ttc) else math.nan)
+        got = nearest(pos, vel, 0.3, people, radii, v)
+        assert np.array(got).tobytes() == np.array(want).tobytes()

@@ -204,3 +204,49 @@ def test_with_circles_is_replace_with_the_packed_arrays_carried() -> None:
     for a, b in zip(got.packed, want.packed):
         assert np.array_equal(a, b)
     assert len(got.circle_radius) == len(geom.circle_radius) + 2
+    # the index and motion columns kept per count of added disks: another count, then again
+    for m in (1, 2, 1):
+        more = geom.with_circles(centres[:m], radii[:m])
+        assert np.array_equal(more.circle_index, np.concatenate([geom.circle_index, [-1] * m]))
+        assert np.array_equal(more.circle_motion,
+                              np.concatenate([geom.circle_motion, [-1] * m]))
+        assert np.array_equal(more.circle_center, np.concatenate([geom.circle_center,
+                                                                  centres[:m]]))
+
+
+def test_row_residuals_have_the_bits_of_the_numpy_form() -> None:
+    """Rows.residuals (compiled) gives, bit for bit, <e, y_i - y_j> - b and <n, y_a> - b as
+    numpy's einsum writes them, on random rows at scales from 1e-2 to 1e3 m."""
+    from sweep_core.numerics.constraints import Rows
+
+    rng = np.random.default_rng(11)
+    for _ in range(300):
+        n, p, m = int(rng.integers(1, 40)), int(rng.integers(0, 50)), int(rng.integers(0, 30))
+        y = rng.normal(size=(n, 2)) * 10.0 ** rng.uniform(-2, 3)
+        e = rng.normal(size=(p, 2))
+        e /= np.linalg.norm(e, axis=1)[:, None]
+        rows = Rows(rng.integers(0, n, p), rng.integers(0, n, p), e, rng.normal(size=p),
+                    rng.integers(0, n, m), rng.normal(size=(m, 2)), rng.normal(size=m),
+                    np.zeros(m, np.int8), np.zeros(m, np.intp))
+        rp, rs = rows.residuals(y)
+        want_p = np.einsum("ij,ij->i", rows.pair_e, y[rows.pair_i] - y[rows.pair_j]) \
+            - rows.pair_b
+        want_s = np.einsum("ij,ij->i", rows.single_n, y[rows.single_a]) - rows.single_b
+        assert rp.tobytes() == want_p.tobytes() and rs.tobytes() == want_s.tobytes()
+
+
+def test_beam_directions_are_the_c_librarys_cos_and_sin_per_beam() -> None:
+    """A scan's beam directions (compiled) are math.cos and math.sin of yaw + each beam's
+    angle, bit for bit."""
+    import math
+
+    from sweep_core.model.robots import ScanSpec
+    from sweep_core.numerics.robots.scan import beam_directions
+
+    spec = ScanSpec(0.05, 8.0, -2.0944, 2.0944, 0.0872665, 10.0, 0.01)
+    rng = np.random.default_rng(2)
+    for yaw in [0.0, -math.pi, math.pi, *rng.uniform(-10.0, 10.0, 200)]:
+        ux, uy = beam_directions(float(yaw), spec)
+        angles = (float(yaw) + spec.angles()).tolist()
+        assert ux.tobytes() == np.array([math.cos(v) for v in angles]).tobytes()
+        assert uy.tobytes() == np.array([math.sin(v) for v in angles]).tobytes()

@@ -17,6 +17,7 @@ from sweep_core.errors import SweepError
 from sweep_core.model.geodesic import CELL, NEIGHBOURS, buffer_cells, navigation_from_spec
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.scene import Scene
+from sweep_core.numerics.robots.social_kernels import nearest_pass
 
 #: Hall's proxemic zones on the clearance to the nearest person (m): [low, high)
 ZONES = (("intimate", 0.0, 0.45), ("personal", 0.45, 1.2), ("social", 1.2, 3.6),
@@ -72,11 +73,12 @@ def nearest(position: np.ndarray, velocity: np.ndarray, radius: float, people: n
     time to collision; NaN when no velocity is known)."""
     if len(people) == 0:
         return math.inf, math.inf
-    cl = clearance(position[None, :], np.array([radius]), people, radii)[0]
-    known = np.all(np.isfinite(velocities), axis=1)
-    ttc = time_to_collision(people[known] - position, velocities[known] - velocity,
-                            radius + radii[known])
-    return float(cl.min()), float(ttc.min()) if len(ttc) else math.nan
+    out = np.empty(3)
+    nearest_pass(float(position[0]), float(position[1]), float(velocity[0]),
+                 float(velocity[1]), float(radius), np.ascontiguousarray(people, dtype=np.float64),
+                 np.ascontiguousarray(radii, dtype=np.float64),
+                 np.ascontiguousarray(velocities, dtype=np.float64), out)
+    return float(out[0]), float(out[1]) if out[2] > 0 else math.nan
 
 
 def wrap(angle: np.ndarray) -> np.ndarray:

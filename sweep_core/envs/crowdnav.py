@@ -161,9 +161,11 @@ class CrowdNavEnv(gymnasium.Env):
         scan = self._state().scan
         if scan is None:
             return np.full(0, self.range_max)
-        return np.clip(np.nan_to_num(np.asarray(scan.ranges, dtype=np.float64),
-                                     nan=self.range_max, posinf=self.range_max),
-                       0.0, self.range_max)
+        # NaN read as range_max; then +inf (no return) becomes range_max and -inf (too close)
+        # 0 by the clip, as nan_to_num's posinf and neginf would
+        ranges = np.array(scan.ranges, dtype=np.float64)
+        ranges[np.isnan(ranges)] = self.range_max
+        return np.clip(ranges, 0.0, self.range_max)
 
     def _observe(self) -> dict[str, np.ndarray]:
         st = self._state()

@@ -11,7 +11,7 @@ compiled loops are in :mod:`sweep_core.model.wall_kernels`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 from typing import Any
 
@@ -108,16 +108,26 @@ class Geometry:
 
     def with_circles(self, centres: np.ndarray, radii: np.ndarray) -> Geometry:
         """This geometry with static circle obstacles added (centres (M, 2), radii (M,) m,
-        item indices after its own circles, scene index -1), its packed arrays carried over."""
+        item indices after its own circles, scene index -1), its packed arrays carried over.
+
+        Built without ``dataclasses.replace`` (a robot's step adds its disk every step): the
+        fields copied, the circles' index and motion columns of M added disks kept per
+        geometry, and ``__post_init__``, which only fills columns of the wrong length, not
+        needed (every column has its length)."""
         m = len(radii)
-        out = replace(self, circle_center=np.concatenate([self.circle_center, centres]),
-                      circle_radius=np.concatenate([self.circle_radius, radii]),
-                      circle_index=np.concatenate([self.circle_index,
-                                                   np.full(m, -1, dtype=self.circle_index.dtype)]),
-                      circle_motion=np.concatenate([self.circle_motion,
-                                                    np.full(m, -1, dtype=np.intp)]))
-        hn, off, sa, sb, _, _ = self.packed
+        kept = self.__dict__.get("_added_circles")
+        if kept is None or kept[0] != m:
+            kept = (m, np.concatenate([self.circle_index,
+                                       np.full(m, -1, dtype=self.circle_index.dtype)]),
+                    np.concatenate([self.circle_motion, np.full(m, -1, dtype=np.intp)]))
+            self.__dict__["_added_circles"] = kept
+        out = object.__new__(Geometry)
         cache = out.__dict__
+        cache.update((name, self.__dict__[name]) for name in _FIELDS)
+        cache["circle_center"] = np.concatenate([self.circle_center, centres])
+        cache["circle_radius"] = np.concatenate([self.circle_radius, radii])
+        cache["circle_index"], cache["circle_motion"] = kept[1], kept[2]
+        hn, off, sa, sb, _, _ = self.packed
         cache["packed"] = (hn, off, sa, sb, np.ascontiguousarray(out.circle_center,
                                                                  dtype=np.float64),
                            np.ascontiguousarray(out.circle_radius, dtype=np.float64))
@@ -192,6 +202,10 @@ class Geometry:
                 return f"walls[{int(self.segment_index[item])}] (segment)"
             return f"walls[{int(self.segment_index[item])}] ({what} piece {part})"
         return f"obstacles[{int(self.circle_index[item])}] (circle)"
+
+
+#: the dataclass fields of a Geometry (what ``with_circles`` copies)
+_FIELDS = tuple(f.name for f in fields(Geometry))
 
 
 def single_values(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from sweep_core.model.geometry import DENSE_SEGMENTS, Geometry, dense_rows, single_rows
@@ -44,9 +45,9 @@ class Rows:
 
     def residuals(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Row values minus bounds at y (N, 2): >= 0 where satisfied (m)."""
-        d = y[self.pair_i] - y[self.pair_j]
-        rp = np.einsum("ij,ij->i", self.pair_e, d) - self.pair_b
-        rs = np.einsum("ij,ij->i", self.single_n, y[self.single_a]) - self.single_b
+        rp, rs = np.empty(len(self.pair_b)), np.empty(len(self.single_b))
+        row_residuals(np.asarray(y, dtype=np.float64), self.pair_i, self.pair_j, self.pair_e,
+                      self.pair_b, self.single_a, self.single_n, self.single_b, rp, rs)
         return rp, rs
 
     def select(self, pairs: np.ndarray, singles: np.ndarray) -> Rows:
@@ -72,6 +73,21 @@ class Rows:
     def agents(self) -> np.ndarray:
         """Sorted indices of the agents that appear in any row."""
         return np.unique(np.concatenate([self.pair_i, self.pair_j, self.single_a]))
+
+
+@numba.njit(cache=True)
+def row_residuals(y: np.ndarray, pi: np.ndarray, pj: np.ndarray, pe: np.ndarray,
+                  pb: np.ndarray, sa: np.ndarray, sn: np.ndarray, sb: np.ndarray,
+                  rp: np.ndarray, rs: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:meth:`Rows.residuals` into rp (P,) and rs (M,), m: <e, y_i - y_j> - b and
+    <n, y_a> - b, each product sum in the order numpy's ``einsum("ij,ij->i")`` takes
+    (x then y), so the bits are the same."""
+    for k in range(len(pb)):
+        i, j = pi[k], pj[k]
+        rp[k] = (pe[k, 0] * (y[i, 0] - y[j, 0]) + pe[k, 1] * (y[i, 1] - y[j, 1])) - pb[k]
+    for k in range(len(sb)):
+        a = sa[k]
+        rs[k] = (sn[k, 0] * y[a, 0] + sn[k, 1] * y[a, 1]) - sb[k]
 
 
 def linearise(geom: Geometry, t1: float, q: np.ndarray, r1: np.ndarray, cut: float) -> Rows:

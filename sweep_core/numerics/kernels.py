@@ -24,14 +24,16 @@ from numba.core.registry import CPUDispatcher
 
 from sweep_core.model import neighbours, wall_kernels
 from sweep_core.model.scene import Scene
-from sweep_core.numerics import csm, entry, exit_choice, headway, schemes
+from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clusters import solve_active
+from sweep_core.numerics.robots import guard, social_kernels
 from sweep_core.numerics.robots import scan as robot_scan
 from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
-MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan)
+MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
+                                   noise, constraints, guard, social_kernels)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -165,6 +167,26 @@ def _exercise() -> None:
     # a robot's scan (the ray cast against disks, segments and half-planes)
     robot_scan.ray_cast(0.0, 0.0, np.ones(2), np.zeros(2), np.ones((1, 2)), np.ones(1),
                         np.ones((1, 2)), 2 * np.ones((1, 2)), np.ones((1, 2)), np.ones(1), 5.0)
+    # its noise generator's seeding
+    noise.pcg64_state((0, 0, 1))
+    # the planners' safety layer
+    guard.nearest_safe(np.array([1.0, 0.0]), (0.0, 0.0, 0.0), 0.3, np.ones((1, 2)),
+                       np.ones(1) * 0.2, 1.0, 0.05, 0.5)
+    # the social-force planner's people term
+    grad = np.ones((1, 2))
+    social_kernels.people_terms(np.ones((1, 2)), np.zeros((1, 2)), np.empty(1), grad,
+                                np.empty((1, 2)))
+    social_kernels.pushes(grad, np.ones(1), np.ones(1), np.zeros(2))
+    social_kernels.track(np.ones((1, 2)), np.ones((1, 2)), np.zeros((1, 2)), 0.1, 0.2, 0.25,
+                         np.zeros((1, 2)))
+    social_kernels.near_segments(0.0, 0.0, np.zeros((1, 2)), np.ones((1, 2)), 1.0,
+                                 np.empty(1, dtype=np.bool_))
+    robot_scan.beam_directions(0.0, robot_scan.ScanSpec(0.1, 1.0, -1.0, 1.0, 0.5, 10.0, 0.0))
+    rel, d = np.empty((1, 2)), np.empty(1)
+    social_kernels.wall_offsets(0.0, 0.0, np.zeros((1, 2)), np.ones((1, 2)), rel, d)
+    social_kernels.scaled_sum(np.ones(1), rel, d)
+    social_kernels.nearest_pass(0.0, 0.0, 0.0, 0.0, 0.3, np.ones((1, 2)), np.ones(1),
+                                np.zeros((1, 2)), np.empty(3))
 
 
 def warm_up(notify: Callable[[str], None] | None = None) -> WarmUp:

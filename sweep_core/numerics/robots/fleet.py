@@ -37,12 +37,14 @@ import numpy as np
 from sweep_core.errors import InfeasibleError, SceneError, show
 from sweep_core.model.crossing import crossings
 from sweep_core.model.gaps import gaps
-from sweep_core.model.geometry import CIRCLE, Geometry
+from sweep_core.model.geometry import Geometry
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.robots import Robot, overlap
 from sweep_core.model.scene import Scene
+from sweep_core.numerics import noise
 from sweep_core.numerics.projection import Projection, project
 from sweep_core.numerics.robots import kinematics
+from sweep_core.numerics.robots.contacts import set_contacts
 from sweep_core.numerics.robots.control import observe
 from sweep_core.numerics.robots.planners import controllers_of
 from sweep_core.numerics.robots.reaction import avoidance
@@ -106,6 +108,7 @@ class Fleet:
         self.scene = scene
         self.dt = dt
         self.seed = seed
+        self._scan_rng = np.random.Generator(np.random.PCG64(0))  # reseeded per scan
         for k, robot in enumerate(scene.robots):
             if robot.max_speed * dt >= robot.radius:
                 raise SceneError(f"robots[{k}].kinematics.max_speed",
@@ -333,27 +336,7 @@ class Fleet:
         for k in fixed:
             states[k].pose = targets[k]
             states[k].twist = states[k].command
-        rows = proj.rows
-        lam_p, lam_s = proj.lam_pair, proj.lam_single
-        n_circles = len(self.scene.geometry.circle_radius)
-        for k, st in enumerate(states):
-            if st.robot.prescribed:
-                item = n_circles + fixed.index(k)
-                pick = np.flatnonzero((rows.single_kind == CIRCLE) & (rows.single_item == item)
-                                      & (lam_s > 0))
-                ids = rows.single_a[pick]
-                imp = lam_s[pick, None] * rows.single_n[pick] / h
-            else:
-                me = n + free.index(k)
-                as_i = np.flatnonzero((rows.pair_i == me) & (rows.pair_j < n) & (lam_p > 0))
-                as_j = np.flatnonzero((rows.pair_j == me) & (rows.pair_i < n) & (lam_p > 0))
-                ids = np.concatenate([rows.pair_j[as_i], rows.pair_i[as_j]])
-                imp = np.concatenate([-lam_p[as_i, None] * rows.pair_e[as_i],
-                                      lam_p[as_j, None] * rows.pair_e[as_j]]) / h
-            order = np.argsort(ids, kind="stable")
-            st.contact_ids = ids[order].astype(np.int64)
-            st.contact_xy = proj.y[st.contact_ids].copy()
-            st.contact_impulse = imp[order].reshape(-1, 2)
+        set_contacts(states, proj, n, len(self.scene.geometry.circle_radius), h)
         self._check(states, start, proj.y[:n], r1, t1)
 
     def _check(self, states: list[RobotState], start: dict, y: np.ndarray, r1: np.ndarray,
@@ -398,7 +381,8 @@ class Fleet:
             disks = np.concatenate([people, np.array([s.pose[:2] for s in others]
                                                      ).reshape(-1, 2)])
             disk_r = np.concatenate([radii, [s.robot.radius for s in others]])
-            rng = (np.random.Generator(np.random.PCG64([self.seed, k, self.step_index]))
+            # the stream of Generator(PCG64([seed, k, step])), on a kept generator
+            rng = (noise.reseed(self._scan_rng, (self.seed, k, self.step_index))
                    if spec.noise_std > 0 else None)
             st.scan = scan(spec, st.pose, t, self.step_index, self.scene.geometry, disks,
                            disk_r, rng)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 #: a direction whose cosine to a person is at most this is not towards them (a sideways
@@ -75,16 +76,42 @@ def safe_speeds(pose: tuple[float, float, float], directions: np.ndarray, radius
     rel = people - np.array(pose[:2])
     d = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
     c = (rel / d[:, None]) @ directions.T  # (M, K); within AHEAD of 0: not ahead (rounding)
-    gap = np.maximum(d - radius - people_radii - margin, 0.0)[:, None]
+    gap = np.maximum(d - radius - people_radii - margin, 0.0)
     if people_noise > 0:
-        room = np.broadcast_to(gap, c.shape)
+        room = np.broadcast_to(gap[:, None], c.shape)
         s = reach_root(accel * np.maximum(c, 0.0) / 2.0, people_speed, people_noise, room)
         bound = np.where(room > 0.0, accel * s * s, 0.0)
         return np.asarray(np.where(c > AHEAD, bound, math.inf).min(axis=0, initial=math.inf))
-    root = np.sqrt(people_speed * people_speed + 2.0 * accel * np.maximum(c, 0.0) * gap)
-    den = np.maximum(people_speed + root, 1e-300)
-    bound = np.where(gap > 0.0, 2.0 * accel * gap / den, 0.0)
-    return np.asarray(np.where(c > AHEAD, bound, math.inf).min(axis=0, initial=math.inf))
+    smallest_bounds(np.ascontiguousarray(c), gap, float(accel), float(people_speed), out)
+    return out
+
+
+@numba.njit(cache=True)
+def smallest_bounds(c: np.ndarray, gap: np.ndarray, accel: float, people_speed: float,
+                    out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """out[k] = the smallest over the people j with c[j, k] > AHEAD of the speed bound
+    2 a g_j / max(v_h + sqrt(v_h^2 + 2 a max(c, 0) g_j), 1e-300) (0 where g_j <= 0), inf
+    when there is none (a NaN bound propagates, as numpy's min): the module docstring's bound, each
+    operation in the order the numpy form took it, so the bits are the same. c (M, K) cosines,
+    gap (M,) m clipped at 0, out (K,) m/s."""
+    two_a = 2.0 * accel
+    for k in range(c.shape[1]):
+        low = math.inf
+        for j in range(c.shape[0]):
+            ck = c[j, k]
+            if not ck > AHEAD:  # NaN included: numpy's where gave inf there
+                continue
+            g = gap[j]
+            bound = 0.0
+            if g > 0.0:
+                root = math.sqrt(people_speed * people_speed + two_a * max(ck, 0.0) * g)
+                den = max(people_speed + root, 1e-300)
+                bound = two_a * g / den
+            if bound != bound:
+                low = math.nan
+                break
+            low = min(low, bound)
+        out[k] = low
 
 
 def safe_speed(pose: tuple[float, float, float], direction: np.ndarray, radius: float,
@@ -108,8 +135,33 @@ def nearest_safe(u: np.ndarray, pose: tuple[float, float, float], radius: float,
         return np.zeros(2)
     phi = math.atan2(u[1], u[0]) + np.arange(directions) * (2.0 * math.pi / directions)
     dirs = np.column_stack([np.cos(phi), np.sin(phi)])
-    s = np.clip(dirs @ u, 0.0, safe_speeds(pose, dirs, radius, people, people_radii, accel,
-                                               margin, people_speed, people_noise))
-    miss = (u[0] - s * dirs[:, 0]) ** 2 + (u[1] - s * dirs[:, 1]) ** 2
-    k = int(np.argmin(miss))
-    return np.asarray(s[k] * dirs[k])
+    out = np.empty(2)
+    nearest_of(dirs @ u, safe_speeds(pose, dirs, radius, people, people_radii, accel, margin,
+                                     people_speed, people_noise), dirs, float(u[0]),
+               float(u[1]), out)
+    return out
+
+
+@numba.njit(cache=True)
+def nearest_of(along: np.ndarray, bound: np.ndarray, dirs: np.ndarray, ux: float, uy: float,
+               out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """out (2,) m/s: s_k dirs_k for the first k of least (ux - s_k dx_k)^2 + (uy - s_k
+    dy_k)^2, s = clip(along, 0, bound) (along (K,) the wished velocity's components along the
+    unit dirs (K, 2), bound (K,) their safe speeds); numpy's clip, squares and argmin (the
+    first NaN, else the first least), so the bits are the same."""
+    best, low = 0, 0.0
+    for k in range(len(along)):
+        s = along[k]
+        if s == s:
+            s = s if s > 0.0 else 0.0
+            s = s if (s != s or s < bound[k]) else bound[k]
+        a = ux - s * dirs[k, 0]
+        b = uy - s * dirs[k, 1]
+        miss = a * a + b * b
+        if k == 0 or (low == low and (miss != miss or miss < low)):
+            best, low = k, miss
+    s = along[best]
+    if s == s:
+        s = s if s > 0.0 else 0.0
+        s = s if (s != s or s < bound[best]) else bound[best]
+    out[0], out[1] = s * dirs[best, 0], s * dirs[best, 1]

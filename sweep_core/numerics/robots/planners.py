@@ -39,6 +39,14 @@ from sweep_core.numerics.robots.control import (
 )
 from sweep_core.numerics.robots.guard import nearest_safe, safe_speed
 from sweep_core.numerics.robots.kinematics import wrap
+from sweep_core.numerics.robots.social_kernels import (
+    near_segments,
+    people_terms,
+    pushes,
+    scaled_sum,
+    track,
+    wall_offsets,
+)
 
 #: the time (s) over which a tracked person's velocity is smoothed
 TRACK_TIME = 0.5
@@ -67,16 +75,10 @@ class Tracker:
         v = np.zeros_like(xy)
         if self.t is not None and t > self.t and len(xy) and len(self.xy):
             dt = t - self.t
-            dx = xy[:, None, 0] - self.xy[None, :, 0]
-            dy = xy[:, None, 1] - self.xy[None, :, 1]
-            d2 = dx * dx + dy * dy  # squared distances: the same nearest, no square roots
-            j = np.argmin(d2, axis=1)
-            back = np.argmin(d2, axis=0)
-            ok = (back[j] == np.arange(len(xy))) & (d2[np.arange(len(xy)), j] <= GATE * GATE)
             a = 1.0 - math.exp(-dt / TRACK_TIME)
-            step = (xy[ok] - self.xy[j[ok]]) / dt
-            v[ok] = self.v[j[ok]] + a * (step - self.v[j[ok]])
-        self.t, self.xy, self.v = t, xy.copy(), v
+            track(np.ascontiguousarray(xy, dtype=np.float64), self.xy, self.v, dt, a,
+                  GATE * GATE, v)
+        self.t, self.xy, self.v = t, np.array(xy, dtype=np.float64), v
         return v
 
 
@@ -162,12 +164,9 @@ class _Planner:
         a, b = g.segment_a.reshape(-1, 2), g.segment_b.reshape(-1, 2)
         if not len(a):
             return a, b
-        p = np.array(obs.pose[:2])
-        e = b - a
-        ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
-        s = np.clip(np.einsum("ij,ij->i", p - a, e) / ee, 0.0, 1.0)
-        d = np.hypot(*(a + s[:, None] * e - p).T)
-        near = d <= self.params["sensor_range"]
+        near = np.empty(len(a), dtype=np.bool_)
+        near_segments(float(obs.pose[0]), float(obs.pose[1]), np.ascontiguousarray(a),
+                      np.ascontiguousarray(b), float(self.params["sensor_range"]), near)
         return a[near], b[near]
 
     def circles(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
@@ -254,14 +253,11 @@ class SocialForce(_Planner):
         if len(obs.people):
             force = force + self.people_force(obs, o, v, v_people)
         a, b = self.segments(obs)
-        if len(a):
-            e = b - a
-            ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
-            s = np.clip(np.einsum("ij,ij->i", o - a, e) / ee, 0.0, 1.0)
-            rel = o - (a + s[:, None] * e)
-            d = np.maximum(np.hypot(*rel.T), 1e-9)
+        if len(a):  # from the nearest point of each wall segment to the robot
+            rel, d = np.empty((len(a), 2)), np.empty(len(a))
+            wall_offsets(float(o[0]), float(o[1]), a, b, rel, d)
             mag = p["wall_strength"] * np.exp(-(d - obs.radius) / p["wall_range"])
-            force = force + (mag[:, None] * rel / d[:, None]).sum(axis=0)
+            force = force + scaled_sum(mag, rel, d)
         c, r = self.circles(obs)
         if len(c):
             rel = o - c
@@ -286,24 +282,20 @@ class SocialForce(_Planner):
         p = self.params
         d = o - obs.people  # (M, 2) from each person to the robot
         y = (v_people - v) * p["anticipation"]  # the person's step relative to the robot
-        dn = np.maximum(np.hypot(*d.T), 1e-9)
-        dy = d - y
-        dyn = np.maximum(np.hypot(*dy.T), 1e-9)
-        yn = np.hypot(*y.T)
-        b = 0.5 * np.sqrt(np.maximum((dn + dyn) ** 2 - yn ** 2, 1e-18))
-        grad = ((dn + dyn) / (4.0 * np.maximum(b, 1e-9)))[:, None] * (
-            d / dn[:, None] + dy / dyn[:, None])
+        m = len(d)
+        b, grad, n = np.empty(m), np.empty((m, 2)), np.empty((m, 2))
+        people_terms(np.ascontiguousarray(d), np.ascontiguousarray(y), b, grad, n)
         heading = np.array([math.cos(obs.pose[2]), math.sin(obs.pose[2])])
-        n = d / dn[:, None]
         cos_phi = -(n @ heading)
         lam = p["anisotropy"]
         w = lam + (1.0 - lam) * (1.0 + cos_phi) / 2.0
         mag = p["strength"] * np.exp((obs.radius + obs.people_radii - b) / p["range"]) * w
         # people ahead also push it to its right (the side convention that breaks the
         # head-on symmetry): the push turned by +90 degrees, weighted by side * max(0, cos phi)
-        turn = np.column_stack([-grad[:, 1], grad[:, 0]])
         side = p["side"] * np.maximum(cos_phi, 0.0)
-        return np.asarray((mag[:, None] * (grad + side[:, None] * turn)).sum(axis=0))
+        out = np.zeros(2)
+        pushes(grad, np.ascontiguousarray(mag, dtype=np.float64), side, out)
+        return out
 
 
 def controller_for(scene: Scene, robot: Robot) -> Controller | None:

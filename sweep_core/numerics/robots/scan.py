@@ -99,8 +99,21 @@ def _angles(spec: ScanSpec) -> np.ndarray:
 
 def beam_directions(yaw: float, spec: ScanSpec) -> tuple[np.ndarray, np.ndarray]:
     """(B,) cosines and sines of the beams' world angles (C library, per beam)."""
-    angles = (yaw + _angles(spec)).tolist()
-    return np.array(list(map(math.cos, angles))), np.array(list(map(math.sin, angles)))
+    angles = _angles(spec)
+    ux, uy = np.empty(len(angles)), np.empty(len(angles))
+    _cos_sin(float(yaw), angles, ux, uy)
+    return ux, uy
+
+
+@numba.njit(cache=True)
+def _cos_sin(yaw: float, angles: np.ndarray, ux: np.ndarray, uy: np.ndarray
+             ) -> None:  # pragma: no cover - compiled
+    """ux, uy (B,) = cos and sin of yaw + angles (B,) rad, each by the C library's scalar
+    cos and sin (what Python's math module calls)."""
+    for k in range(len(angles)):
+        a = yaw + angles[k]
+        ux[k] = math.cos(a)
+        uy[k] = math.sin(a)
 
 
 def scan(spec: ScanSpec, pose: tuple[float, float, float], t: float, step: int,
