@@ -245,7 +245,10 @@ def load_run(path: str | Path) -> RunMeta:
                               max_nodes=RECORDED_BASE_NODES + RECORDED_NODES_PER_AGENT * first,
                               limit_name=f"the limit for a recording whose first state holds "
                                          f"{first} agents: {RECORDED_BASE_NODES} + "
-                                         f"{RECORDED_NODES_PER_AGENT} per agent")
+                                         f"{RECORDED_NODES_PER_AGENT} per agent",
+                              fix="use the recording as sweep run or sweep_node wrote it: its "
+                                  "scene holds its first state's agents, and walls within "
+                                  "MAX_SEGMENTS")
             older = recorded_headway(data)  # a speed law recorded before some keys existed
             scene = Scene.from_dict(data if older is None else older, files=False)
         except CostError as err:  # refused outright: nothing of it is rebuilt

@@ -89,24 +89,24 @@ def nesting(text: str) -> int:
     return int(np.cumsum(np.where(opening, 1, -1), dtype=np.int64).max(initial=0))
 
 
-def load_json(text: str, max_nodes: int | None = None, limit_name: str = "") -> Any:
+def load_json(text: str, max_nodes: int | None = None, limit_name: str = "",
+              fix: str = "") -> Any:
     """Decode one JSON document within the bounds above.
 
     Raises:
-        JSONLimitError: more than ``max_nodes`` nodes (default MAX_NODES, else named by
-            ``limit_name``; bounded from the text before it is decoded), nesting deeper than
-            MAX_DEPTH, or a key given twice.
+        JSONLimitError: more than ``max_nodes`` nodes (default, and at most, MAX_NODES;
+            ``limit_name`` and ``fix`` name a lower bound and what to do; counted from the text
+            before it is decoded), nesting deeper than MAX_DEPTH, or a key given twice.
         json.JSONDecodeError: the text is not JSON (line and column in the message).
     """
     if max_nodes is None or max_nodes > yaml_files.MAX_NODES:
-        max_nodes, limit_name = yaml_files.MAX_NODES, ""
+        max_nodes, limit_name, fix = yaml_files.MAX_NODES, "", ""
     bound = node_bound(text)
     if bound > max_nodes:
         raise JSONLimitError(f"holds up to {bound} values, keys, lists and mappings (counted "
                              f"from its commas, colons and brackets), more than {max_nodes} "
                              f"({limit_name or 'the limit MAX_NODES'})",
-                             "give long per-agent lists by a rule instead (a spawn region, a "
-                             "speed distribution)", cost=True)
+                             fix or yaml_files.DEFAULT_NODES_FIX, cost=True)
     if nesting(text) > yaml_files.MAX_DEPTH:
         raise JSONLimitError(f"nests lists and mappings deeper than {yaml_files.MAX_DEPTH} "
                              "levels (the limit MAX_DEPTH)",

@@ -142,10 +142,8 @@ def geometry_from_spec(data: dict, grid: OccupancyMap | None = None
     s_kind = [kind for c, n in zip(chains, counts) for kind in [c[4]] * n]
     geom = Geometry(arr(hp_n, (-1, 2)), arr(hp_c, (-1,)), arr(hp_v, (-1,)), arr(sa, (-1, 2)),
                     arr(sb, (-1, 2)), arr(cc, (-1, 2)), arr(cr, (-1,)),
-                    np.array(hp_i, dtype=np.intp), np.array(s_i, dtype=np.intp),
-                    np.array(c_i, dtype=np.intp), np.array(s_poly, dtype=np.intp),
-                    np.array(s_part, dtype=np.intp), tuple(s_kind),
-                    arr(mv_v, (-1, 2)), arr(mv_w, (-1,)), arr(mv_p, (-1, 2)),
-                    np.array(s_m, dtype=np.intp),
+                    np.array(hp_i, dtype=np.intp), s_i, np.array(c_i, dtype=np.intp), s_poly,
+                    s_part, tuple(s_kind), arr(mv_v, (-1, 2)), arr(mv_w, (-1,)),
+                    arr(mv_p, (-1, 2)), s_m,
                     np.array(c_m, dtype=np.intp))
     return geom, walls_spec, obstacles_spec

@@ -201,13 +201,13 @@ class Scene:
 
 
 def scene_data(text: str, source: str = "the scene", recorded: bool = False,
-               max_nodes: int | None = None, limit_name: str = "") -> Any:
+               max_nodes: int | None = None, limit_name: str = "", fix: str = "") -> Any:
     """Parse a scene given as JSON or YAML text into plain data (an empty document gives {}),
     before validation; ``source`` names it in errors. A text whose first character is ``{``
     is read as JSON when it is JSON (:mod:`sweep_core.model.json_text`), else as YAML.
     ``recorded``: the text is a recording's, whose YAML is read up to
     MAX_RECORDED_YAML_NODES nodes (its JSON, as sweep records it, up to MAX_NODES);
-    ``max_nodes`` lowers both bounds (``limit_name`` says why).
+    ``max_nodes`` lowers both bounds, ``limit_name`` and ``fix`` say why and what to do.
 
     Raises:
         CostError: the text holds more nodes than its bound (checked before they are built).
@@ -215,27 +215,22 @@ def scene_data(text: str, source: str = "the scene", recorded: bool = False,
     """
     if looks_like_json(text):
         try:
-            data = load_json(text, max_nodes, limit_name)
+            data = load_json(text, max_nodes, limit_name, fix)
         except JSONLimitError as err:
             kind = CostError if err.cost else SceneError
-            fix = err.fix
-            if err.cost and limit_name:
-                fix = ("use the recording as sweep run or sweep_node wrote it: its scene holds "
-                       "its first state's agents, and walls within MAX_SEGMENTS")
-            raise kind("scene", f"{source} (JSON) {err.problem}", fix) from err
+            raise kind("scene", f"{source} (JSON) {err.problem}", err.fix) from err
         except ValueError:
             pass  # not JSON: a YAML flow mapping, or an error YAML's loader will place
         else:
             return data
-    limits: dict[str, Any] = {}
-    if max_nodes is not None:
-        limits = {"max_nodes": max_nodes, "limit_name": limit_name}
+    limit = {"max_nodes": max_nodes, "limit_name": limit_name, "fix": fix}
     if recorded and (max_nodes is None or max_nodes > MAX_RECORDED_YAML_NODES):
-        limits = {"max_nodes": MAX_RECORDED_YAML_NODES, "limit_name": "MAX_RECORDED_YAML_NODES",
-                  "fix": "write the recording's sweep_ros.scene metadata as JSON, as sweep "
-                         "records it (read up to MAX_NODES)"}
+        limit = {"max_nodes": MAX_RECORDED_YAML_NODES,
+                 "limit_name": "the limit MAX_RECORDED_YAML_NODES",
+                 "fix": "write the recording's sweep_ros.scene metadata as JSON, as sweep "
+                        "records it (read up to MAX_NODES)"}
     try:
-        data = load_yaml(text, **limits)
+        data = load_yaml(text, **limit)
     except YAMLError as err:
         kind = CostError if getattr(err, "cost", False) else SceneError
         raise kind("scene", f"{source} is not valid YAML: {yaml_problem(err)}",

@@ -64,6 +64,9 @@ MAX_NODES = 1 << 22
 #: recording (written by hand or by another tool) is read up to this count, about 160 MB and
 #: a few seconds
 MAX_RECORDED_YAML_NODES = 1 << 18
+#: what to do about a document of more than MAX_NODES nodes
+DEFAULT_NODES_FIX = ("give long per-agent lists by a rule instead (a spawn region, a speed "
+                     "distribution)")
 #: memory (bytes) a loaded node takes, the estimate behind :data:`MAX_NODES`
 #: (test/test_estimates.py checks it)
 BYTES_PER_NODE = 600
@@ -91,16 +94,16 @@ def yaml_fix(err: yaml.YAMLError) -> str:
     return getattr(err, "fix", "") or "correct the YAML syntax at that line"
 
 
-def check_yaml(text: str | bytes, max_nodes: int | None = None,
-               limit_name: str = "MAX_NODES", fix: str = "") -> None:
+def check_yaml(text: str | bytes, max_nodes: int | None = None, limit_name: str = "",
+               fix: str = "") -> None:
     """Walk the YAML events of ``text`` (no recursion, nothing composed) and refuse what
     :func:`load_yaml` must not compose.
 
     Raises:
         YAMLLimitError: nesting deeper than MAX_DEPTH, more than MAX_ALIASES aliases, aliases
             repeating more than MAX_ALIAS_NODES nodes, more than ``max_nodes`` nodes (default
-            MAX_NODES; named ``limit_name``, with ``fix`` or the default fix), or a mapping key
-            given twice.
+            MAX_NODES; ``limit_name`` and ``fix`` name another bound and what to do), or a
+            mapping key given twice.
         yaml.YAMLError: the text is not valid YAML.
     """
     # one frame per open collection: [nodes inside so far, anchor, children, keys seen or None]
@@ -127,7 +130,9 @@ def check_yaml(text: str | bytes, max_nodes: int | None = None,
         top[2] += 1
 
     if max_nodes is None:
-        max_nodes = MAX_NODES
+        max_nodes, limit_name, fix = MAX_NODES, "", ""
+    limit_name = limit_name or "the limit MAX_NODES"
+    fix = fix or DEFAULT_NODES_FIX
     scalar = yaml.ScalarEvent
     node_events = {scalar, yaml.SequenceStartEvent, yaml.MappingStartEvent, yaml.AliasEvent}
     for event in yaml.parse(text, Loader=SAFE_LOADER):
@@ -135,9 +140,7 @@ def check_yaml(text: str | bytes, max_nodes: int | None = None,
             nodes += 1
             if nodes > max_nodes:
                 raise _refuse(f"more than {max_nodes} values, keys, lists and mappings in "
-                              f"one document (the limit {limit_name})", event.start_mark,
-                              fix or "give long per-agent lists by a rule instead (a spawn "
-                              "region, a speed distribution)", cost=True)
+                              f"one document ({limit_name})", event.start_mark, fix, cost=True)
         if type(event) is scalar and event.anchor is None and stack and stack[-1][3] is None:
             top = stack[-1]  # the common case, an item of a list: counted and nothing else
             top[0] += 1
