@@ -46,7 +46,9 @@ def test_engine_row_is_a_ratio_of_medians() -> None:
 
 @pytest.mark.parametrize(("option", "value"), [("--run-steps", "0"), ("--run-steps", "-1"),
                                                ("--env-steps", "0"), ("--num-envs", "0"),
-                                               ("--num-envs", "100000")])
+                                               ("--num-envs", "100000"),
+                                               ("--env-workers", "0"),
+                                               ("--env-workers", "33")])
 def test_steps_options_refused(capsys: pytest.CaptureFixture[str], tmp_path: object,
                                option: str, value: str) -> None:
     csv = tmp_path / "steps.csv"  # type: ignore[operator]
@@ -94,3 +96,41 @@ def test_the_single_environments_rate_resets_it_at_the_end_of_an_episode(monkeyp
     rows = steps.env_rates(70, 32)
     assert len(rows) == 1 and np.isfinite(rows[0]["sweep_median_ms"])
     assert env.resets == 1 + (10 + 70) // 7
+
+
+def test_the_workers_row_steps_the_vector_environment_in_workers(monkeypatch):
+    """With workers > 1 a third row times the vector environment made with those workers (its
+    note says the workers' CPU time is not counted); with 1, no such row."""
+    import sweep_core.envs as envs
+
+    made = []
+
+    class Batch:
+        action_space = type("Box", (), {"shape": (4, 2)})()
+
+        def reset(self, seed=None):
+            return {}, {}
+
+        def step(self, action):
+            return {}, np.zeros(4), np.zeros(4, bool), np.zeros(4, bool), {}
+
+        def close(self) -> None:
+            pass
+
+    def make_vector(num_envs, **kwargs):
+        made.append((num_envs, kwargs))
+        return Batch()
+
+    class Single(Batch):
+        def step(self, action):
+            return {}, 0.0, False, False, {}
+
+    monkeypatch.setattr(envs, "make_single", lambda: Single())
+    monkeypatch.setattr(envs, "has_vector", lambda: True)
+    monkeypatch.setattr(envs, "make_vector", make_vector)
+    rows = steps.env_rates(8, 4, workers=2)
+    assert [r["measure"] for r in rows] == ["env steps/s, single", "env steps/s, K=4",
+                                            "env steps/s, K=4/2"]
+    assert made == [(4, {}), (4, {"workers": 2})]
+    assert "2 worker processes" in rows[2]["note"] and "CPU time:" in rows[1]["note"]
+    assert len(steps.env_rates(8, 4, workers=1)) == 2

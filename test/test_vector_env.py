@@ -158,3 +158,53 @@ def test_bad_seeds_are_refused(envs: CrowdNavVectorEnv, seed: object, words: lis
     assert "\n" not in text
     for word in words:
         assert word in text, text
+
+
+def test_workers_step_the_same_episodes_bit_for_bit() -> None:
+    """Two worker processes (shares of 1 and 2 environments) against this process: the same
+    observations, rewards, flags and infos, autoresets and seed lists included; closing ends
+    the workers."""
+    mine = vector.make(num_envs=3, **KW)
+    split = vector.make(num_envs=3, workers=2, **KW)
+    assert split.workers is not None and split.envs == []
+    assert [len(s) for s in split.workers.shares] == [1, 2]
+    assert same(rollout(split, 5, 11), rollout(mine, 5, 11))
+    assert same(rollout(split, [9, 2, 4], 6), rollout(mine, [9, 2, 4], 6))
+    procs = list(split.workers.procs)
+    assert all(p.is_alive() for p in procs)
+    split.close()
+    assert not any(p.is_alive() for p in procs)
+    mine.close()
+
+
+def test_shares_are_contiguous_and_even() -> None:
+    from sweep_core.envs.workers import shares
+    for k in range(1, 12):
+        for w in range(1, k + 1):
+            got = shares(k, w)
+            assert [i for s in got for i in s] == list(range(k))
+            assert max(map(len, got)) - min(map(len, got)) <= 1
+
+
+@pytest.mark.parametrize(("workers", "words"), [
+    (0, ["workers", "got 0", "workers=2"]), (-1, ["workers", "-1"]), (1.5, ["workers", "1.5"]),
+    ("two", ["workers", "'two'"]), (4, ["workers", "4 is more than the 3 environments",
+                                        "workers=3 or fewer"])])
+def test_bad_worker_counts_are_refused(workers: object, words: list[str]) -> None:
+    with pytest.raises(SceneError) as err:
+        vector.make(num_envs=3, workers=workers, **KW)
+    text = str(err.value)
+    assert "\n" not in text
+    for word in words:
+        assert word in text, text
+
+
+def test_a_workers_failure_is_raised_in_the_parent_as_it_was() -> None:
+    from sweep_core.envs import workers
+    with pytest.raises(SceneError) as err:
+        workers.reraise(1, workers.portable(SceneError("robots[0].goal", "is missing", "give it")))
+    assert str(err.value) == "robots[0].goal: is missing (fix: give it)"
+    with pytest.raises(RuntimeError) as other:
+        workers.reraise(0, workers.portable(ZeroDivisionError("division by zero")))
+    assert str(other.value) == ("worker 0 of the vector environment failed: ZeroDivisionError: "
+                                "division by zero")

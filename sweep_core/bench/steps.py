@@ -29,8 +29,9 @@ Environment: ``gymnasium.make("sweep/CrowdNav-v0")`` stepped with a fixed forwar
 reset at the end of each episode (steps per second over ``--env-steps`` steps, resets
 included); and the vectorised environment
 ``gymnasium.make_vec(..., num_envs=K, vectorization_mode="vector_entry_point")`` when it is
-registered (env steps per second: K per call; it resets its own environments); in the note,
-the same per second of the process's CPU time.
+registered (env steps per second: K per call; it resets its own environments), in this
+process and split over ``--env-workers`` worker processes; in the note, the same per second
+of the process's CPU time (the parent's alone where workers step the environments).
 """
 from __future__ import annotations
 
@@ -46,6 +47,7 @@ import numpy as np
 
 from sweep_core.bench import options
 from sweep_core.bench.tables import write_csv
+from sweep_core.ensemble.cluster import default_workers
 from sweep_core.io.metadata import run_metadata
 from sweep_core.io.recording.runs import record_run
 from sweep_core.model.scene import Scene, load_scene
@@ -220,8 +222,9 @@ def recorded_vs_engine(name: str, steps: int) -> dict[str, Any]:
     return row
 
 
-def env_rates(steps: int, num_envs: int) -> list[dict[str, Any]]:
-    """Rows of the environment's steps per second, single and (when registered) vectorised."""
+def env_rates(steps: int, num_envs: int, workers: int = 1) -> list[dict[str, Any]]:
+    """Rows of the environment's steps per second, single and (when registered) vectorised,
+    in this process and, for ``workers`` > 1, split over that many worker processes."""
     try:
         import sweep_core.envs as envs
     except ImportError as err:
@@ -231,10 +234,14 @@ def env_rates(steps: int, num_envs: int) -> list[dict[str, Any]]:
     if envs.has_vector():
         rows.append(_rate(f"env steps/s, K={num_envs}", steps, num_envs,
                           lambda: envs.make_vector(num_envs)))
+        if 1 < workers <= num_envs:
+            rows.append(_rate(f"env steps/s, K={num_envs}/{workers}", steps, num_envs,
+                              lambda: envs.make_vector(num_envs, workers=workers), workers))
     return rows
 
 
-def _rate(label: str, steps: int, k: int, make: Callable[[], Any]) -> dict[str, Any]:
+def _rate(label: str, steps: int, k: int, make: Callable[[], Any], workers: int = 1
+          ) -> dict[str, Any]:
     env = make()
     try:
         env.reset(seed=0)
@@ -251,11 +258,14 @@ def _rate(label: str, steps: int, k: int, make: Callable[[], Any]) -> dict[str, 
     finally:
         env.close()
     rate = calls * k / seconds
+    cpu_note = (f"CPU time: {calls * k / max(cpu, 1e-9):.0f} env steps/s" if workers == 1 else
+                f"{workers} worker processes, each stepping K/{workers} (their CPU time not "
+                "counted here)")
     return {"measure": label, "scene": "crowdnav", "agents": 11, "other": "",
             "sweep_median_ms": 1e3 * seconds / (calls * k), "sweep_p90_ms": math.nan,
             "other_median_ms": math.nan, "other_p90_ms": math.nan, "ratio": math.nan,
             "note": f"{rate:.0f} env steps/s over {calls * k} env steps, resets included; "
-                    f"CPU time: {calls * k / max(cpu, 1e-9):.0f} env steps/s"}
+                    + cpu_note}
 
 
 def _step(env: Any, action: np.ndarray, k: int) -> None:
@@ -282,6 +292,7 @@ def run(args: argparse.Namespace) -> int:
     options.count(args.run_steps, "--run-steps", example="200")
     options.count(args.env_steps, "--env-steps", example="2000")
     options.counts([args.num_envs], "--num-envs", high=1024, example="32")
+    options.counts([args.env_workers], "--env-workers", high=args.num_envs, example="2")
     options.csv_path(args.csv)
     kernels.warm_up(lambda line: print(f"sweep: {line}", flush=True))
     missing = pyrvo_missing()
@@ -302,7 +313,7 @@ def run(args: argparse.Namespace) -> int:
         show(engine_vs_orca(name))
     for name in STEP_SCENES:
         show(recorded_vs_engine(name, args.run_steps))
-    for row in env_rates(args.env_steps, args.num_envs):
+    for row in env_rates(args.env_steps, args.num_envs, args.env_workers):
         show(row)
     write_csv(Path(args.csv), rows, COLUMNS)
     print(f"csv: {args.csv}")
@@ -318,3 +329,6 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="steps: environment steps timed, single and vectorised (default 2000)")
     p.add_argument("--num-envs", type=int, default=32, metavar="K",
                    help="steps: environments of the vectorised environment (default 32)")
+    p.add_argument("--env-workers", type=int, default=min(2, default_workers()), metavar="W",
+                   help="steps: worker processes of the vectorised environment's second row "
+                        "(default: 2, or 1 on a single core: no such row)")

@@ -9,6 +9,10 @@ seeds environment i with s + i (Gymnasium's convention for vector environments),
 (``metadata["autoreset_mode"]``): the step after environment i's episode ended resets it (its
 action ignored) and returns its first observation, reward 0 and not done.
 
+With ``workers`` W > 1 the K environments are split into W contiguous shares, each stepped
+by its own process (:mod:`sweep_core.envs.workers`), so that W cores step the batch at once;
+the episodes, observations, rewards and infos are the same bit for bit as with one.
+
 Observations are the single observation's arrays stacked (``odom`` (K, 6), ``scan`` (K, B),
 ``goal`` (K, 2)); rewards, terminations and truncations (K,); infos as Gymnasium's vector
 environments combine them (each key an array over the K environments, ``_key`` the mask of
@@ -27,6 +31,7 @@ from gymnasium.vector.utils import batch_space
 
 from sweep_core import checks
 from sweep_core.envs.crowdnav import DEFAULT_SCENE, CrowdNavEnv
+from sweep_core.envs.workers import Workers, step_all
 from sweep_core.errors import SceneError, show
 from sweep_core.model.scene import Scene, load_scene
 
@@ -92,16 +97,21 @@ class CrowdNavVectorEnv(VectorEnv):
         num_envs: K, the number of environments (1 to :data:`MAX_ENVS`, and as many as half
             the available memory holds: the first environment's size times K, checked before
             the others are built).
+        workers: W, the processes stepping the K environments (1: this one; 1 to K).
         **kwargs: the arguments of :class:`CrowdNavEnv` (scene, robot, dt, max_steps, ...).
     """
 
     metadata: dict[str, Any] = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
+    def __init__(self, num_envs: int = 1, workers: int = 1, **kwargs: Any) -> None:
         k = checks.integer(num_envs, "num_envs", low=1, fix="e.g. num_envs=32")
         if k > MAX_ENVS:
             raise SceneError("num_envs", f"{k} is more than the limit {MAX_ENVS}",
                              f"num_envs={MAX_ENVS} or fewer")
+        w = checks.integer(workers, "workers", low=1, fix="e.g. workers=2, one per core")
+        if w > k:
+            raise SceneError("workers", f"{w} is more than the {k} environments",
+                             f"workers={k} or fewer")
         scene = kwargs.pop("scene", None)
         if not isinstance(scene, (Scene, dict)):  # a path: read once, shared by the K
             scene = load_scene(str(scene if scene is not None else DEFAULT_SCENE))
@@ -117,7 +127,8 @@ class CrowdNavVectorEnv(VectorEnv):
                              f"({one / 1e6:.2g} MB each), more than half the "
                              f"{have / 1e9:.2g} GB available", f"num_envs={most} or fewer")
         # built afresh: the measured one's generator was seeded (reset(seed=None) draws anew)
-        self.envs = [CrowdNavEnv(scene=scene, **kwargs) for _ in range(k)]
+        self.workers = Workers(k, w, scene, kwargs) if w > 1 else None
+        self.envs = [] if w > 1 else [CrowdNavEnv(scene=scene, **kwargs) for _ in range(k)]
         self.num_envs = k
         self.single_observation_space = first.observation_space
         self.single_action_space = first.action_space
@@ -135,34 +146,36 @@ class CrowdNavVectorEnv(VectorEnv):
         gets s + i) or a list of K seeds (ints or None)."""
         seeds = self._seeds(seed)
         super().reset(seed=seeds[0])
-        obs, infos = [], {}
-        for i, (env, s) in enumerate(zip(self.envs, seeds)):
-            o, info = env.reset(seed=s, options=options)
-            obs.append(o)
+        if self.workers is not None:
+            results = self.workers.reset(seeds, options)
+        else:
+            results = [env.reset(seed=s, options=options) for env, s in zip(self.envs, seeds)]
+        infos: dict[str, Any] = {}
+        for i, (_, info) in enumerate(results):
             infos = self._add_info(infos, info, i)
         self._done[:] = False
-        return self._stack(obs), infos
+        return self._stack([o for o, _ in results]), infos
 
     def step(self, actions: Any) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray,
                                           np.ndarray, dict[str, Any]]:
         a = self._actions(actions)
-        obs = []
+        # next-step autoreset: an environment whose episode ended starts its next one
+        results = (self.workers.step(self._done, a) if self.workers is not None
+                   else step_all(self.envs, self._done, a))
         rewards = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=np.bool_)
         truncated = np.zeros(self.num_envs, dtype=np.bool_)
         infos: dict[str, Any] = {}
-        for i, env in enumerate(self.envs):
-            if self._done[i]:  # next-step autoreset: this step starts its next episode
-                o, info = env.reset()
-            else:
-                o, rewards[i], terminated[i], truncated[i], info = env.step(a[i])
-            obs.append(o)
+        for i, (_, reward, term, trunc, info) in enumerate(results):
+            rewards[i], terminated[i], truncated[i] = reward, term, trunc
             infos = self._add_info(infos, info, i)
         self._done = terminated | truncated
-        return self._stack(obs), rewards, terminated, truncated, infos
+        return self._stack([r[0] for r in results]), rewards, terminated, truncated, infos
 
     def close_extras(self, **kwargs: Any) -> None:
-        for env in self.envs:
+        if getattr(self, "workers", None) is not None:
+            self.workers.close()
+        for env in getattr(self, "envs", []):
             env.close()
 
     # -- checks and batching ------------------------------------------------------------
@@ -206,9 +219,9 @@ class CrowdNavVectorEnv(VectorEnv):
         return {key: np.stack([o[key] for o in obs]) for key in obs[0]}
 
 
-def make(num_envs: int = 1, **kwargs: Any) -> CrowdNavVectorEnv:
+def make(num_envs: int = 1, workers: int = 1, **kwargs: Any) -> CrowdNavVectorEnv:
     """The vector entry point of ``sweep/CrowdNav-v0``."""
-    return CrowdNavVectorEnv(num_envs=num_envs, **kwargs)
+    return CrowdNavVectorEnv(num_envs=num_envs, workers=workers, **kwargs)
 
 
 __all__ = ["CrowdNavVectorEnv", "MAX_ENVS", "available_memory", "make"]

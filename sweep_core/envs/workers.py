@@ -1,0 +1,170 @@
+"""Worker processes of a vector environment (``workers`` > 1 in
+:class:`~sweep_core.envs.vector.CrowdNavVectorEnv`): the K environments split into W
+contiguous shares, each share held and stepped by its own process, so that W cores step the
+batch at once.
+
+A worker builds its share as the in-process vector environment would (the same scene and
+arguments), resets each environment with the seed the parent computed for it and steps it with
+its row of the parent's checked actions; it returns each environment's own observation,
+reward, flags and info, which the parent stacks exactly as it stacks its in-process
+environments. So environment i's episodes are the same, bit for bit, with any number of
+workers. Workers are forked where the platform forks safely (Linux: they start at once, with
+the parent's imports and compiled kernels, and a script needs no ``__main__`` guard), else
+spawned (macOS, Windows: a script must then create the vector environment under
+``if __name__ == "__main__":``); they end with the vector environment's ``close`` or its
+process.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import sys
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+
+from sweep_core.errors import SceneError
+
+#: seconds a worker is given to finish after ``close`` before it is terminated
+CLOSE_WAIT = 5.0
+
+
+def shares(k: int, w: int) -> list[range]:
+    """The environments (indices into 0..k-1) of each of w workers: contiguous, sizes
+    differing by at most one, the larger first."""
+    return [range(i * k // w, (i + 1) * k // w) for i in range(w)]
+
+
+def start_method() -> str:
+    """How workers start: "fork" on Linux, else "spawn" (module docstring)."""
+    return "fork" if sys.platform.startswith("linux") else "spawn"
+
+
+def step_all(envs: list[Any], done: np.ndarray, actions: np.ndarray) -> list[tuple]:
+    """One step of each environment (next-step autoreset: one whose episode ended, ``done``,
+    is reset instead and its action ignored): (obs, reward, terminated, truncated, info)
+    each, in order."""
+    out = []
+    for i, env in enumerate(envs):
+        if done[i]:
+            obs, info = env.reset()
+            out.append((obs, 0.0, False, False, info))
+        else:
+            out.append(env.step(actions[i]))
+    return out
+
+
+def _serve(conn: Connection, scene: Any, count: int, kwargs: dict[str, Any]) -> None:
+    """A worker's loop: builds ``count`` environments, then answers the parent's requests
+    ("reset", seeds, options), ("step", done, actions) and ("close",) until "close" or the
+    parent is gone. A failure is sent back, not raised."""
+    from sweep_core.envs.crowdnav import CrowdNavEnv
+    try:
+        envs = [CrowdNavEnv(scene=scene, **kwargs) for _ in range(count)]
+        conn.send(("ok", None))
+    except BaseException as err:  # noqa: BLE001 - reported to the parent
+        conn.send(("error", portable(err)))
+        return
+    while True:
+        try:
+            msg = conn.recv()
+        except (EOFError, OSError):
+            return
+        if msg[0] == "close":
+            for env in envs:
+                env.close()
+            conn.send(("ok", None))
+            return
+        try:
+            if msg[0] == "reset":
+                seeds, options = msg[1], msg[2]
+                answer = [env.reset(seed=s, options=options) for env, s in zip(envs, seeds)]
+            else:
+                answer = step_all(envs, msg[1], msg[2])
+            conn.send(("ok", answer))
+        except BaseException as err:  # noqa: BLE001 - reported to the parent
+            conn.send(("error", portable(err)))
+
+
+def portable(err: BaseException) -> tuple:
+    """An exception as the parent can raise it again: a SceneError's three parts, else its
+    type's name and message."""
+    if isinstance(err, SceneError):
+        return ("scene", err.field, err.problem, err.fix)
+    return ("other", type(err).__name__, str(err))
+
+
+def reraise(worker: int, what: tuple) -> None:
+    """Raises the failure of worker ``worker`` (:func:`portable`'s tuple) in the parent."""
+    if what[0] == "scene":
+        raise SceneError(what[1], what[2], what[3])
+    raise RuntimeError(f"worker {worker} of the vector environment failed: {what[1]}: "
+                       f"{what[2]}")
+
+
+class Workers:
+    """W worker processes holding the K environments in contiguous shares (module
+    docstring); ``scene`` a Scene or scene dict, ``kwargs`` the environments' arguments."""
+
+    def __init__(self, k: int, w: int, scene: Any, kwargs: dict[str, Any]) -> None:
+        self.shares = shares(k, w)
+        ctx = multiprocessing.get_context(start_method())
+        self.conns: list[Connection] = []
+        self.procs: list[Any] = []
+        try:
+            for share in self.shares:
+                mine, theirs = ctx.Pipe()
+                proc = ctx.Process(target=_serve, args=(theirs, scene, len(share), kwargs),
+                                   daemon=True, name="sweep-env-worker")
+                proc.start()
+                theirs.close()
+                self.conns.append(mine)
+                self.procs.append(proc)
+            self._gather()
+        except BaseException:
+            self.close()
+            raise
+
+    def reset(self, seeds: list[int | None], options: dict[str, Any] | None) -> list[tuple]:
+        """(obs, info) of each environment, reset with its seed."""
+        for conn, share in zip(self.conns, self.shares):
+            conn.send(("reset", [seeds[i] for i in share], options))
+        return self._gather()
+
+    def step(self, done: np.ndarray, actions: np.ndarray) -> list[tuple]:
+        """:func:`step_all` over the K environments, each share in its worker."""
+        for conn, share in zip(self.conns, self.shares):
+            conn.send(("step", done[share.start:share.stop], actions[share.start:share.stop]))
+        return self._gather()
+
+    def _gather(self) -> list:
+        out: list = []
+        failed = None
+        for w, conn in enumerate(self.conns):
+            try:
+                status, answer = conn.recv()
+            except (EOFError, OSError):
+                status, answer = "error", ("other", "EOFError", "the worker process ended "
+                                           f"(exit code {self.procs[w].exitcode})")
+            if status == "error":
+                failed = failed or (w, answer)
+            elif answer is not None:
+                out.extend(answer)
+        if failed is not None:
+            reraise(*failed)
+        return out
+
+    def close(self) -> None:
+        """Asks every worker to end; terminates those that have not within CLOSE_WAIT s."""
+        for conn in self.conns:
+            try:
+                conn.send(("close",))
+            except (OSError, ValueError):
+                pass
+        for conn, proc in zip(self.conns, self.procs):
+            proc.join(CLOSE_WAIT)
+            if proc.is_alive():
+                proc.terminate()
+                proc.join(CLOSE_WAIT)
+            conn.close()
+        self.conns, self.procs = [], []
