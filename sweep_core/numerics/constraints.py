@@ -63,16 +63,17 @@ class Rows:
         unit vectors re (K, 2) and bounds h (K,) m of <re_k, x_ri - x_rj> >= h_k (or
         <re_k, x_ri> >= h_k). The bounds are small (a step's motion), so a slack is computed
         to about 1e-18 m instead of the 1e-15 m of absolute positions."""
-        hp = self.pair_b - np.einsum("kc,kc->k", self.pair_e, q[self.pair_i] - q[self.pair_j])
-        hs = self.single_b - np.einsum("kc,kc->k", self.single_n, q[self.single_a])
-        ri = np.concatenate([self.pair_i, self.single_a]).astype(np.int64)
-        rj = np.concatenate([self.pair_j, np.full(len(self.single_a), -1)]).astype(np.int64)
-        re = np.ascontiguousarray(np.concatenate([self.pair_e, self.single_n]), dtype=float)
-        return ri, rj, re, np.concatenate([hp, hs])
+        k = self.count
+        ri, rj = np.empty(k, dtype=np.int64), np.empty(k, dtype=np.int64)
+        re, h = np.empty((k, 2)), np.empty(k)
+        displacement_rows(np.ascontiguousarray(q, dtype=np.float64), self.pair_i, self.pair_j,
+                          self.pair_e, self.pair_b, self.single_a, self.single_n,
+                          self.single_b, ri, rj, re, h)
+        return ri, rj, re, h
 
     def agents(self) -> np.ndarray:
         """Sorted indices of the agents that appear in any row."""
-        return np.unique(np.concatenate([self.pair_i, self.pair_j, self.single_a]))
+        return row_agents(self.pair_i, self.pair_j, self.single_a)
 
 
 @numba.njit(cache=True)
@@ -88,6 +89,43 @@ def row_residuals(y: np.ndarray, pi: np.ndarray, pj: np.ndarray, pe: np.ndarray,
     for k in range(len(sb)):
         a = sa[k]
         rs[k] = (sn[k, 0] * y[a, 0] + sn[k, 1] * y[a, 1]) - sb[k]
+
+
+@numba.njit(cache=True, nogil=True)
+def displacement_rows(q: np.ndarray, pi: np.ndarray, pj: np.ndarray, pe: np.ndarray,
+                      pb: np.ndarray, sa: np.ndarray, sn: np.ndarray, sb: np.ndarray,
+                      ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.ndarray
+                      ) -> None:  # pragma: no cover - compiled
+    """:meth:`Rows.displacement_rows` into ri, rj (K,), re (K, 2), h (K,), pair rows first:
+    h = b - <e, q_i - q_j> and b - <n, q_a>, each product sum in the order numpy's
+    ``einsum("kc,kc->k")`` takes (x then y), so the bits are the same."""
+    m = len(pb)
+    for k in range(m):
+        i, j = pi[k], pj[k]
+        h[k] = pb[k] - (pe[k, 0] * (q[i, 0] - q[j, 0]) + pe[k, 1] * (q[i, 1] - q[j, 1]))
+        ri[k], rj[k] = i, j
+        re[k, 0], re[k, 1] = pe[k, 0], pe[k, 1]
+    for k in range(len(sb)):
+        a = sa[k]
+        h[m + k] = sb[k] - (sn[k, 0] * q[a, 0] + sn[k, 1] * q[a, 1])
+        ri[m + k], rj[m + k] = a, -1
+        re[m + k, 0], re[m + k, 1] = sn[k, 0], sn[k, 1]
+
+
+@numba.njit(cache=True, nogil=True)
+def row_agents(pi: np.ndarray, pj: np.ndarray, sa: np.ndarray
+               ) -> np.ndarray:  # pragma: no cover - compiled
+    """The sorted distinct agents (intp) of the rows (what ``np.unique`` of the three gives),
+    by marking them."""
+    top = -1
+    for arr in (pi, pj, sa):
+        for k in range(len(arr)):
+            top = max(top, arr[k])
+    mark = np.zeros(top + 1, dtype=np.bool_)
+    for arr in (pi, pj, sa):
+        for k in range(len(arr)):
+            mark[arr[k]] = True
+    return np.flatnonzero(mark).astype(np.intp)
 
 
 def linearise(geom: Geometry, t1: float, q: np.ndarray, r1: np.ndarray, cut: float) -> Rows:

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from sweep_core.numerics.projection import dual, factored
@@ -91,8 +92,25 @@ def rounding_floor(d: np.ndarray, h: np.ndarray) -> float:
     with them the floor was 3 times larger in a jam at a door (bounds down to -0.15 m against
     displacements of 0.05 m), and the skin's cost in the gap, 4 floor sum lam, kept the bound
     of half the steps of a 1000-agent jam of radii 0.20-0.27 m above 1e-6 m."""
-    scale = max(float(np.abs(d).max(initial=0.0)), float(np.max(h, initial=0.0)), 1e-3)
+    large_d, large_h = largest_scale(np.ascontiguousarray(d, dtype=np.float64).reshape(-1),
+                                     np.ascontiguousarray(h, dtype=np.float64))
+    scale = max(large_d, large_h, 1e-3)
     return 64.0 * float(np.finfo(float).eps) * scale
+
+
+@numba.njit(cache=True, nogil=True)
+def largest_scale(d: np.ndarray, h: np.ndarray) -> tuple[float, float]:  # pragma: no cover
+    """max(|d|) and max(h), each from 0 (numpy's max with ``initial=0``: NaN as soon as one
+    value is)."""
+    out = [0.0, 0.0]
+    for which, values in enumerate((d, h)):
+        m = 0.0
+        for v in values:
+            v = abs(v) if which == 0 else v
+            if not v <= m:  # larger, or NaN
+                m = v if m == m else m
+        out[which] = m
+    return out[0], out[1]
 
 
 def certify(x: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.ndarray,
@@ -105,21 +123,57 @@ def certify(x: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np
     so the squared bounds sum to at most tol^2), and never below the skin's rounding floor's
     cost 4 floor sum_c lam."""
     comp, low, total = dual.cluster_certificates(x, ri, rj, re, h, lam, label, clusters)
-    gap = np.where(low >= 0.0, np.maximum(comp, 0.0), np.inf)
     budget = budgets(label, clusters, total, tol, floor)
-    return gap, budget, gap <= budget, low
+    gap, done = np.empty(clusters), np.empty(clusters, dtype=np.bool_)
+    judged(comp, low, budget, gap, done)
+    return gap, budget, done, low
 
 
 def budgets(label: np.ndarray, clusters: int, total: np.ndarray, tol: float, floor: float
             ) -> np.ndarray:
     """The gap (m^2) each cluster may keep (:func:`certify`): label (N,) the cluster of each
     agent (-1: none), total (clusters,) the sum of its multipliers (m)."""
-    sizes = np.bincount(label[label >= 0], minlength=clusters).astype(float)
-    share = sizes / max(float(sizes.sum()), 1.0)
-    lam_all = float(total.sum())
-    if lam_all > 0.0:
-        share = 0.5 * (share + total / lam_all)
-    return np.maximum(0.5 * tol * tol * share, 4.0 * floor * total)
+    total = np.ascontiguousarray(total, dtype=np.float64)
+    out = np.empty(clusters)
+    # the sum of the multipliers in numpy's (pairwise) order; the rest elementwise
+    shares(label, total, float(total.sum()), 0.5 * tol * tol, 4.0 * floor, out)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def shares(label: np.ndarray, total: np.ndarray, lam_all: float, half_tol2: float,
+           floor4: float, out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:func:`budgets` into out (clusters,): sizes counted, share = size / agents (the count
+    of agents in rows, an integer: exact in any order), averaged with total / lam_all when
+    lam_all > 0, and max(half_tol2 share, floor4 total) as numpy's maximum."""
+    clusters = out.shape[0]
+    sizes = np.zeros(clusters)
+    for a in range(label.shape[0]):
+        if label[a] >= 0:
+            sizes[label[a]] += 1.0
+    count = 0.0
+    for c in range(clusters):
+        count += sizes[c]
+    count = max(count, 1.0)
+    for c in range(clusters):
+        share = sizes[c] / count
+        if lam_all > 0.0:
+            share = 0.5 * (share + total[c] / lam_all)
+        a, b = half_tol2 * share, floor4 * total[c]
+        out[c] = a if (a >= b or a != a) else b
+
+
+@numba.njit(cache=True, nogil=True)
+def judged(comp: np.ndarray, low: np.ndarray, budget: np.ndarray, gap: np.ndarray,
+           done: np.ndarray) -> None:  # pragma: no cover - compiled
+    """gap = max(comp, 0) where low >= 0, else inf (a row broken), as numpy's maximum; done =
+    gap <= budget."""
+    for c in range(comp.shape[0]):
+        g = comp[c]
+        if not (g >= 0.0 or g != g):
+            g = 0.0
+        gap[c] = g if low[c] >= 0.0 else np.inf
+        done[c] = gap[c] <= budget[c]
 
 
 def solve(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.ndarray,
