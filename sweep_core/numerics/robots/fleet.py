@@ -298,9 +298,11 @@ class Fleet:
         fixed = [k for k, st in enumerate(states) if st.robot.prescribed]
         geom = self._with_disks(self.scene.geometry.at(t1), [targets[k][:2] for k in fixed],
                                 [states[k].robot.radius for k in fixed])
-        q_all = np.concatenate([q, np.array([states[k].pose[:2] for k in free]).reshape(-1, 2)])
-        p_all = np.concatenate([pred, np.array([targets[k][:2] for k in free]).reshape(-1, 2)])
-        r_all = np.concatenate([r1, [states[k].robot.radius for k in free]])
+        q_all, p_all, r_all = q, pred, r1  # read only: the projection copies what it changes
+        if free:
+            q_all = np.concatenate([q, np.array([states[k].pose[:2] for k in free])])
+            p_all = np.concatenate([pred, np.array([targets[k][:2] for k in free])])
+            r_all = np.concatenate([r1, [states[k].robot.radius for k in free]])
         weights = [states[k].robot.weight for k in free]
         warm = scheme.warm if scheme.warm is not None and len(scheme.warm.y) == len(q_all) \
             else None
@@ -378,9 +380,10 @@ class Fleet:
             if spec is None or self.step_index % self.every[k]:
                 continue
             others = [s for s in self.states.values() if s is not st]
-            disks = np.concatenate([people, np.array([s.pose[:2] for s in others]
-                                                     ).reshape(-1, 2)])
-            disk_r = np.concatenate([radii, [s.robot.radius for s in others]])
+            disks, disk_r = people, radii
+            if others:
+                disks = np.concatenate([people, np.array([s.pose[:2] for s in others])])
+                disk_r = np.concatenate([radii, [s.robot.radius for s in others]])
             # the stream of Generator(PCG64([seed, k, step])), on a kept generator
             rng = (noise.reseed(self._scan_rng, (self.seed, k, self.step_index))
                    if spec.noise_std > 0 else None)

@@ -116,6 +116,37 @@ def _cos_sin(yaw: float, angles: np.ndarray, ux: np.ndarray, uy: np.ndarray
         uy[k] = math.sin(a)
 
 
+@numba.njit(cache=True, nogil=True)
+def finite_count(ranges: np.ndarray) -> int:  # pragma: no cover - compiled
+    """The beams with a return (finite ranges)."""
+    count = 0
+    for v in ranges:
+        if np.isfinite(v):
+            count += 1
+    return count
+
+
+@numba.njit(cache=True, nogil=True)
+def finish_ranges(ranges: np.ndarray, draws: np.ndarray, noise_std: float, range_min: float,
+                  range_max: float) -> None:  # pragma: no cover - compiled
+    """In place: the k-th finite range gets noise_std times the k-th draw (none without
+    draws), then ranges below range_min read -inf (too close to measure) and above range_max
+    +inf (no return within range), REP 117's conventions; the operations of numpy's
+    ``ranges[hit] += noise_std * draws`` and masks, in their order."""
+    if draws.shape[0]:
+        k = 0
+        for b in range(ranges.shape[0]):
+            if np.isfinite(ranges[b]):
+                ranges[b] = ranges[b] + noise_std * draws[k]
+                k += 1
+    for b in range(ranges.shape[0]):
+        if ranges[b] < range_min:
+            ranges[b] = -np.inf
+    for b in range(ranges.shape[0]):
+        if ranges[b] > range_max:
+            ranges[b] = np.inf
+
+
 def scan(spec: ScanSpec, pose: tuple[float, float, float], t: float, step: int,
          geometry: Geometry, disks: np.ndarray, disk_radii: np.ndarray,
          rng: np.random.Generator | None = None) -> Scan:
@@ -123,17 +154,20 @@ def scan(spec: ScanSpec, pose: tuple[float, float, float], t: float, step: int,
     are the people and the other robots (m); ``rng`` draws the range noise (None: none)."""
     geom = geometry.at(t)
     ux, uy = beam_directions(pose[2], spec)
-    centers = np.ascontiguousarray(np.concatenate([disks, geom.circle_center]), dtype=float)
-    radii = np.ascontiguousarray(np.concatenate([disk_radii, geom.circle_radius]), dtype=float)
+    if len(geom.circle_radius):
+        disks = np.concatenate([disks, geom.circle_center])
+        disk_radii = np.concatenate([disk_radii, geom.circle_radius])
+    centers = np.ascontiguousarray(disks, dtype=float)
+    radii = np.ascontiguousarray(disk_radii, dtype=float)
     hp_c = np.ascontiguousarray(geom.halfplane_offset + geom.halfplane_velocity * t, dtype=float)
     ranges = ray_cast(float(pose[0]), float(pose[1]), ux, uy, centers.reshape(-1, 2), radii,
                       np.ascontiguousarray(geom.segment_a, dtype=float).reshape(-1, 2),
                       np.ascontiguousarray(geom.segment_b, dtype=float).reshape(-1, 2),
                       np.ascontiguousarray(geom.halfplane_normal, dtype=float).reshape(-1, 2),
                       hp_c, float(spec.range_max))
-    if rng is not None and spec.noise_std > 0:
-        hit = np.isfinite(ranges)
-        ranges[hit] += spec.noise_std * rng.standard_normal(int(hit.sum()))
-    ranges[ranges < spec.range_min] = -np.inf  # REP 117: too close to measure
-    ranges[ranges > spec.range_max] = np.inf  # REP 117: no return within range
+    noisy = rng is not None and spec.noise_std > 0
+    draws = (rng.standard_normal(finite_count(ranges)) if noisy  # type: ignore[union-attr]
+             else np.empty(0))
+    finish_ranges(ranges, draws, float(spec.noise_std) if noisy else 0.0,
+                  float(spec.range_min), float(spec.range_max))
     return Scan(t, step, (float(pose[0]), float(pose[1]), float(pose[2])), ranges, spec)
