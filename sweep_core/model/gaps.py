@@ -59,9 +59,12 @@ def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
     q = np.ascontiguousarray(q, dtype=np.float64)
     r = np.ascontiguousarray(r, dtype=np.float64)
     r_max = float(r.max(initial=0.0))
-    i, j = pairs_within(q, 2.0 * r_max + contact_tol)
-    pg = np.empty(len(i))
-    contacts, w = pair_gaps(q, r, i, j, float(contact_tol), pg)
+    if len(q) > 1:
+        i, j = pairs_within(q, 2.0 * r_max + contact_tol)
+        pg = np.empty(len(i))
+        contacts, w = pair_gaps(q, r, i, j, float(contact_tol), pg)
+    else:  # one disk (a robot's target, say): no pair
+        i, j, pg, contacts, w = _EMPTY, _EMPTY, np.empty(0), 0, -1
     worst_pair = None
     min_pair = np.inf
     if w >= 0:

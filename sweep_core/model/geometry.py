@@ -123,7 +123,8 @@ class Geometry:
             self.__dict__["_added_circles"] = kept
         out = object.__new__(Geometry)
         cache = out.__dict__
-        cache.update((name, self.__dict__[name]) for name in _FIELDS)
+        own = self.__dict__
+        cache.update({name: own[name] for name in _FIELDS})
         cache["circle_center"] = np.concatenate([self.circle_center, centres])
         cache["circle_radius"] = np.concatenate([self.circle_radius, radii])
         cache["circle_index"], cache["circle_motion"] = kept[1], kept[2]
