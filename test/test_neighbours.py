@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sweep_core.model.neighbours import pairs_within
+from sweep_core.model.neighbours import SizedSearch, pairs_within
 
 
 def brute(q: np.ndarray, reach: float) -> set[tuple[int, int]]:
@@ -101,3 +101,21 @@ def test_indexed_rows_equal_dense_rows() -> None:
         order = np.lexsort((fast[1], fast[0]))
         assert np.array_equal(fast[0][order], a) and np.array_equal(fast[1][order], k)
         assert np.allclose(fast[2][order], dense[0][a, k], rtol=0, atol=1e-12)
+
+
+def test_room_made_first_does_not_change_the_pairs() -> None:
+    """A search started with room for more or fewer pairs than it finds returns the same
+    pairs in the same order; a SizedSearch keeps the last count and a quarter more."""
+    rng = np.random.default_rng(5)
+    q = rng.uniform(0, 6, (300, 2))
+    want = pairs_within(q, 1.5)
+    assert len(want[0]) > 4 * len(q)  # more than the room a search starts with
+    for expect in (0, 10, len(want[0]) - 1, len(want[0]), 10 * len(want[0])):
+        got = pairs_within(q, 1.5, expect)
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    search = SizedSearch()
+    for reach in (1.5, 0.4, 1.5):
+        got = search(q, reach)
+        ref = pairs_within(q, reach)
+        assert np.array_equal(got[0], ref[0]) and np.array_equal(got[1], ref[1])
+        assert search.expect == len(ref[0]) + len(ref[0]) // 4

@@ -140,20 +140,39 @@ def _pairs_sorted(q: np.ndarray, reach: float, x0: float, y0: float, ny: int,
 _GRID_CELLS_PER_AGENT = 4
 
 
-def pairs_within(q: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+def pairs_within(q: np.ndarray, reach: float, expect: int = 0
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """Index arrays (i, j), i < j, of the pairs of centres q (N, 2) at most ``reach`` m apart
-    (``reach`` > 0), in an order that depends on the positions alone."""
+    (``reach`` > 0), in an order that depends on the positions alone. ``expect``: about how
+    many pairs the caller expects (its last count, say): room for max(4 N, expect) pairs is
+    made first, and the search runs again only when more are found (the pairs are the same
+    either way)."""
     q = np.ascontiguousarray(q, dtype=np.float64)
     if len(q) < 2:
         return _NONE, _NONE
-    return _pairs(q, float(reach))
+    return _pairs(q, float(reach), int(expect))
 
 
 _NONE = np.empty(0, dtype=np.intp)
 
 
+class SizedSearch:
+    """:func:`pairs_within` for one call site whose searches find many more pairs than 4 per
+    agent (a speed law's reach): each search makes room first for the last one's count and a
+    quarter more, so that it rarely runs twice. The count is a hint only (the pairs found do
+    not depend on it); one instance may serve any number of simulations and threads."""
+
+    def __init__(self) -> None:
+        self.expect = 0
+
+    def __call__(self, q: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+        i, j = pairs_within(q, reach, self.expect)
+        self.expect = len(i) + len(i) // 4
+        return i, j
+
+
 @numba.njit(cache=True, nogil=True)
-def _pairs(q: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+def _pairs(q: np.ndarray, reach: float, expect: int) -> tuple[np.ndarray, np.ndarray]:
     """:func:`pairs_within` for N >= 2: the grid's extent, the dense grid or the sorted cells,
     and output arrays grown until the pairs fit."""
     n = q.shape[0]
@@ -164,7 +183,7 @@ def _pairs(q: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
     nx = int((x1 - x0) / reach) + 1
     ny = int((y1 - y0) / reach) + 1
     dense = nx * ny <= _GRID_CELLS_PER_AGENT * n + 64
-    capacity = 4 * n
+    capacity = max(4 * n, expect)
     while True:
         i = np.empty(capacity, dtype=np.intp)
         j = np.empty(capacity, dtype=np.intp)

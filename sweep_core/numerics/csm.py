@@ -44,7 +44,7 @@ import math
 import numba
 import numpy as np
 
-from sweep_core.model.neighbours import pairs_within
+from sweep_core.model.neighbours import SizedSearch
 
 #: repulsion terms with exponent (l - d) / D below -CUT are left out (a e^-CUT, a 1e-4 of a)
 CUT = 9.2
@@ -211,6 +211,10 @@ def leader_push(v: np.ndarray, e: np.ndarray, lead: np.ndarray, beta: float) -> 
     return out
 
 
+#: the speed law's pair search (its reach holds many more pairs than 4 per agent)
+_SEARCH = SizedSearch()
+
+
 def csm(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float, strength: float,
         reach: float, lateral: float = 1.0, fade: float = -1.0,
         length: float = 1.0, beta: float = 0.0, walls: np.ndarray | None = None
@@ -231,7 +235,7 @@ def csm(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float, strength: 
         return u.copy()
     rmax = 2.0 * float(r.max())
     far = max(top * time_gap, CUT * reach if strength > 0.0 else 0.0)
-    pi, pj = pairs_within(q, rmax + far)
+    pi, pj = _SEARCH(q, rmax + far)
     q = np.ascontiguousarray(q)
     r = np.ascontiguousarray(r, dtype=np.float64)
     u = np.ascontiguousarray(u)

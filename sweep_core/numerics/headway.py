@@ -21,7 +21,7 @@ import math
 import numba
 import numpy as np
 
-from sweep_core.model.neighbours import pairs_within
+from sweep_core.model.neighbours import SizedSearch
 
 
 @numba.njit(cache=True, nogil=True)
@@ -69,6 +69,10 @@ def slow_down(u: np.ndarray, s: np.ndarray, time_gap: float) -> np.ndarray:
     return out
 
 
+#: the headway law's pair search (its reach holds many more pairs than 4 per agent)
+_SEARCH = SizedSearch()
+
+
 def headway(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float,
             margin: float = 0.0) -> np.ndarray:
     """The wished velocities u (N, 2) m/s under the headway law with time gap T (s) and
@@ -82,7 +86,7 @@ def headway(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float,
     if top == 0.0:
         return u.copy()
     reach = top * time_gap + 2.0 * float(r.max()) + margin
-    pi, pj = pairs_within(q, reach)
+    pi, pj = _SEARCH(q, reach)
     s = free_distances(np.ascontiguousarray(q), np.ascontiguousarray(r, dtype=np.float64),
                        np.ascontiguousarray(u), pi, pj, float(margin))
     return slow_down(np.ascontiguousarray(u), s, float(time_gap))
