@@ -208,3 +208,16 @@ def test_a_workers_failure_is_raised_in_the_parent_as_it_was() -> None:
         workers.reraise(0, workers.portable(ZeroDivisionError("division by zero")))
     assert str(other.value) == ("worker 0 of the vector environment failed: ZeroDivisionError: "
                                 "division by zero")
+
+
+def test_spawned_workers_step_the_same_episodes(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where the platform does not fork (macOS, Windows), workers are spawned: the scene and
+    the arguments reach them by pickling, and the episodes are the same bit for bit."""
+    from sweep_core.envs import workers
+    monkeypatch.setattr(workers, "start_method", lambda: "spawn")
+    split = vector.make(num_envs=2, workers=2, **KW)
+    mine = vector.make(num_envs=2, **KW)
+    assert all(p.is_alive() for p in split.workers.procs)
+    assert same(rollout(split, 7, 5), rollout(mine, 7, 5))
+    split.close()
+    mine.close()
