@@ -221,3 +221,20 @@ def test_spawned_workers_step_the_same_episodes(monkeypatch: pytest.MonkeyPatch)
     assert same(rollout(split, 7, 5), rollout(mine, 7, 5))
     split.close()
     mine.close()
+
+
+def test_a_worker_that_ended_is_reported_in_one_line() -> None:
+    """A worker killed from outside: the next step says which one ended and what to do,
+    instead of a broken pipe's traceback."""
+    split = vector.make(num_envs=2, workers=2, **KW)
+    split.reset(seed=0)
+    procs = list(split.workers.procs)
+    split.workers.procs[1].kill()
+    split.workers.procs[1].join(10)
+    with pytest.raises(RuntimeError) as err:
+        for _ in range(3):  # the pipe may take a send to notice
+            split.step(actions(2, 0))
+    text = str(err.value)
+    assert "\n" not in text and "worker 1" in text and ("ended" in text), text
+    split.close()
+    assert not any(p.is_alive() for p in procs)

@@ -17,6 +17,7 @@ process.
 from __future__ import annotations
 
 import multiprocessing
+import signal
 import sys
 from multiprocessing.connection import Connection
 from typing import Any
@@ -59,6 +60,9 @@ def _serve(conn: Connection, scene: Any, count: int, kwargs: dict[str, Any]) -> 
     ("reset", seeds, options), ("step", done, actions) and ("close",) until "close" or the
     parent is gone. A failure is sent back, not raised."""
     from sweep_core.envs.crowdnav import CrowdNavEnv
+    # Ctrl-C is the parent's to handle (it ends the workers); a worker would only print a
+    # traceback of its own
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         envs = [CrowdNavEnv(scene=scene, **kwargs) for _ in range(count)]
         conn.send(("ok", None))
@@ -127,15 +131,25 @@ class Workers:
 
     def reset(self, seeds: list[int | None], options: dict[str, Any] | None) -> list[tuple]:
         """(obs, info) of each environment, reset with its seed."""
-        for conn, share in zip(self.conns, self.shares):
-            conn.send(("reset", [seeds[i] for i in share], options))
+        for w, share in enumerate(self.shares):
+            self._send(w, ("reset", [seeds[i] for i in share], options))
         return self._gather()
 
     def step(self, done: np.ndarray, actions: np.ndarray) -> list[tuple]:
         """:func:`step_all` over the K environments, each share in its worker."""
-        for conn, share in zip(self.conns, self.shares):
-            conn.send(("step", done[share.start:share.stop], actions[share.start:share.stop]))
+        for w, share in enumerate(self.shares):
+            self._send(w, ("step", done[share.start:share.stop], actions[share.start:share.stop]))
         return self._gather()
+
+    def _send(self, w: int, msg: tuple) -> None:
+        if not self.conns:
+            raise RuntimeError("the vector environment is closed: make a new one")
+        try:
+            self.conns[w].send(msg)
+        except (OSError, ValueError):
+            raise RuntimeError(f"worker {w} of the vector environment has ended (exit code "
+                               f"{self.procs[w].exitcode}): close it and make a new "
+                               "one") from None
 
     def _gather(self) -> list:
         out: list = []
