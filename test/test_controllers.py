@@ -79,7 +79,7 @@ def test_controller_needs_a_goal_and_keeps_its_parameters():
 
 
 @pytest.mark.parametrize("kind", ["diff_drive", "holonomic"])
-@pytest.mark.parametrize("controller", ["orca", "social_force"])
+@pytest.mark.parametrize("controller", ["orca", "social_force", "window"])
 def test_commands_respect_the_limits_and_the_fleet_never_clips_them(controller, kind):
     scene = _scene(controller, people=((2.0, 0.4), (3.0, -0.5), (4.0, 0.2)),
                    kinematics={**LIMITS, "type": kind})
@@ -101,7 +101,7 @@ def test_commands_respect_the_limits_and_the_fleet_never_clips_them(controller, 
     assert st.pose[0] > 1.0  # and it went somewhere
 
 
-@pytest.mark.parametrize("controller", ["orca", "social_force"])
+@pytest.mark.parametrize("controller", ["orca", "social_force", "window"])
 def test_a_person_beyond_the_sensor_range_changes_nothing(controller):
     scene = _scene({"kind": controller, "sensor_range": 3.0}, people=((1.5, 0.3),))
     sim = Simulator(scene, dt=0.05, seed=0)
@@ -142,7 +142,7 @@ def test_pursuit_collides_head_on():
     assert contacts > 0 and least <= 1e-6
 
 
-@pytest.mark.parametrize("controller", ["orca", "social_force"])
+@pytest.mark.parametrize("controller", ["orca", "social_force", "window"])
 def test_planners_steer_round_a_person_walking_head_on(controller):
     reached, contacts, least = _head_on(controller)
     assert reached and contacts == 0 and least > 1e-6

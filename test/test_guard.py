@@ -77,7 +77,7 @@ def test_the_nearest_safe_velocity_slides_past_a_person_in_contact():
                         1.0, 0.0, 0.5) == pytest.approx([0.0, 0.0], abs=1e-12)
 
 
-@pytest.mark.parametrize("controller", ["orca", "social_force"])
+@pytest.mark.parametrize("controller", ["orca", "social_force", "window"])
 def test_planners_brake_for_a_person_who_may_close_in(controller):
     # moving at 0.5 m/s, a person 0.3 m ahead (edge to edge): with people closing at up to
     # 0.5 m/s the robot cannot be at rest in time at this speed, so it brakes as hard as it
@@ -88,7 +88,7 @@ def test_planners_brake_for_a_person_who_may_close_in(controller):
     assert cmd[0] == pytest.approx(0.5 - 0.01, abs=1e-12)
 
 
-@pytest.mark.parametrize("controller", ["orca", "social_force"])
+@pytest.mark.parametrize("controller", ["orca", "social_force", "window"])
 def test_a_holonomic_robot_at_rest_never_advances_into_a_person_in_contact(controller):
     scene, robot = _robot("holonomic", {"kind": controller, "stop_margin": 0.05})
     for y in (-0.1, 0.0, 0.2):  # the person touching it, ahead and a little to the side
@@ -245,7 +245,7 @@ def test_tracker_and_wall_search_keep_the_bits_of_the_numpy_forms() -> None:
         want = track_numpy(1.0, old, tracker.v, 1.1, xy)
         assert tracker.update(1.1, xy).tobytes() == want.tobytes()
 
-    planner = planners._Planner.__new__(planners._Planner)
+    planner = planners.Planner.__new__(planners.Planner)
     for _ in range(400):
         s = int(rng.integers(1, 10))
         a = rng.uniform(-5, 5, (s, 2))

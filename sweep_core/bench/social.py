@@ -37,6 +37,8 @@ from sweep_core.text import text_table
 
 SCENES = ("robot_crowd", "crowdnav")
 BENCH_CONTROLLERS = tuple(c for c in CONTROLLERS if c != "none")
+#: the controllers run unless --controllers names others (within the table's time budget)
+DEFAULT_CONTROLLERS = ("pursuit", "orca", "social_force")
 #: most seeds per (scene, controller)
 MAX_SEEDS = 1000
 SUMMARY = ("scene", "controller", "runs", "success", "success_no_contact", "robot_contacts",
@@ -167,8 +169,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     p.add_argument("--scenes", nargs="+", default=list(SCENES),
                    help=f"bundled robot scenes (default {' '.join(SCENES)})")
-    p.add_argument("--controllers", nargs="+", default=list(BENCH_CONTROLLERS),
-                   help=f"controllers (default {' '.join(BENCH_CONTROLLERS)})")
+    p.add_argument("--controllers", nargs="+", default=list(DEFAULT_CONTROLLERS),
+                   help=f"controllers, some of {' '.join(BENCH_CONTROLLERS)} (default "
+                        f"{' '.join(DEFAULT_CONTROLLERS)})")
     p.add_argument("--dt", type=float, default=0.01, help="time step, s (default 0.01)")
     p.add_argument("--t-end", type=float, default=None,
                    help="time limit of a run, s (default: the scene's horizon, else 30)")

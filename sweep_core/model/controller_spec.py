@@ -8,7 +8,9 @@ The planners (``sweep_core.numerics.robots``; docs/robots.md says what each sees
 - ``orca``: optimal reciprocal collision avoidance (van den Berg et al. 2011) among the people
   within ``sensor_range``, its preferred velocity along the geodesic field;
 - ``social_force``: the social force model (Helbing & Molnar 1995) of the robot among the
-  people within ``sensor_range``, its goal force along the geodesic field.
+  people within ``sensor_range``, its goal force along the geodesic field;
+- ``window``: sampled velocities scored by progress along the geodesic field against a
+  Gaussian forecast of the people within ``sensor_range`` (and of their avoid reaction).
 
 Each parameter is a finite number within its bounds (:data:`PARAMETERS`: default, low, high,
 unit, meaning); ``sensor_range`` defaults to the robot's scan ``range_max`` (5 m without a
@@ -23,7 +25,7 @@ from sweep_core import checks
 from sweep_core.errors import SceneError, show
 
 #: the bundled controllers, in the order the benchmark runs them
-CONTROLLERS = ("none", "pursuit", "orca", "social_force")
+CONTROLLERS = ("none", "pursuit", "orca", "social_force", "window")
 #: sensor range (m) of a robot without a scan
 DEFAULT_SENSOR_RANGE = 5.0
 #: most people a planner takes into account (the nearest first)
@@ -69,6 +71,25 @@ PARAMETERS: dict[str, dict[str, tuple[float | None, float, float, str, str]]] = 
                          "times the square root of the time (the safety layer)"),
         "wall_strength": (2.0, 0.0, 50.0, "m/s^2", "repulsion of a wall at contact"),
         "wall_range": (0.2, 0.05, 5.0, "m", "decay length of the wall repulsion"),
+        "turn_gain": (3.0, 0.1, 20.0, "1/s", "turn rate per rad of heading error "
+                      "(diff_drive)"),
+    },
+    "window": {
+        "sensor_range": (None, 0.5, 100.0, "m", "people within this distance are seen"),
+        "horizon": (1.0, 0.1, 10.0, "s", "how far ahead people are forecast"),
+        "spread": (0.3, 0.0, 5.0, "m/sqrt(s)", "forecast spread of a person per axis per "
+                   "square root of the time"),
+        "hazard_margin": (0.1, 0.0, 2.0, "m", "forecast gap counted as a contact"),
+        "hazard_weight": (2.0, 0.0, 100.0, "", "rate of the contact hazard in the chance "
+                          "of no contact"),
+        "passive": (0.25, 0.0, 10.0, "", "weight of a forecast contact the robot does not "
+                    "advance into, against one it drives into at full speed (1)"),
+        "steadiness": (0.1, 0.0, 10.0, "", "weight of a change of the chosen velocity"),
+        "stop_margin": (0.1, 0.0, 2.0, "m", "clearance it can always stop short of"),
+        "people_speed": (0.3, 0.0, 5.0, "m/s", "speed at which people are assumed to close "
+                         "in (the safety layer)"),
+        "people_noise": (0.0, 0.0, 5.0, "m/sqrt(s)", "people may also come closer by this "
+                         "times the square root of the time (the safety layer)"),
         "turn_gain": (3.0, 0.1, 20.0, "1/s", "turn rate per rad of heading error "
                       "(diff_drive)"),
     },

@@ -141,7 +141,7 @@ def world_velocity(obs: Observation) -> np.ndarray:
     return np.array([c * vx - s * vy, s * vx + c * vy])
 
 
-class _Planner:
+class Planner:
     """What both planners share: the goal field, the tracker, the walls near the robot."""
 
     def __init__(self, scene: Scene, robot: Robot) -> None:
@@ -178,7 +178,7 @@ class _Planner:
         return c[near], r[near]
 
 
-class Orca(_Planner):
+class Orca(Planner):
     """Optimal reciprocal collision avoidance (van den Berg, Guy, Lin & Manocha 2011, through
     the RVO2 library's Python bindings, ``pyrvo``): the velocity nearest the preferred one
     (the goal field's) outside every person's velocity obstacle truncated at ``time_horizon``
@@ -223,7 +223,7 @@ class Orca(_Planner):
         return to_command(self.robot, u, obs, p)
 
 
-class SocialForce(_Planner):
+class SocialForce(Planner):
     """The social force model (Helbing & Molnar 1995) driving the robot: its acceleration is
     (u0 - v) / ``relaxation`` (u0 the goal field's velocity, v the robot's) plus, from every
     person j seen, the gradient of ``strength`` range exp((R + r_j - b_j) / ``range``) with
@@ -306,6 +306,10 @@ def controller_for(scene: Scene, robot: Robot) -> Controller | None:
         return Orca(scene, robot)
     if robot.controller == "social_force":
         return SocialForce(scene, robot)
+    if robot.controller == "window":
+        from sweep_core.numerics.robots.window import Window  # it builds on Planner
+
+        return Window(scene, robot)
     return None
 
 
