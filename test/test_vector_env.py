@@ -238,3 +238,46 @@ def test_a_worker_that_ended_is_reported_in_one_line() -> None:
     assert "\n" not in text and "worker 1" in text and ("ended" in text), text
     split.close()
     assert not any(p.is_alive() for p in procs)
+
+
+def test_workers_end_when_their_parent_is_killed(tmp_path) -> None:
+    """A parent killed outright (no close, no exit handlers): its workers read the end of
+    their pipes and end, instead of waiting for it forever."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+    script = tmp_path / "parent.py"
+    script.write_text(
+        "import sys, time\n"
+        f"sys.path.insert(0, {str(Path(__file__).parent)!r})\n"
+        "from robot_scenes import small_scene\n"
+        "from sweep_core.envs import vector\n"
+        "env = vector.make(num_envs=2, workers=2, scene=small_scene(), dt=0.1, max_steps=4)\n"
+        "env.reset(seed=0)\n"
+        "print(' '.join(str(p.pid) for p in env.workers.procs), flush=True)\n"
+        "time.sleep(600)\n")
+    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    try:
+        pids = [int(p) for p in parent.stdout.readline().split()]  # type: ignore[union-attr]
+        assert len(pids) == 2
+    finally:
+        parent.kill()
+        parent.wait()
+
+    def alive(pid: int) -> bool:  # an ended worker no one has reaped yet is a zombie (Z)
+        try:
+            stat = Path(f"/proc/{pid}/stat").read_text()
+        except OSError:
+            return False
+        return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+    deadline = time.monotonic() + 30.0
+    while any(alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    left = [p for p in pids if alive(p)]
+    for p in left:
+        os.kill(p, signal.SIGKILL)
+    assert not left, f"workers {left} outlived their killed parent"

@@ -55,10 +55,15 @@ def step_all(envs: list[Any], done: np.ndarray, actions: np.ndarray) -> list[tup
     return out
 
 
-def _serve(conn: Connection, scene: Any, count: int, kwargs: dict[str, Any]) -> None:
+def _serve(conn: Connection, scene: Any, count: int, kwargs: dict[str, Any],
+           inherited: list[Connection]) -> None:
     """A worker's loop: builds ``count`` environments, then answers the parent's requests
     ("reset", seeds, options), ("step", done, actions) and ("close",) until "close" or the
-    parent is gone. A failure is sent back, not raised."""
+    parent is gone. A failure is sent back, not raised. ``inherited``: the parent's ends of
+    the pipes, which a forked worker holds copies of and closes, so that a parent that dies
+    ends every worker (its pipe reads end of file)."""
+    for end in inherited:
+        end.close()
     from sweep_core.envs.crowdnav import CrowdNavEnv
     # Ctrl-C is the parent's to handle (it ends the workers); a worker would only print a
     # traceback of its own
@@ -112,13 +117,16 @@ class Workers:
 
     def __init__(self, k: int, w: int, scene: Any, kwargs: dict[str, Any]) -> None:
         self.shares = shares(k, w)
-        ctx = multiprocessing.get_context(start_method())
+        method = start_method()
+        ctx = multiprocessing.get_context(method)
         self.conns: list[Connection] = []
         self.procs: list[Any] = []
         try:
             for share in self.shares:
                 mine, theirs = ctx.Pipe()
-                proc = ctx.Process(target=_serve, args=(theirs, scene, len(share), kwargs),
+                inherited = [*self.conns, mine] if method == "fork" else []
+                proc = ctx.Process(target=_serve,
+                                   args=(theirs, scene, len(share), kwargs, inherited),
                                    daemon=True, name="sweep-env-worker")
                 proc.start()
                 theirs.close()
