@@ -27,13 +27,13 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clusters import solve_active
-from sweep_core.numerics.robots import guard, social_kernels
+from sweep_core.numerics.robots import guard, social_kernels, window
 from sweep_core.numerics.robots import scan as robot_scan
 from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
 MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
-                                   noise, constraints, guard, social_kernels)
+                                   noise, constraints, guard, social_kernels, window)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -167,8 +167,14 @@ def _exercise() -> None:
     # a robot's scan (the ray cast against disks, segments and half-planes)
     robot_scan.ray_cast(0.0, 0.0, np.ones(2), np.zeros(2), np.ones((1, 2)), np.ones(1),
                         np.ones((1, 2)), 2 * np.ones((1, 2)), np.ones((1, 2)), np.ones(1), 5.0)
-    # its noise generator's seeding
+    # its noise and REP 117 marks, and its noise generator's seeding
+    ranges = np.array([1.0, np.inf])
+    robot_scan.finish_ranges(ranges, np.ones(robot_scan.finite_count(ranges)), 0.01, 0.05, 5.0)
     noise.pcg64_state((0, 0, 1))
+    # the sampling planner's forecast of the people it sees
+    two, one = np.ones((2, 2)), np.ones(1)
+    window.hazards(two, np.zeros(2), 0.3, np.ones((1, 2)), one * 0.2, np.zeros((1, 2)), 1.5, 1.0,
+                   0.6, 0.3, 0.1, 0.25, 1.0, 0.1, 1.0, np.empty(2))
     # the planners' safety layer
     guard.nearest_safe(np.array([1.0, 0.0]), (0.0, 0.0, 0.0), 0.3, np.ones((1, 2)),
                        np.ones(1) * 0.2, 1.0, 0.05, 0.5)
