@@ -172,9 +172,8 @@ def _exercise() -> None:
     robot_scan.finish_ranges(ranges, np.ones(robot_scan.finite_count(ranges)), 0.01, 0.05, 5.0)
     noise.pcg64_state((0, 0, 1))
     # the sampling planner's forecast of the people it sees
-    two, one = np.ones((2, 2)), np.ones(1)
-    window.hazards(two, np.zeros(2), 0.3, np.ones((1, 2)), one * 0.2, np.zeros((1, 2)), 1.5, 1.0,
-                   0.6, 0.3, 0.1, 0.25, 1.0, 0.1, 1.0, np.empty(2))
+    window.hazards(np.ones((2, 2)), np.zeros(2), 0.3, np.ones((1, 2)), np.full(1, 0.2),
+                   np.zeros((1, 2)), 1.5, 1.0, 0.6, 0.3, 0.1, 0.25, 1.0, 0.1, 1.0, np.empty(2))
     # the planners' safety layer
     guard.nearest_safe(np.array([1.0, 0.0]), (0.0, 0.0, 0.0), 0.3, np.ones((1, 2)),
                        np.ones(1) * 0.2, 1.0, 0.05, 0.5)
