@@ -31,6 +31,21 @@ DEFAULT_SENSOR_RANGE = 5.0
 #: most people a planner takes into account (the nearest first)
 MAX_NEIGHBOURS = 64
 
+#: the parameters the planners that see people share: what they see, and their safety layer
+#: (:mod:`sweep_core.numerics.robots.guard`) and heading control
+_SENSOR_RANGE = (None, 0.5, 100.0, "m", "people within this distance are seen")
+_STOP_MARGIN = (0.1, 0.0, 2.0, "m", "clearance it can always stop short of")
+_PEOPLE_NOISE = (0.0, 0.0, 5.0, "m/sqrt(s)", "people may also come closer by this times the "
+                 "square root of the time (the safety layer)")
+_TURN_GAIN = (3.0, 0.1, 20.0, "1/s", "turn rate per rad of heading error (diff_drive)")
+
+
+def _people_speed(default: float) -> tuple[float, float, float, str, str]:
+    """The safety layer's ``people_speed`` entry with its planner's default (m/s)."""
+    return (default, 0.0, 5.0, "m/s", "speed at which people are assumed to close in (the "
+            "safety layer)")
+
+
 #: per controller: parameter -> (default, low, high, unit, meaning); a default of None is
 #: filled in from the robot (sensor_range: its scan's range_max)
 PARAMETERS: dict[str, dict[str, tuple[float | None, float, float, str, str]]] = {
@@ -42,20 +57,17 @@ PARAMETERS: dict[str, dict[str, tuple[float | None, float, float, str, str]]] = 
         "stop_margin": (0.05, 0.0, 2.0, "m", "clearance at which it stops"),
     },
     "orca": {
-        "sensor_range": (None, 0.5, 100.0, "m", "people within this distance are seen"),
+        "sensor_range": _SENSOR_RANGE,
         "time_horizon": (2.0, 0.1, 20.0, "s", "velocities collision-free for this long"),
         "safety_margin": (0.1, 0.0, 1.0, "m", "added to the robot's radius"),
         "neighbours": (16.0, 1.0, float(MAX_NEIGHBOURS), "", "nearest people considered"),
-        "stop_margin": (0.1, 0.0, 2.0, "m", "clearance it can always stop short of"),
-        "people_speed": (0.0, 0.0, 5.0, "m/s", "speed at which people are assumed to close "
-                         "in (the safety layer)"),
-        "people_noise": (0.0, 0.0, 5.0, "m/sqrt(s)", "people may also come closer by this "
-                         "times the square root of the time (the safety layer)"),
-        "turn_gain": (3.0, 0.1, 20.0, "1/s", "turn rate per rad of heading error "
-                      "(diff_drive)"),
+        "stop_margin": _STOP_MARGIN,
+        "people_speed": _people_speed(0.0),
+        "people_noise": _PEOPLE_NOISE,
+        "turn_gain": _TURN_GAIN,
     },
     "social_force": {
-        "sensor_range": (None, 0.5, 100.0, "m", "people within this distance are seen"),
+        "sensor_range": _SENSOR_RANGE,
         "relaxation": (0.5, 0.05, 10.0, "s", "time to reach the preferred velocity"),
         "strength": (2.0, 0.0, 50.0, "m/s^2", "repulsion of a person at contact"),
         "range": (0.4, 0.05, 5.0, "m", "decay length of the repulsion"),
@@ -64,18 +76,15 @@ PARAMETERS: dict[str, dict[str, tuple[float | None, float, float, str, str]]] = 
                          "taken"),
         "side": (0.5, 0.0, 2.0, "", "share of a person ahead's repulsion turned to the "
                  "robot's right"),
-        "stop_margin": (0.1, 0.0, 2.0, "m", "clearance it can always stop short of"),
-        "people_speed": (0.0, 0.0, 5.0, "m/s", "speed at which people are assumed to close "
-                         "in (the safety layer)"),
-        "people_noise": (0.0, 0.0, 5.0, "m/sqrt(s)", "people may also come closer by this "
-                         "times the square root of the time (the safety layer)"),
+        "stop_margin": _STOP_MARGIN,
+        "people_speed": _people_speed(0.0),
+        "people_noise": _PEOPLE_NOISE,
         "wall_strength": (2.0, 0.0, 50.0, "m/s^2", "repulsion of a wall at contact"),
         "wall_range": (0.2, 0.05, 5.0, "m", "decay length of the wall repulsion"),
-        "turn_gain": (3.0, 0.1, 20.0, "1/s", "turn rate per rad of heading error "
-                      "(diff_drive)"),
+        "turn_gain": _TURN_GAIN,
     },
     "window": {
-        "sensor_range": (None, 0.5, 100.0, "m", "people within this distance are seen"),
+        "sensor_range": _SENSOR_RANGE,
         "horizon": (1.0, 0.1, 10.0, "s", "how far ahead people are forecast"),
         "spread": (0.3, 0.0, 5.0, "m/sqrt(s)", "forecast spread of a person per axis per "
                    "square root of the time"),
@@ -85,13 +94,10 @@ PARAMETERS: dict[str, dict[str, tuple[float | None, float, float, str, str]]] = 
         "passive": (0.25, 0.0, 10.0, "", "weight of a forecast contact the robot does not "
                     "advance into, against one it drives into at full speed (1)"),
         "steadiness": (0.1, 0.0, 10.0, "", "weight of a change of the chosen velocity"),
-        "stop_margin": (0.1, 0.0, 2.0, "m", "clearance it can always stop short of"),
-        "people_speed": (0.3, 0.0, 5.0, "m/s", "speed at which people are assumed to close "
-                         "in (the safety layer)"),
-        "people_noise": (0.0, 0.0, 5.0, "m/sqrt(s)", "people may also come closer by this "
-                         "times the square root of the time (the safety layer)"),
-        "turn_gain": (3.0, 0.1, 20.0, "1/s", "turn rate per rad of heading error "
-                      "(diff_drive)"),
+        "stop_margin": _STOP_MARGIN,
+        "people_speed": _people_speed(0.3),
+        "people_noise": _PEOPLE_NOISE,
+        "turn_gain": _TURN_GAIN,
     },
 }
 
