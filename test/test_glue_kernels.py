@@ -54,11 +54,19 @@ def test_rows_in_displacement_form_and_their_agents(seed: int) -> None:
     assert got.dtype == want.dtype and np.array_equal(got, want)
 
 
+def keys_by_numpy(rows: Rows, n: int) -> np.ndarray:
+    pairs = rows.pair_i.astype(np.int64) * n + rows.pair_j.astype(np.int64)
+    singles = -1 - ((rows.single_a.astype(np.int64) << 26)
+                    | (rows.single_kind.astype(np.int64) << 23)
+                    | rows.single_item.astype(np.int64))
+    return np.concatenate([pairs, singles])
+
+
 def carried_by_numpy(old: Rows, lam: np.ndarray, new: Rows, n: int) -> np.ndarray:
-    new_keys = contact_keys(new, n)
+    new_keys = keys_by_numpy(new, n)
     if len(lam) == 0 or len(new_keys) == 0:
         return np.zeros(len(new_keys))
-    old_keys = contact_keys(old, n)
+    old_keys = keys_by_numpy(old, n)
     order = np.argsort(old_keys, kind="stable")
     ko, lo = old_keys[order], lam[order]
     pos = np.minimum(np.searchsorted(ko, new_keys), len(ko) - 1)
@@ -74,6 +82,9 @@ def test_carried_multipliers(seed: int) -> None:
     old = random_rows(rng, n, int(rng.integers(0, 30)), int(rng.integers(0, 30)))
     new = random_rows(rng, n, int(rng.integers(0, 30)), int(rng.integers(0, 30)))
     lam = np.abs(wide(rng, (old.count,)))
+    for rows in (old, new):
+        got, want = contact_keys(rows, n), keys_by_numpy(rows, n)
+        assert got.dtype == want.dtype and np.array_equal(got, want)
     assert bits(carry_multipliers(old, lam, new, n)) == bits(carried_by_numpy(old, lam, new, n))
 
 

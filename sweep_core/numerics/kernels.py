@@ -155,6 +155,7 @@ def _exercise() -> None:
     # logarithm of a wall contact), called with the types their callers pass
     v = np.ones(3)
     dual.dot(v, v)
+    dual.maximum(1.0, 2.0)  # inlined where the kernels call it; its own entry cached too
     schemes.log_each(v)
     one = np.zeros(1, dtype=np.int64)
     dual.slacks(np.zeros((2, 2)), one, one - 1, np.ones((1, 2)), np.zeros(1))

@@ -102,15 +102,12 @@ def rounding_floor(d: np.ndarray, h: np.ndarray) -> float:
 def largest_scale(d: np.ndarray, h: np.ndarray) -> tuple[float, float]:  # pragma: no cover
     """max(|d|) and max(h), each from 0 (numpy's max with ``initial=0``: NaN as soon as one
     value is)."""
-    out = [0.0, 0.0]
-    for which, values in enumerate((d, h)):
-        m = 0.0
-        for v in values:
-            v = abs(v) if which == 0 else v
-            if not v <= m:  # larger, or NaN
-                m = v if m == m else m
-        out[which] = m
-    return out[0], out[1]
+    large_d = large_h = 0.0
+    for v in d:
+        large_d = dual.maximum(large_d, abs(v))
+    for v in h:
+        large_h = dual.maximum(large_h, v)
+    return large_d, large_h
 
 
 def certify(x: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.ndarray,
@@ -159,8 +156,7 @@ def shares(label: np.ndarray, total: np.ndarray, lam_all: float, half_tol2: floa
         share = sizes[c] / count
         if lam_all > 0.0:
             share = 0.5 * (share + total[c] / lam_all)
-        a, b = half_tol2 * share, floor4 * total[c]
-        out[c] = a if (a >= b or a != a) else b
+        out[c] = dual.maximum(half_tol2 * share, floor4 * total[c])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -169,10 +165,7 @@ def judged(comp: np.ndarray, low: np.ndarray, budget: np.ndarray, gap: np.ndarra
     """gap = max(comp, 0) where low >= 0, else inf (a row broken), as numpy's maximum; done =
     gap <= budget."""
     for c in range(comp.shape[0]):
-        g = comp[c]
-        if not (g >= 0.0 or g != g):
-            g = 0.0
-        gap[c] = g if low[c] >= 0.0 else np.inf
+        gap[c] = dual.maximum(comp[c], 0.0) if low[c] >= 0.0 else np.inf
         done[c] = gap[c] <= budget[c]
 
 

@@ -35,6 +35,13 @@ import numpy as np
 SPLIT = 134217729.0
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def maximum(a: float, b: float) -> float:  # pragma: no cover - compiled
+    """numpy's ``maximum`` of two numbers: the larger, a on a tie, NaN when either is (a
+    running max m = maximum(m, v) is numpy's ``max``, NaN from the first NaN on)."""
+    return a if (a >= b or a != a) else b
+
+
 @numba.njit(cache=True, nogil=True)
 def apply_multipliers(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray,
                       lam: np.ndarray) -> np.ndarray:

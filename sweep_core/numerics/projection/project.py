@@ -97,13 +97,10 @@ def largest_step(q: np.ndarray, pred: np.ndarray, r: np.ndarray
     square = 0.0 if len(q) else np.nan
     for i in range(len(q)):
         dx, dy = pred[i, 0] - q[i, 0], pred[i, 1] - q[i, 1]
-        s = dx * dx + dy * dy
-        if not s <= square:  # larger, or NaN
-            square = s if square == square else square
+        square = dual.maximum(square, dx * dx + dy * dy)
     r_max = r[0] if len(r) else np.nan
     for i in range(1, len(r)):
-        if not r[i] <= r_max:
-            r_max = r[i] if r_max == r_max else r_max
+        r_max = dual.maximum(r_max, r[i])
     return square, r_max
 
 

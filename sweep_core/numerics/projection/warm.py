@@ -11,12 +11,11 @@ from sweep_core.numerics.constraints import Rows
 def contact_keys(rows: Rows, n: int) -> np.ndarray:
     """One int64 key per row, pair rows first (as :meth:`Rows.displacement_rows`): i n + j >= 0
     for the pair (i < j), and a negative key from the agent, the kind and the index of the wall
-    or obstacle for a single row. n: number of agents."""
-    pairs = rows.pair_i.astype(np.int64) * n + rows.pair_j.astype(np.int64)
-    singles = -1 - ((rows.single_a.astype(np.int64) << 26)
-                    | (rows.single_kind.astype(np.int64) << 23)
-                    | rows.single_item.astype(np.int64))
-    return np.concatenate([pairs, singles])
+    or obstacle for a single row (compiled: :func:`row_keys`). n: number of agents."""
+    out = np.empty(rows.count, dtype=np.int64)
+    row_keys(rows.pair_i, rows.pair_j, rows.single_a, rows.single_kind, rows.single_item, n,
+             out)
+    return out
 
 
 def carry_multipliers(old: Rows, lam: np.ndarray, new: Rows, n: int) -> np.ndarray:
@@ -24,15 +23,8 @@ def carry_multipliers(old: Rows, lam: np.ndarray, new: Rows, n: int) -> np.ndarr
     same row order) where the same contact had a row, 0 elsewhere. n: number of agents."""
     if len(lam) == 0 or new.count == 0:
         return np.zeros(new.count)
-    return carried(_keys(old, n), np.ascontiguousarray(lam, dtype=np.float64), _keys(new, n))
-
-
-def _keys(rows: Rows, n: int) -> np.ndarray:
-    """:func:`contact_keys`, compiled."""
-    out = np.empty(rows.count, dtype=np.int64)
-    row_keys(rows.pair_i, rows.pair_j, rows.single_a, rows.single_kind, rows.single_item, n,
-             out)
-    return out
+    return carried(contact_keys(old, n), np.ascontiguousarray(lam, dtype=np.float64),
+                   contact_keys(new, n))
 
 
 @numba.njit(cache=True, nogil=True)
