@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from sweep_core.io import cdr
+from sweep_core.model import elementary
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "OFF")
 os.environ.setdefault("ROS_DOMAIN_ID", "57")
@@ -127,8 +128,8 @@ def _rclpy_pose_array(stamp_ns, frame_id, pos, yaw):
         p.position.x = float(pos[i, 0])
         p.position.y = float(pos[i, 1])
         if yaw is not None:
-            p.orientation.z = float(np.sin(0.5 * yaw[i]))
-            p.orientation.w = float(np.cos(0.5 * yaw[i]))
+            p.orientation.z = elementary.sin(0.5 * yaw[i])
+            p.orientation.w = elementary.cos(0.5 * yaw[i])
         poses.append(p)
     msg.poses = poses
     return msg
@@ -247,7 +248,7 @@ def test_pose_array_matches_rosbags(typestore, n, frame_id, with_yaw):
     yaw = _yaw(n, seed=4) if with_yaw else None
     poses = []
     for i in range(n):
-        qz, qw = (0.0, 1.0) if yaw is None else (np.sin(0.5 * yaw[i]), np.cos(0.5 * yaw[i]))
+        qz, qw = (0.0, 1.0) if yaw is None else (elementary.sin(0.5 * yaw[i]), elementary.cos(0.5 * yaw[i]))
         poses.append(pose_t(position=point_t(x=pos[i, 0], y=pos[i, 1], z=0.0),
                             orientation=quat_t(x=0.0, y=0.0, z=qz, w=qw)))
     msg = ts.types[cdr.POSE_ARRAY](header=_rb_header(ts, STAMP, frame_id), poses=poses)

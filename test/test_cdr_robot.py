@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from sweep_core.io import cdr
+from sweep_core.model import elementary
 
 STAMP = 1_234_567_891_011
 FRAMES = ["", "m", "odom", "robot_1/base_link"]
@@ -35,7 +36,7 @@ def _pose(ts, x, y, yaw):
     return ts.types["geometry_msgs/msg/Pose"](
         position=ts.types["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
         orientation=ts.types["geometry_msgs/msg/Quaternion"](
-            x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)))
+            x=0.0, y=0.0, z=elementary.sin(yaw / 2), w=elementary.cos(yaw / 2)))
 
 
 def _twist(ts, vx, vy, w):

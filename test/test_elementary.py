@@ -5,9 +5,7 @@ CPU-specific variants switched off (a subprocess)."""
 from __future__ import annotations
 
 import decimal
-import hashlib
 import math
-import os
 import subprocess
 import sys
 from decimal import Decimal
@@ -15,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_platform import cpu_variants_off_env
 
 from sweep_core.model import elementary as E
 
@@ -147,6 +146,7 @@ def test_array_forms_equal_the_scalars() -> None:
     a = ANGLES[:300].reshape(10, 30)
     assert np.array_equal(E.sin_of(a), [[E.sin(v) for v in row] for row in a])
     assert np.array_equal(E.cos_of(a), [[E.cos(v) for v in row] for row in a])
+    assert all(E.sincos(v) == (E.sin(v), E.cos(v)) for v in ANGLES)
     e = RNG.uniform(-50, 50, 40)
     assert np.array_equal(E.exp_of(e), [E.exp(v) for v in e])
     y, x = RNG.normal(size=(4, 5)), RNG.normal(size=5)
@@ -156,20 +156,6 @@ def test_array_forms_equal_the_scalars() -> None:
 
 
 # -- the same bits with the CPU-specific variants off ---------------------------------------
-
-def plain_cpu_env() -> dict[str, str]:
-    """The environment of a process whose C library, numpy and OpenBLAS take their plain
-    x86-64 code paths (no FMA, no AVX2 or AVX-512): the variants a CPU without those
-    features runs."""
-    from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
-    env = dict(os.environ)
-    env["GLIBC_TUNABLES"] = "glibc.cpu.hwcaps=-AVX2,-FMA,-AVX512F"
-    found = [f for f in __cpu_dispatch__ if __cpu_features__.get(f)]
-    if found:
-        env["NPY_DISABLE_CPU_FEATURES"] = " ".join(found)
-    env["OPENBLAS_CORETYPE"] = "Prescott"
-    return env
-
 
 HASH_ELEMENTARY = """
 import hashlib, numpy as np
@@ -189,5 +175,5 @@ def test_same_bits_without_fma_and_simd_variants() -> None:
     mine = subprocess.run([sys.executable, "-c", HASH_ELEMENTARY], capture_output=True,
                           text=True, cwd=root, check=True).stdout
     plain = subprocess.run([sys.executable, "-c", HASH_ELEMENTARY], capture_output=True,
-                           text=True, cwd=root, check=True, env=plain_cpu_env()).stdout
+                           text=True, cwd=root, check=True, env=cpu_variants_off_env()).stdout
     assert mine and mine == plain

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from sweep_core import Scene
+from sweep_core.model import elementary
 from sweep_core.numerics.robots.control import Observation
 from sweep_core.numerics.robots.guard import nearest_safe, safe_speed, safe_speeds
 from sweep_core.numerics.robots.planners import controller_for, to_command
@@ -149,7 +150,8 @@ def test_safe_speeds_keep_the_bits_of_the_numpy_form() -> None:
             return np.full(len(directions), math.inf)
         rel = people - np.array(pose[:2])
         d = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
-        c = (rel / d[:, None]) @ directions.T
+        unit = rel / d[:, None]
+        c = unit[:, :1] * directions[:, 0] + unit[:, 1:] * directions[:, 1]
         gap = np.maximum(d - radius - people_radii - margin, 0.0)[:, None]
         root = np.sqrt(ps * ps + 2.0 * accel * np.maximum(c, 0.0) * gap)
         bound = np.where(gap > 0.0, 2.0 * accel * gap / np.maximum(ps + root, 1e-300), 0.0)
@@ -167,9 +169,8 @@ def test_safe_speeds_keep_the_bits_of_the_numpy_form() -> None:
 
 
 def test_social_force_people_term_keeps_the_bits_of_the_numpy_form() -> None:
-    """SocialForce.people_force (compiled terms, numpy's exponentials) gives, bit for bit,
+    """SocialForce.people_force (compiled terms, elementary's exponentials) gives, bit for bit,
     what the numpy form below gives, on random people, velocities and headings."""
-    import math
     from types import SimpleNamespace
 
     from sweep_core.numerics.robots.planners import SocialForce
@@ -187,11 +188,11 @@ def test_social_force_people_term_keeps_the_bits_of_the_numpy_form() -> None:
         b = 0.5 * np.sqrt(np.maximum((dn + dyn) ** 2 - yn ** 2, 1e-18))
         grad = ((dn + dyn) / (4.0 * np.maximum(b, 1e-9)))[:, None] * (
             d / dn[:, None] + dy / dyn[:, None])
-        heading = np.array([math.cos(obs.pose[2]), math.sin(obs.pose[2])])
-        cos_phi = -((d / dn[:, None]) @ heading)
+        e = d / dn[:, None]
+        cos_phi = -(e[:, 0] * elementary.cos(obs.pose[2]) + e[:, 1] * elementary.sin(obs.pose[2]))
         lam = params["anisotropy"]
         w = lam + (1.0 - lam) * (1.0 + cos_phi) / 2.0
-        mag = params["strength"] * np.exp((obs.radius + obs.people_radii - b)
+        mag = params["strength"] * elementary.exp_of((obs.radius + obs.people_radii - b)
                                           / params["range"]) * w
         turn = np.column_stack([-grad[:, 1], grad[:, 0]])
         side = params["side"] * np.maximum(cos_phi, 0.0)
@@ -295,10 +296,10 @@ def test_nearest_safe_keeps_the_bits_of_the_numpy_form() -> None:
     def numpy_form(u, pose, radius, people, radii, accel, margin, ps, directions=72):
         if float(np.hypot(u[0], u[1])) <= 1e-12:
             return np.zeros(2)
-        phi = math.atan2(u[1], u[0]) + np.arange(directions) * (2.0 * math.pi / directions)
-        dirs = np.column_stack([np.cos(phi), np.sin(phi)])
-        s = np.clip(dirs @ u, 0.0, safe_speeds(pose, dirs, radius, people, radii, accel,
-                                               margin, ps))
+        phi = elementary.atan2(u[1], u[0]) + np.arange(directions) * (2.0 * math.pi / directions)
+        dirs = np.column_stack([elementary.cos_of(phi), elementary.sin_of(phi)])
+        along = dirs[:, 0] * u[0] + dirs[:, 1] * u[1]
+        s = np.clip(along, 0.0, safe_speeds(pose, dirs, radius, people, radii, accel, margin, ps))
         miss = (u[0] - s * dirs[:, 0]) ** 2 + (u[1] - s * dirs[:, 1]) ** 2
         k = int(np.argmin(miss))
         return np.asarray(s[k] * dirs[k])

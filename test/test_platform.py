@@ -18,11 +18,12 @@ from sweep_core.io.versions import platform_record
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _other_kernels_env(tmp_path: Path) -> dict[str, str]:
+def cpu_variants_off_env(numba_cache: Path | None = None) -> dict[str, str]:
     """This process's environment with every CPU-dependent code path we can switch moved off
     its default: OpenBLAS's kernels for an old core, numpy's SIMD dispatch down to its
-    baseline, the C library's FMA and AVX2 variants off, numba compiling for a generic x86-64
-    (into a cache of its own)."""
+    baseline, the C library's FMA and AVX2 variants off, and with ``numba_cache`` numba
+    compiling for a generic x86-64 into that cache (else its kernels for this CPU, loaded
+    from the cache)."""
     from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
 
     env = dict(os.environ)
@@ -32,8 +33,9 @@ def _other_kernels_env(tmp_path: Path) -> dict[str, str]:
     if found:
         env["NPY_DISABLE_CPU_FEATURES"] = " ".join(found)
     env["GLIBC_TUNABLES"] = "glibc.cpu.hwcaps=-AVX2,-FMA,-AVX512F"
-    env["NUMBA_CPU_NAME"] = "generic"
-    env["NUMBA_CACHE_DIR"] = str(tmp_path / "generic_kernels")
+    if numba_cache is not None:
+        env["NUMBA_CPU_NAME"] = "generic"
+        env["NUMBA_CACHE_DIR"] = str(numba_cache)
     env["PYTHONPATH"] = os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")])
     return env
 
@@ -46,8 +48,8 @@ def test_recorded_with_other_cpu_code_paths_replays_bit_for_bit(tmp_path):
     out = tmp_path / "other.mcap"
     done = subprocess.run(
         [sys.executable, "-m", "sweep_core.cli", "run", "--t-end", "3", "--out", str(out),
-         "--quiet"], env=_other_kernels_env(tmp_path), cwd=tmp_path, capture_output=True,
-        text=True, timeout=1200)
+         "--quiet"], env=cpu_variants_off_env(tmp_path / "generic_kernels"), cwd=tmp_path,
+        capture_output=True, text=True, timeout=1200)
     assert done.returncode == 0, done.stderr
     res = replay.replay(out)
     assert res.identical, replay.format_replay(res)

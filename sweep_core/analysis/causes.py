@@ -30,7 +30,8 @@ def robot_shares(impulse: np.ndarray, displacement: np.ndarray, h: float) -> np.
     lam = np.hypot(imp[:, 0], imp[:, 1]) * h
     safe = np.where(lam > 0, lam, 1.0)
     e = imp * h / safe[:, None]
-    advance = e @ np.asarray(displacement, dtype=np.float64)
+    move = np.asarray(displacement, dtype=np.float64)
+    advance = e[:, 0] * move[0] + e[:, 1] * move[1]  # x-then-y, not BLAS
     return np.where(lam > 0, np.clip(advance, 0.0, lam), 0.0)
 
 

@@ -21,6 +21,7 @@ from sweep_core.analysis.social import (
     episode_metrics,
     geodesic_distance,
 )
+from sweep_core.model import elementary
 from sweep_core.model.scene import Scene, load_scene
 from sweep_core.numerics.simulator import Simulator
 
@@ -73,7 +74,7 @@ def simulate(run: Run) -> dict[str, Any]:
     def record() -> None:
         x, y, yaw = st.pose
         vx, vy, _ = st.twist
-        c, s = math.cos(yaw), math.sin(yaw)
+        s, c = elementary.sincos(yaw)
         q, r = sim.positions, sim.radii
         near = (float(clearance(np.array([[x, y]]), np.array([robot.radius]), q, r)[0].min())
                 if len(q) else math.inf)

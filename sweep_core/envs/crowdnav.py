@@ -46,6 +46,7 @@ from sweep_core import checks
 from sweep_core.analysis import social
 from sweep_core.errors import SceneError, show
 from sweep_core.io import limits
+from sweep_core.model import elementary
 from sweep_core.model.scene import Scene, load_scene
 from sweep_core.numerics.simulator import Simulator
 
@@ -170,7 +171,7 @@ class CrowdNavEnv(gymnasium.Env):
     def _observe(self) -> dict[str, np.ndarray]:
         st = self._state()
         x, y, yaw = (float(v) for v in st.pose)
-        c, s = math.cos(yaw), math.sin(yaw)
+        s, c = elementary.sincos(yaw)
         d = self.spec_robot.goal - np.array([x, y])
         ranges = self._ranges()
         if len(ranges) != self.beams:  # no scan taken yet
@@ -185,7 +186,7 @@ class CrowdNavEnv(gymnasium.Env):
         st, people = self._state(), self.sim.state
         x, y, yaw = (float(v) for v in st.pose)
         u, w = float(st.twist[0]), float(st.twist[1])
-        c, s = math.cos(yaw), math.sin(yaw)
+        s, c = elementary.sincos(yaw)
         vel = np.array([c * u - s * w, s * u + c * w])
         near, ttc = social.nearest(np.array([x, y]), vel, self.spec_robot.radius,
                                    people.positions, people.radii, people.velocities)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from sweep_core.io.cdr.markers import ARROW, CUBE, CYLINDER, MarkerBatch, delete_all
+from sweep_core.model import elementary
 from sweep_core.model.fields import Groups
 from sweep_core.model.geometry import Geometry
 from sweep_core.numerics.robots.fleet import Fleet
@@ -134,7 +135,7 @@ def _boxes(ns: str, ids: np.ndarray, a: np.ndarray, b: np.ndarray, color: tuple,
     mid, d = (a + b) / 2, b - a
     k = len(a)
     return MarkerBatch(ns, CUBE, ids, np.column_stack([mid, np.full(k, height / 2)]),
-                       np.arctan2(d[:, 1], d[:, 0]),
+                       elementary.atan2_of(d[:, 1], d[:, 0]),
                        np.column_stack([np.hypot(d[:, 0], d[:, 1]), np.full(k, WALL_THICKNESS),
                                         np.full(k, float(height))]),
                        np.tile(color, (k, 1)))

@@ -23,7 +23,7 @@ Methods (textbook ones; the polynomials are Taylor series, truncated below 2^-60
 * exp: x = k ln 2 + r, |r| <= ln 2 / 2, e^r by its series to r^14 / 14!, times 2^k.
 * log: x = m 2^e with m in [sqrt(1/2), sqrt(2)), log m = 2 atanh(s), s = (m - 1) / (m + 1).
 
-Scalars: :func:`sin`, :func:`cos`, :func:`atan2`, :func:`exp`, :func:`log` (numba
+Scalars: :func:`sin`, :func:`cos`, :func:`sincos`, :func:`atan2`, :func:`exp`, :func:`log` (numba
 functions, callable from Python and from compiled code); arrays of any shape:
 :func:`sin_of`, :func:`cos_of`, :func:`exp_of`, :func:`atan2_of`.
 """
@@ -186,6 +186,24 @@ def cos(x: float) -> float:
     if k == 2:
         return -_cos_kernel(r)
     return _sin_kernel(r)
+
+
+@numba.njit(cache=True, nogil=True)
+def sincos(x: float) -> tuple[float, float]:
+    """(sin x, cos x) with one reduction; the same bits as :func:`sin` and :func:`cos`."""
+    if not math.isfinite(x):
+        return math.nan, math.nan
+    if x == 0.0:
+        return x, 1.0
+    r, k = _reduce(x)
+    s, c = _sin_kernel(r), _cos_kernel(r)
+    if k == 0:
+        return s, c
+    if k == 1:
+        return c, -s
+    if k == 2:
+        return -s, -c
+    return -c, s
 
 
 @numba.njit(cache=True, nogil=True)

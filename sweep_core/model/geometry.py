@@ -10,13 +10,13 @@ compiled loops are in :mod:`sweep_core.model.wall_kernels`.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 from typing import Any
 
 import numpy as np
 
+from sweep_core.model import elementary
 from sweep_core.model.neighbours import segments_within
 from sweep_core.model.outlines import points_in_polygon
 from sweep_core.model.user import constraint_name, evaluate
@@ -154,10 +154,8 @@ class Geometry:
         if not self.is_moving:
             return self
         angle = self.motion_angular * t
-        # the C library's scalar cos and sin: numpy's own SIMD kernels of them differ in the
-        # last bit between CPU generations, and a pose decides positions
-        cos = np.array([math.cos(a) for a in angle.tolist()])
-        sin = np.array([math.sin(a) for a in angle.tolist()])
+        # a pose decides positions: cos and sin with the same bits on every CPU
+        cos, sin = elementary.cos_of(angle), elementary.sin_of(angle)
 
         def move(p: np.ndarray, m: np.ndarray) -> np.ndarray:
             out = p.copy()

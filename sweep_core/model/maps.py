@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import base64
 import copy
-import math
 import os
 import stat
 from dataclasses import dataclass
@@ -35,6 +34,7 @@ import numpy as np
 
 from sweep_core import checks
 from sweep_core.errors import CostError, SceneError
+from sweep_core.model import elementary
 from sweep_core.model.yaml_files import YAMLError, load_yaml
 
 #: most cells a map may have (a 40 000 x 40 000 grid would be 1.6e9)
@@ -75,14 +75,14 @@ class OccupancyMap:
     def to_local(self, q: np.ndarray) -> np.ndarray:
         """World points (N, 2) in the grid frame (m from the lower-left corner)."""
         x0, y0, yaw = self.origin
-        c, s = math.cos(yaw), math.sin(yaw)
+        s, c = elementary.sincos(yaw)
         d = np.asarray(q, dtype=float) - [x0, y0]
         return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
 
     def to_world(self, p: np.ndarray) -> np.ndarray:
         """Grid-frame points (N, 2) in the world frame."""
         x0, y0, yaw = self.origin
-        c, s = math.cos(yaw), math.sin(yaw)
+        s, c = elementary.sincos(yaw)
         p = np.asarray(p, dtype=float)
         return np.stack([x0 + c * p[:, 0] - s * p[:, 1], y0 + s * p[:, 0] + c * p[:, 1]], axis=1)
 

@@ -9,6 +9,7 @@ import math
 from dataclasses import dataclass
 
 from sweep_core import checks
+from sweep_core.model import elementary
 
 
 @dataclass(frozen=True)
@@ -86,7 +87,7 @@ class Sine(RadiusLaw):
     kind = "sine"
 
     def offset(self, t: float) -> float:
-        return self.amplitude * math.sin(2.0 * math.pi * t / self.period)
+        return self.amplitude * elementary.sin(2.0 * math.pi * t / self.period)
 
     @property
     def lipschitz(self) -> float:

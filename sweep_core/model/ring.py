@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+from sweep_core.model import elementary
+
 
 def ring_corridor(density: float, inner: float = 3.0, outer: float = 5.0,
                   radius: float = 0.2, speed: float = 1.34, seed: int = 0,
@@ -27,8 +29,8 @@ def ring_corridor(density: float, inner: float = 3.0, outer: float = 5.0,
     n = int(round(density * area))
     ang = 2.0 * math.pi * np.arange(sides) / sides
     # the polygon's edges lie outside the circle of radius outer (its inscribed circle)
-    rim = outer / math.cos(math.pi / sides)
-    wall = np.stack([rim * np.cos(ang), rim * np.sin(ang)], axis=1)
+    rim = outer / elementary.cos(math.pi / sides)
+    wall = np.stack([rim * elementary.cos_of(ang), rim * elementary.sin_of(ang)], axis=1)
     nodes = np.arange(-outer - 2 * cell, outer + 2 * cell + cell / 2, cell)
     X, Y = np.meshgrid(nodes, nodes)
     norm = np.maximum(np.hypot(X, Y), 1e-9)
@@ -59,4 +61,4 @@ def weidmann(density: np.ndarray | float) -> np.ndarray:
     """Weidmann's (1993) speed (m/s) at a density (agents/m^2):
     1.34 [1 - exp(-1.913 (1/rho - 1/5.4))]."""
     rho = np.asarray(density, dtype=np.float64)
-    return 1.34 * (1.0 - np.exp(-1.913 * (1.0 / rho - 1.0 / 5.4)))
+    return 1.34 * (1.0 - elementary.exp_of(-1.913 * (1.0 / rho - 1.0 / 5.4)))

@@ -49,7 +49,8 @@ def _shrunk(points: np.ndarray, r: float) -> np.ndarray:
         inward = np.array([-e[1], e[0]]) / norm
         if not len(out):
             break
-        side = (out - a) @ inward - r  # >= 0: kept
+        # >= 0: kept; x-then-y products (BLAS's kernels differ by CPU)
+        side = (out[:, 0] - a[0]) * inward[0] + (out[:, 1] - a[1]) * inward[1] - r
         keep = []
         for k in range(len(out)):
             p, q = out[k], out[(k + 1) % len(out)]

@@ -38,6 +38,7 @@ from scipy.spatial import cKDTree
 
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
+from sweep_core.model import elementary
 from sweep_core.model.geometry import Geometry, single_rows
 from sweep_core.model.maps import OccupancyMap
 from sweep_core.model.outlines import chain_points, perimeter, points_in_polygon, signed_area
@@ -92,7 +93,7 @@ def grown_area(points: np.ndarray, r: float) -> float:
     signed = signed_area(points)
     edge = np.roll(points, -1, axis=0) - points
     prev = np.roll(edge, 1, axis=0)
-    turn = np.arctan2(prev[:, 0] * edge[:, 1] - prev[:, 1] * edge[:, 0],
+    turn = elementary.atan2_of(prev[:, 0] * edge[:, 1] - prev[:, 1] * edge[:, 0],
                       prev[:, 0] * edge[:, 0] + prev[:, 1] * edge[:, 1])
     convex = np.clip(np.sign(signed) * turn, 0.0, None)  # turns towards the inside
     return abs(signed) + perimeter(points) * r + 0.5 * r * r * float(np.sum(convex))

@@ -44,33 +44,12 @@ import math
 import numba
 import numpy as np
 
+from sweep_core.model import elementary
+from sweep_core.model.elementary import cos, exp
 from sweep_core.model.neighbours import SizedSearch
 
 #: repulsion terms with exponent (l - d) / D below -CUT are left out (a e^-CUT, a 1e-4 of a)
 CUT = 9.2
-#: ln 2 in two parts (the high part's last 32 bits zero, so k LN2_HI is exact for |k| < 2^20)
-LN2_HI = 6.93147180369123816490e-01
-LN2_LO = 1.90821492927058770002e-10
-INV_LN2 = 1.44269504088896338700e+00
-#: 1 / n! for n = 0 .. 14, the Taylor coefficients of e^r
-TAYLOR = np.array([1.0 / math.factorial(n) for n in range(15)])
-
-
-@numba.njit(cache=True, nogil=True)
-def exp(x: float) -> float:
-    """e^x for -700 < x < 700 in additions, multiplications and ldexp only: the same bits on
-    every CPU (the C library's exp differs in the last bit between its FMA and plain
-    variants, which made runs with the speed law depend on the CPU). x = k ln 2 + r with
-    |r| <= ln 2 / 2 (Cody and Waite's two-part ln 2), e^r by its Taylor series to r^14 / 14!
-    (truncation below 5e-18 relative), then scaled by 2^k; within 2 ulp of e^x."""
-    k = math.floor(x * INV_LN2 + 0.5)
-    r = (x - k * LN2_HI) - k * LN2_LO
-    p = TAYLOR[14]
-    for n in range(13, -1, -1):  # Horner: sum of r^n / n!
-        p = p * r + TAYLOR[n]
-    return math.ldexp(p, int(k))
-
-
 @numba.njit(cache=True, nogil=True)
 def directions(q: np.ndarray, r: np.ndarray, u: np.ndarray, pi: np.ndarray, pj: np.ndarray,
                strength: float, reach: float, walls: np.ndarray) -> np.ndarray:
@@ -124,7 +103,7 @@ def wall_terms(rows: list, n: int, strength: float, reach: float) -> np.ndarray:
     out = np.zeros((n, 2))
     for a, _, g, nrm, _ in rows:
         if len(a):
-            w = strength * np.exp(-np.asarray(g) / reach)
+            w = strength * elementary.exp_of(-np.asarray(g) / reach)
             np.add.at(out, a, w[:, None] * nrm)
     return out
 
@@ -169,8 +148,8 @@ def nearest_ahead(q: np.ndarray, r: np.ndarray, e: np.ndarray, pi: np.ndarray,
             if b > lateral * ll:  # only with a fade: the partial band
                 if b >= outer * ll:
                     continue
-                w = 0.5 * (1.0 + math.cos(math.pi * (b - lateral * ll) /
-                                          ((outer - lateral) * ll)))
+                w = 0.5 * (1.0 + cos(math.pi * (b - lateral * ll) /
+                                     ((outer - lateral) * ll)))
                 if w <= 0.0:  # at k2 l_ij up to rounding: does not count
                     continue
                 if s > 0.0:

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 from numba.core.registry import CPUDispatcher
 
-from sweep_core.model import neighbours, wall_kernels
+from sweep_core.model import elementary, neighbours, wall_kernels
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import dual
@@ -175,6 +175,12 @@ def _exercise() -> None:
     # the sampling planner's forecast of the people it sees
     window.hazards(np.ones((2, 2)), np.zeros(2), 0.3, np.ones((1, 2)), np.full(1, 0.2),
                    np.zeros((1, 2)), 1.5, 1.0, 0.6, 0.3, 0.1, 0.25, 1.0, 0.1, 1.0, np.empty(2))
+    # the elementary functions as Python calls them (scalars and arrays)
+    for f in (elementary.sin, elementary.cos, elementary.exp, elementary.log):
+        f(0.5)
+    elementary.sincos(0.5)
+    elementary.atan2(0.5, 1.0)
+    elementary.sin_of(v), elementary.cos_of(v), elementary.exp_of(v), elementary.atan2_of(v, v)
     # the planners' safety layer
     guard.nearest_safe(np.array([1.0, 0.0]), (0.0, 0.0, 0.0), 0.3, np.ones((1, 2)),
                        np.ones(1) * 0.2, 1.0, 0.05, 0.5)

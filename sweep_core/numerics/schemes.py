@@ -58,6 +58,7 @@ import numba
 import numpy as np
 
 from sweep_core.errors import InfeasibleError, SceneError
+from sweep_core.model.elementary import log
 from sweep_core.model.fields import Field
 from sweep_core.model.geometry import single_values
 from sweep_core.model.scene import Scene
@@ -265,10 +266,10 @@ SCHEMES: dict[str, type[Scheme]] = {
 
 @numba.njit(cache=True, nogil=True)
 def log_each(u: np.ndarray) -> np.ndarray:
-    """log(u) of each entry (K,), through the C library's scalar log: numpy's SIMD log differs
-    in the last bit between CPU generations (AVX-512 has its own kernel), and it decides
-    positions here."""
+    """log(u) of each entry (K,) with the same bits on every CPU (:mod:`.elementary`'s; numpy's
+    and the C library's logs differ in the last bit between CPU variants, and it decides
+    positions here)."""
     out = np.empty_like(u)
     for k in range(u.shape[0]):
-        out[k] = math.log(u[k])
+        out[k] = log(u[k])
     return out

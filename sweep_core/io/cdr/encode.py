@@ -17,6 +17,7 @@ from sweep_core.io.cdr.wire import (
     scratch,
     split_stamp,
 )
+from sweep_core.model import elementary
 
 
 def encode_clock(stamp_ns: int) -> bytes:
@@ -86,8 +87,8 @@ def encode_pose_array(
             entry[1] = "identity"
     else:
         half = 0.5 * th
-        np.sin(half, out=poses[:, 5])
-        np.cos(half, out=poses[:, 6])
+        poses[:, 5] = elementary.sin_of(half)
+        poses[:, 6] = elementary.cos_of(half)
         entry[1] = "yaw"
     return buf[4:].tobytes()
 

@@ -17,6 +17,7 @@ from functools import lru_cache
 import numpy as np
 
 from sweep_core.io.cdr.wire import ENCAPSULATION, split_stamp
+from sweep_core.model import elementary
 
 ARROW, CUBE, SPHERE, CYLINDER = 0, 1, 2, 3
 ADD, DELETE, DELETEALL = 0, 2, 3
@@ -123,7 +124,7 @@ def _columns(batch: MarkerBatch) -> dict[str, np.ndarray]:
     n = len(batch)
     half = 0.5 * np.asarray(batch.yaw, dtype=np.float64).reshape(n)
     orientation = np.zeros((n, 4))
-    orientation[:, 2], orientation[:, 3] = np.sin(half), np.cos(half)
+    orientation[:, 2], orientation[:, 3] = elementary.sin_of(half), elementary.cos_of(half)
     return {"id": np.asarray(batch.ids).astype("<i4").reshape(n, 1),
             "position": np.asarray(batch.position, dtype="<f8").reshape(n, 3),
             "orientation": orientation,

@@ -23,6 +23,7 @@ from sweep_core.io.cdr.msgdefs import (
     TWIST_STAMPED,
 )
 from sweep_core.io.cdr.stream import CdrReader, CdrWriter
+from sweep_core.model import elementary
 
 
 def _finite(values: Sequence[float] | np.ndarray, size: int, name: str
@@ -61,13 +62,14 @@ def _covariance(w: CdrWriter, values: Sequence[float] | np.ndarray | None, name:
 
 def yaw_quaternion(yaw: float) -> tuple[float, float, float, float]:
     """(qx, qy, qz, qw) of a rotation by ``yaw`` (rad) about +z."""
-    return 0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)
+    s, c = elementary.sincos(0.5 * yaw)
+    return 0.0, 0.0, s, c
 
 
 def quaternion_yaw(q: Sequence[float] | np.ndarray) -> float:
     """Yaw (rad, in (-pi, pi]) of a quaternion (qx, qy, qz, qw) of a rotation about z."""
     qx, qy, qz, qw = (float(v) for v in q)
-    return math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    return elementary.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
 
 
 @dataclass

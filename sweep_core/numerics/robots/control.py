@@ -19,6 +19,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from sweep_core.model import elementary
 from sweep_core.model.controller_spec import sensor_range
 from sweep_core.model.geodesic import navigation_from_spec
 from sweep_core.model.maps import map_from_spec
@@ -131,7 +132,7 @@ class Pursuit:
         speed = float(math.hypot(u[0], u[1]))
         if speed == 0.0:
             return (0.0, 0.0, 0.0)
-        heading = math.atan2(u[1], u[0])
+        heading = elementary.atan2(u[1], u[0])
         error = wrap(heading - yaw)
         omega = self.turn_gain * error
         slow = 1.0
@@ -143,11 +144,11 @@ class Pursuit:
                 slow = min(1.0, max(0.0, (nearest - obs.radius - self.stop_margin)
                                     / self.slow_distance))
         if self.robot.kinematics == "holonomic":
-            c, s = math.cos(yaw), math.sin(yaw)
+            s, c = elementary.sincos(yaw)
             v = speed * slow
             return (v * (c * u[0] + s * u[1]) / speed, v * (-s * u[0] + c * u[1]) / speed,
                     omega)
-        return (speed * slow * max(0.0, math.cos(error)), 0.0, omega)
+        return (speed * slow * max(0.0, elementary.cos(error)), 0.0, omega)
 
 
 def wrap_all(angles: np.ndarray) -> np.ndarray:

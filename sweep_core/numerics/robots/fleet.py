@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sweep_core.errors import InfeasibleError, SceneError, show
+from sweep_core.model import elementary
 from sweep_core.model.crossing import crossings
 from sweep_core.model.gaps import gaps
 from sweep_core.model.geometry import Geometry
@@ -331,7 +332,7 @@ class Fleet:
             x, y = (float(v) for v in proj.y[n + slot])
             push = (x - targets[k][0], y - targets[k][1])
             yaw1 = targets[k][2]
-            c, s = math.cos(yaw1), math.sin(yaw1)
+            s, c = elementary.sincos(yaw1)
             st.twist = (st.command[0] + (c * push[0] + s * push[1]) / h,
                         st.command[1] + (-s * push[0] + c * push[1]) / h, st.command[2])
             st.pose = (float(x), float(y), yaw1)

@@ -34,6 +34,8 @@ import math
 import numba
 import numpy as np
 
+from sweep_core.model import elementary
+
 #: a direction whose cosine to a person is at most this is not towards them (a sideways
 #: direction's cosine of 1e-17 is rounding, not an advance)
 AHEAD = 1e-9
@@ -75,7 +77,9 @@ def safe_speeds(pose: tuple[float, float, float], directions: np.ndarray, radius
         return out
     rel = people - np.array(pose[:2])
     d = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
-    c = (rel / d[:, None]) @ directions.T  # (M, K); within AHEAD of 0: not ahead (rounding)
+    # (M, K) cosines, each x-then-y product (not BLAS, whose kernels differ by CPU); within
+    # AHEAD of 0: not ahead (rounding)
+    c = (rel[:, :1] / d[:, None]) * directions[:, 0] + (rel[:, 1:] / d[:, None]) * directions[:, 1]
     gap = np.maximum(d - radius - people_radii - margin, 0.0)
     if people_noise > 0:
         room = np.broadcast_to(gap[:, None], c.shape)
@@ -133,11 +137,12 @@ def nearest_safe(u: np.ndarray, pose: tuple[float, float, float], radius: float,
     speed = float(np.hypot(u[0], u[1]))
     if speed <= 1e-12:
         return np.zeros(2)
-    phi = math.atan2(u[1], u[0]) + np.arange(directions) * (2.0 * math.pi / directions)
-    dirs = np.column_stack([np.cos(phi), np.sin(phi)])
+    phi = elementary.atan2(u[1], u[0]) + np.arange(directions) * (2.0 * math.pi / directions)
+    dirs = np.column_stack([elementary.cos_of(phi), elementary.sin_of(phi)])
     out = np.empty(2)
-    nearest_of(dirs @ u, safe_speeds(pose, dirs, radius, people, people_radii, accel, margin,
-                                     people_speed, people_noise), dirs, float(u[0]),
+    along = dirs[:, 0] * u[0] + dirs[:, 1] * u[1]  # x-then-y, not BLAS
+    nearest_of(along, safe_speeds(pose, dirs, radius, people, people_radii, accel, margin,
+                                  people_speed, people_noise), dirs, float(u[0]),
                float(u[1]), out)
     return out
 

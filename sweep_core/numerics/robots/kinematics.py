@@ -9,12 +9,14 @@ over [0, h]:
 
 the arc of a circle (a straight segment when omega = 0), exactly; theta_1 = theta + omega h,
 wrapped into (-pi, pi].
-Sines and cosines come from the C library (scalar), so the bits do not depend on the CPU.
+Sines and cosines come from :mod:`sweep_core.model.elementary`, so the bits do not depend on
+the CPU.
 """
 from __future__ import annotations
 
 import math
 
+from sweep_core.model import elementary
 from sweep_core.model.robots import Robot
 
 
@@ -22,7 +24,7 @@ def sinc(a: float) -> float:
     """sin(a) / a, 1 at 0 (the series below 1e-4 rad, exact to rounding there)."""
     if abs(a) < 1e-4:
         return 1.0 - a * a / 6.0
-    return math.sin(a) / a
+    return elementary.sin(a) / a
 
 
 def arc(pose: tuple[float, float, float], command: tuple[float, float, float],
@@ -32,7 +34,7 @@ def arc(pose: tuple[float, float, float], command: tuple[float, float, float],
     vx, vy, omega = command
     half = 0.5 * omega * h
     mid = theta + half
-    c, s = math.cos(mid), math.sin(mid)
+    s, c = elementary.sincos(mid)
     k = h * sinc(half)
     return (x + k * (c * vx - s * vy), y + k * (s * vx + c * vy), wrap(theta + omega * h))
 

@@ -28,6 +28,7 @@ import math
 import numpy as np
 import pyrvo
 
+from sweep_core.model import elementary
 from sweep_core.model.robots import Robot
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.robots.control import (
@@ -75,7 +76,7 @@ class Tracker:
         v = np.zeros_like(xy)
         if self.t is not None and t > self.t and len(xy) and len(self.xy):
             dt = t - self.t
-            a = 1.0 - math.exp(-dt / TRACK_TIME)
+            a = 1.0 - elementary.exp(-dt / TRACK_TIME)
             track(np.ascontiguousarray(xy, dtype=np.float64), self.xy, self.v, dt, a,
                   GATE * GATE, v)
         self.t, self.xy, self.v = t, np.array(xy, dtype=np.float64), v
@@ -92,14 +93,14 @@ def to_command(robot: Robot, u: np.ndarray, obs: Observation, params: dict[str, 
                      robot.max_acceleration, params["stop_margin"], params["people_speed"],
                      people_noise=params["people_noise"])
     speed = float(math.hypot(u[0], u[1]))
-    heading = math.atan2(u[1], u[0]) if speed > 1e-9 else yaw
+    heading = elementary.atan2(u[1], u[0]) if speed > 1e-9 else yaw
     error = wrap(heading - yaw)
     omega = params["turn_gain"] * error if speed > 1e-9 else 0.0
-    c, s = math.cos(yaw), math.sin(yaw)
+    s, c = elementary.sincos(yaw)
     if robot.kinematics == "holonomic":
         along = u / speed if speed > 1e-9 else np.array([c, s])
     else:
-        speed = speed * max(0.0, math.cos(error))
+        speed = speed * max(0.0, elementary.cos(error))
         along = np.array([c, s])
     speed = min(speed, safe_speed(obs.pose, along, obs.radius, obs.people, obs.people_radii,
                                   robot.max_acceleration, params["stop_margin"],
@@ -116,7 +117,7 @@ def holonomic_command(robot: Robot, u: np.ndarray, omega: float, obs: Observatio
     the command is parallel to u); when the result is still faster than the safe speed along
     its own direction, the last command slowed as hard as the limit allows."""
     yaw = obs.pose[2]
-    c, s = math.cos(yaw), math.sin(yaw)
+    s, c = elementary.sincos(yaw)
     want = np.array([c * u[0] + s * u[1], -s * u[0] + c * u[1]])
     last = np.array((obs.command if obs.command is not None else obs.twist)[:2], dtype=float)
     step = robot.max_acceleration * obs.dt if obs.dt > 0 else math.inf
@@ -137,7 +138,7 @@ def holonomic_command(robot: Robot, u: np.ndarray, omega: float, obs: Observatio
 def world_velocity(obs: Observation) -> np.ndarray:
     """(2,) the robot's velocity over the last step in the map frame (m/s)."""
     vx, vy, _ = obs.twist
-    c, s = math.cos(obs.pose[2]), math.sin(obs.pose[2])
+    s, c = elementary.sincos(obs.pose[2])
     return np.array([c * vx - s * vy, s * vx + c * vy])
 
 
@@ -202,9 +203,9 @@ class Orca(Planner):
             sim.add_obstacle([tuple(a - o), tuple(b - o)])
         for c, r in zip(*self.circles(obs), strict=True):
             k = np.arange(CIRCLE_SIDES) * 2 * math.pi / CIRCLE_SIDES
-            big = r / math.cos(math.pi / CIRCLE_SIDES)
-            sim.add_obstacle([(float(c[0] - o[0] + big * math.cos(t)),
-                               float(c[1] - o[1] + big * math.sin(t))) for t in k])
+            big = r / elementary.cos(math.pi / CIRCLE_SIDES)
+            sim.add_obstacle([(float(c[0] - o[0] + big * elementary.cos(t)),
+                               float(c[1] - o[1] + big * elementary.sin(t))) for t in k])
         sim.process_obstacles()
         v0 = world_velocity(obs)
         me = sim.add_agent((0.0, 0.0), p["sensor_range"] + 2.0, int(p["neighbours"]), horizon,
@@ -256,13 +257,13 @@ class SocialForce(Planner):
         if len(a):  # from the nearest point of each wall segment to the robot
             rel, d = np.empty((len(a), 2)), np.empty(len(a))
             wall_offsets(float(o[0]), float(o[1]), a, b, rel, d)
-            mag = p["wall_strength"] * np.exp(-(d - obs.radius) / p["wall_range"])
+            mag = p["wall_strength"] * elementary.exp_of(-(d - obs.radius) / p["wall_range"])
             force = force + scaled_sum(mag, rel, d)
         c, r = self.circles(obs)
         if len(c):
             rel = o - c
             d = np.maximum(np.hypot(*rel.T), 1e-9)
-            mag = p["wall_strength"] * np.exp(-(d - r - obs.radius) / p["wall_range"])
+            mag = p["wall_strength"] * elementary.exp_of(-(d - r - obs.radius) / p["wall_range"])
             force = force + (mag[:, None] * rel / d[:, None]).sum(axis=0)
         step = obs.dt if obs.dt > 0 else DEFAULT_STEP
         u = v + step * force
@@ -285,11 +286,11 @@ class SocialForce(Planner):
         m = len(d)
         b, grad, n = np.empty(m), np.empty((m, 2)), np.empty((m, 2))
         people_terms(np.ascontiguousarray(d), np.ascontiguousarray(y), b, grad, n)
-        heading = np.array([math.cos(obs.pose[2]), math.sin(obs.pose[2])])
-        cos_phi = -(n @ heading)
+        hs, hc = elementary.sincos(obs.pose[2])
+        cos_phi = -(n[:, 0] * hc + n[:, 1] * hs)
         lam = p["anisotropy"]
         w = lam + (1.0 - lam) * (1.0 + cos_phi) / 2.0
-        mag = p["strength"] * np.exp((obs.radius + obs.people_radii - b) / p["range"]) * w
+        mag = p["strength"] * elementary.exp_of((obs.radius + obs.people_radii - b) / p["range"]) * w
         # people ahead also push it to its right (the side convention that breaks the
         # head-on symmetry): the push turned by +90 degrees, weighted by side * max(0, cos phi)
         side = p["side"] * np.maximum(cos_phi, 0.0)

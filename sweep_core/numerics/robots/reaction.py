@@ -2,12 +2,12 @@
 :mod:`sweep_core.model.robots`): a term added to the people's wished velocity."""
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
+from sweep_core.model import elementary
 from sweep_core.model.robots import CrowdReaction
 
 
@@ -21,7 +21,7 @@ def avoidance(reaction: CrowdReaction, q: np.ndarray, states: Sequence[Any]) -> 
     for st in states:
         x, y, yaw = st.pose
         vx, vy = st.command[0], st.command[1]
-        c, s = math.cos(yaw), math.sin(yaw)
+        s, c = elementary.sincos(yaw)
         wx, wy = reaction.horizon * (c * vx - s * vy), reaction.horizon * (s * vx + c * vy)
         length2 = wx * wx + wy * wy
         rel = q - np.array([x, y])
@@ -34,7 +34,7 @@ def avoidance(reaction: CrowdReaction, q: np.ndarray, states: Sequence[Any]) -> 
         near = d < reaction.radius
         if not np.any(near):
             continue
-        left = np.array([-math.sin(yaw), math.cos(yaw)])
+        left = np.array([-s, c])
         unit = np.where((d > 1e-12)[:, None], away / np.maximum(d, 1e-12)[:, None], left)
         gain = np.where(near, reaction.strength * (1.0 - d / reaction.radius), 0.0)
         out += gain[:, None] * unit

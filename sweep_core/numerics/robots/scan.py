@@ -4,8 +4,8 @@ obstacles at the time of the scan (moving obstacles posed there). User constrain
 Python are not seen by the scan.
 
 Each beam k leaves the robot's centre o along u_k = (cos a_k, sin a_k), a_k = yaw + angle_min +
-k increment (cosines and sines from the C library, per beam, so the bits do not depend on the
-CPU's vector units); its range is the smallest s >= 0 with o + s u_k on a disk's circle
+k increment (cosines and sines from :mod:`sweep_core.model.elementary`, per beam, so the bits
+do not depend on the CPU); its range is the smallest s >= 0 with o + s u_k on a disk's circle
 (s = b - sqrt(b^2 - |o - c|^2 + R^2), b = <u, c - o>), a segment (solved by cross products)
 or a half-plane's line. Noise: a Gaussian of noise_std m added to every return within
 range_max, drawn from a generator seeded by (run seed, robot index, step). Then, as REP 117
@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from sweep_core.model.elementary import sincos
 from sweep_core.model.geometry import Geometry
 from sweep_core.model.robots import ScanSpec
 
@@ -98,7 +99,7 @@ def _angles(spec: ScanSpec) -> np.ndarray:
 
 
 def beam_directions(yaw: float, spec: ScanSpec) -> tuple[np.ndarray, np.ndarray]:
-    """(B,) cosines and sines of the beams' world angles (C library, per beam)."""
+    """(B,) cosines and sines of the beams' world angles (:mod:`sweep_core.model.elementary`, per beam)."""
     angles = _angles(spec)
     ux, uy = np.empty(len(angles)), np.empty(len(angles))
     _cos_sin(float(yaw), angles, ux, uy)
@@ -108,12 +109,10 @@ def beam_directions(yaw: float, spec: ScanSpec) -> tuple[np.ndarray, np.ndarray]
 @numba.njit(cache=True)
 def _cos_sin(yaw: float, angles: np.ndarray, ux: np.ndarray, uy: np.ndarray
              ) -> None:  # pragma: no cover - compiled
-    """ux, uy (B,) = cos and sin of yaw + angles (B,) rad, each by the C library's scalar
-    cos and sin (what Python's math module calls)."""
+    """ux, uy (B,) = cos and sin of yaw + angles (B,) rad (the same bits on every CPU)."""
     for k in range(len(angles)):
         a = yaw + angles[k]
-        ux[k] = math.cos(a)
-        uy[k] = math.sin(a)
+        uy[k], ux[k] = sincos(a)
 
 
 @numba.njit(cache=True, nogil=True)

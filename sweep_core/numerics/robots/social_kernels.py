@@ -3,8 +3,9 @@
 the clearance and time to collision of a robot's episode record (``nearest_pass``, for
 :func:`sweep_core.analysis.social.nearest`). Each operation is the one, in the order, the
 numpy form took (numpy's ``hypot`` is the C library's, as numba's is; the exponentials and
-the heading's product stay numpy's), so the commands and records keep their bits (test_guard
-and test_social_metrics compare them)."""
+the heading's product are taken outside, by :mod:`sweep_core.model.elementary` and written-out
+products), so the commands and records keep their bits (test_guard and test_social_metrics
+compare them)."""
 from __future__ import annotations
 
 import math

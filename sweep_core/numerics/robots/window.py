@@ -39,6 +39,8 @@ import math
 import numba
 import numpy as np
 
+from sweep_core.model import elementary
+from sweep_core.model.elementary import exp
 from sweep_core.model.robots import Robot
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.robots.control import Observation, feasible
@@ -55,7 +57,7 @@ STEP = 0.1
 def candidates(heading: float, max_speed: float) -> np.ndarray:
     """(K, 2) m/s: the sampled velocities round ``heading`` (rad), u = 0 last."""
     phi = heading + HEADINGS
-    dirs = np.column_stack([np.cos(phi), np.sin(phi)])
+    dirs = np.column_stack([elementary.cos_of(phi), elementary.sin_of(phi)])
     u = (SPEEDS[:, None, None] * max_speed * dirs[None, :, :]).reshape(-1, 2)
     return np.vstack([u, np.zeros((1, 2))])
 
@@ -107,7 +109,7 @@ def hazards(u: np.ndarray, robot_xy: np.ndarray, radius: float, people: np.ndarr
                 if gap <= 0.0:
                     h = toward + passive
                 elif sig > 0.0:
-                    h = math.exp(-gap * gap / (2.0 * sig * sig)) * (toward + passive)
+                    h = exp(-gap * gap / (2.0 * sig * sig)) * (toward + passive)
                 else:
                     h = 0.0
                 worst = max(worst, h)
@@ -133,7 +135,7 @@ class Window(Planner):
             return feasible(self.robot, (0.0, 0.0, 0.0), obs)
         p = self.params
         vmax = self.robot.max_speed
-        u = candidates(math.atan2(pref[1], pref[0]), vmax)
+        u = candidates(elementary.atan2(pref[1], pref[0]), vmax)
         risk = np.zeros(len(u))
         if len(obs.people):
             hazards(u, np.array(obs.pose[:2], dtype=np.float64), float(obs.radius),
@@ -141,7 +143,8 @@ class Window(Planner):
                     np.ascontiguousarray(obs.people_radii, dtype=np.float64),
                     np.ascontiguousarray(v_people, dtype=np.float64), *self.avoid,
                     p["spread"], p["hazard_margin"], p["passive"], p["horizon"], STEP, vmax, risk)
-        score = (u @ pref) / (vmax * vmax) * np.exp(-p["hazard_weight"] * risk) \
+        ahead = u[:, 0] * pref[0] + u[:, 1] * pref[1]  # x-then-y, not BLAS
+        score = ahead / (vmax * vmax) * elementary.exp_of(-p["hazard_weight"] * risk) \
             - p["steadiness"] * np.hypot(*(u - self.last).T) / vmax
         best = u[int(np.argmax(score))]
         self.last = best
