@@ -12,6 +12,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from sweep_core.io import markers as content
 from sweep_core.io.cdr.markers import MarkerBatch
 from sweep_core.io.cdr.markers import delete_all as delete_all_batch
+from sweep_core.model import elementary
 from sweep_core.model.geometry import Geometry
 from sweep_ros.messages import time_msg
 
@@ -31,8 +32,7 @@ def to_message(frame_id: str, stamp_ns: int, batches: list[MarkerBatch]) -> Mark
             m.ns, m.id, m.type, m.action = b.ns, int(b.ids[i]), int(b.type), int(b.action)
             p = m.pose.position
             p.x, p.y, p.z = (float(v) for v in b.position[i])
-            m.pose.orientation.z = float(np.sin(half[i]))
-            m.pose.orientation.w = float(np.cos(half[i]))
+            m.pose.orientation.z, m.pose.orientation.w = elementary.sincos(float(half[i]))
             m.scale.x, m.scale.y, m.scale.z = (float(v) for v in b.scale[i])
             m.color.r, m.color.g, m.color.b, m.color.a = (float(v) for v in b.color[i])
             out.append(m)

@@ -19,6 +19,7 @@ from builtin_interfaces.msg import Time
 from sweep_core import SceneError
 from sweep_core.checks import COORDINATE_BOUND
 from sweep_core.errors import show
+from sweep_core.model import elementary
 from sweep_core.model.fields import Goal, Uniform
 from sweep_core.model.maps import OccupancyMap
 
@@ -147,7 +148,7 @@ def map_from_grid(msg: Any, frame_id: str, topic: str = "map") -> OccupancyMap:
     if norm < 1e-9 or max(abs(o.x), abs(o.y)) > PLANAR_TOLERANCE * norm:
         raise CommandError(topic, f"info.origin.orientation {show(quat)} is not a rotation "
                                   "about z (fix: publish a planar map, quaternion x = y = 0)")
-    yaw = 2.0 * math.atan2(o.z, o.w)
+    yaw = 2.0 * elementary.atan2(o.z, o.w)
     if not math.isfinite(info.resolution):
         raise CommandError(topic, f"info.resolution {show(info.resolution)} is not finite "
                                   "(fix: publish the cell size, m)")

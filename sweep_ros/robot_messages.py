@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from sweep_core.errors import show
+from sweep_core.model import elementary
 from sweep_ros.messages import MAX_COORDINATE, CommandError
 
 #: largest |roll| or |pitch| quaternion component of a pose taken as planar (relative to its norm)
@@ -90,4 +91,4 @@ def initial_pose(msg: Any, map_frame: str, topic: str) -> tuple[float, float, fl
         raise CommandError(topic, f"orientation {show(quat)} is not a rotation about z (fix: "
                                   "send a planar pose, quaternion x = y = 0, not all zero)")
     # yaw in (-pi, pi] of the rotation about z (the quaternion need not be normalised)
-    return float(p.x), float(p.y), math.atan2(2.0 * o.w * o.z, o.w * o.w - o.z * o.z)
+    return float(p.x), float(p.y), elementary.atan2(2.0 * o.w * o.z, o.w * o.w - o.z * o.z)

@@ -235,11 +235,12 @@ def test_row_residuals_have_the_bits_of_the_numpy_form() -> None:
         assert rp.tobytes() == want_p.tobytes() and rs.tobytes() == want_s.tobytes()
 
 
-def test_beam_directions_are_the_c_librarys_cos_and_sin_per_beam() -> None:
-    """A scan's beam directions (compiled) are math.cos and math.sin of yaw + each beam's
-    angle, bit for bit."""
+def test_beam_directions_are_elementary_cos_and_sin_per_beam() -> None:
+    """A scan's beam directions (compiled) are elementary.cos and elementary.sin of yaw + each
+    beam's angle, bit for bit."""
     import math
 
+    from sweep_core.model import elementary
     from sweep_core.model.robots import ScanSpec
     from sweep_core.numerics.robots.scan import beam_directions
 
@@ -248,5 +249,5 @@ def test_beam_directions_are_the_c_librarys_cos_and_sin_per_beam() -> None:
     for yaw in [0.0, -math.pi, math.pi, *rng.uniform(-10.0, 10.0, 200)]:
         ux, uy = beam_directions(float(yaw), spec)
         angles = (float(yaw) + spec.angles()).tolist()
-        assert ux.tobytes() == np.array([math.cos(v) for v in angles]).tobytes()
-        assert uy.tobytes() == np.array([math.sin(v) for v in angles]).tobytes()
+        assert ux.tobytes() == np.array([elementary.cos(v) for v in angles]).tobytes()
+        assert uy.tobytes() == np.array([elementary.sin(v) for v in angles]).tobytes()
