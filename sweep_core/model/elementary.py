@@ -23,9 +23,9 @@ Methods (textbook ones; the polynomials are Taylor series, truncated below 2^-60
 * exp: x = k ln 2 + r, |r| <= ln 2 / 2, e^r by its series to r^14 / 14!, times 2^k.
 * log: x = m 2^e with m in [sqrt(1/2), sqrt(2)), log m = 2 atanh(s), s = (m - 1) / (m + 1).
 
-Scalars: :func:`sin`, :func:`cos`, :func:`sincos`, :func:`atan2`, :func:`exp`, :func:`log` (numba
-functions, callable from Python and from compiled code); arrays of any shape:
-:func:`sin_of`, :func:`cos_of`, :func:`exp_of`, :func:`atan2_of`.
+Scalars: :func:`sin`, :func:`cos`, :func:`sincos`, :func:`atan2`, :func:`exp`, :func:`log`
+(numba functions of float64, callable from Python and from compiled code; an int is taken as a
+float); arrays of any shape: :func:`sin_of`, :func:`cos_of`, :func:`exp_of`, :func:`atan2_of`.
 """
 from __future__ import annotations
 
@@ -77,7 +77,7 @@ ATAN_SERIES = np.array([float(Fraction((-1) ** n, 2 * n + 1)) for n in range(13)
 ATANH_SERIES = np.array([float(Fraction(1, 2 * n + 1)) for n in range(13)])
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit("float64(float64)", cache=True, nogil=True)
 def exp(x: float) -> float:
     """e^x (x a float): x = k ln 2 + r with |r| <= ln 2 / 2 (Cody and Waite's two-part
     ln 2), e^r by its Taylor series to r^14 / 14! (truncation below 5e-18 relative), then
@@ -96,7 +96,7 @@ def exp(x: float) -> float:
     return math.ldexp(p, int(k))
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit("float64(float64)", cache=True, nogil=True)
 def log(x: float) -> float:
     """Natural log of x (a float): x = m 2^e with m in [sqrt(1/2), sqrt(2)); log m =
     2 atanh(s), s = (m - 1) / (m + 1), |s| <= 0.1716, by its series to s^25 / 25 (truncation
@@ -156,7 +156,7 @@ def _cos_kernel(r: float) -> float:
     return (1.0 - 0.5 * z) + z * z * q
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit("float64(float64)", cache=True, nogil=True)
 def sin(x: float) -> float:
     """sin x (x in rad, a float); NaN for NaN and +-inf."""
     if not math.isfinite(x):
@@ -173,7 +173,7 @@ def sin(x: float) -> float:
     return -_cos_kernel(r)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit("float64(float64)", cache=True, nogil=True)
 def cos(x: float) -> float:
     """cos x (x in rad, a float); NaN for NaN and +-inf."""
     if not math.isfinite(x):
@@ -188,7 +188,7 @@ def cos(x: float) -> float:
     return _sin_kernel(r)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit("UniTuple(float64, 2)(float64)", cache=True, nogil=True)
 def sincos(x: float) -> tuple[float, float]:
     """(sin x, cos x) with one reduction; the same bits as :func:`sin` and :func:`cos`."""
     if not math.isfinite(x):
@@ -221,7 +221,7 @@ def _atan_unit(t: float) -> float:
     return a * (1 << halvings)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit("float64(float64, float64)", cache=True, nogil=True)
 def atan2(y: float, x: float) -> float:
     """The angle of (x, y) in rad, in [-pi, pi], with the C library's conventions for signed
     zeros and infinities; NaN if either is NaN."""
