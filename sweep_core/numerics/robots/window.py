@@ -52,6 +52,8 @@ HEADINGS = np.radians(np.arange(-90.0, 91.0, 15.0))
 SPEEDS = np.array([0.25, 0.5, 0.75, 1.0])
 #: forecast time step (s)
 STEP = 0.1
+#: a person farther than FAR forecast spreads counts no hazard (e^(-FAR^2 / 2) < 1e-17)
+FAR = 9.0
 
 
 def candidates(heading: float, max_speed: float) -> np.ndarray:
@@ -108,9 +110,9 @@ def hazards(u: np.ndarray, robot_xy: np.ndarray, radius: float, people: np.ndarr
                 sig = spread * math.sqrt(t)
                 if gap <= 0.0:
                     h = toward + passive
-                elif sig > 0.0:
+                elif sig > 0.0 and gap < FAR * sig:
                     h = exp(-gap * gap / (2.0 * sig * sig)) * (toward + passive)
-                else:
+                else:  # beyond FAR spreads the hazard is below 1e-17 of a contact's: 0
                     h = 0.0
                 worst = max(worst, h)
             total += worst
