@@ -12,6 +12,7 @@ from sweep_core.model.geometry import CIRCLE
 from sweep_core.numerics.constraints import Rows
 from sweep_core.numerics.projection import Projection
 from sweep_core.numerics.robots.contacts import set_contacts
+from sweep_core.numerics.robots.scan import bounded_ranges
 
 
 def bits(a: object) -> bytes:
@@ -95,3 +96,22 @@ def random_case(seed: int) -> int:
 def test_contacts_as_the_numpy_expressions(start: int) -> None:
     touched = sum(random_case(seed) for seed in range(start, start + 50))
     assert touched >= 20  # most draws give contacts: not only empty arrays compared
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_bounded_ranges_as_nan_assignment_and_clip(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    b = int(rng.integers(0, 90))
+    range_max = float(10.0 ** rng.uniform(-1, 2))
+    ranges = np.abs(wide(rng, (b,))) * rng.choice([1.0, -1.0], b, p=[0.9, 0.1])
+    # (no -0.0: whether numpy's clip keeps its sign is its SIMD kernels' business)
+    special = np.array([np.nan, np.inf, -np.inf, 0.0, range_max,
+                        np.nextafter(range_max, np.inf), np.nextafter(0.0, -1.0)])
+    pick = rng.uniform(size=b) < 0.3
+    ranges[pick] = rng.choice(special, int(pick.sum()))
+    want = ranges.copy()
+    want[np.isnan(want)] = range_max
+    want = np.clip(want, 0.0, range_max)
+    got = np.empty(b)
+    bounded_ranges(ranges, range_max, got)
+    assert bits(got) == bits(want)

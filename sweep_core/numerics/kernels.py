@@ -172,6 +172,8 @@ def _exercise() -> None:
     ranges = np.array([1.0, np.inf])
     robot_scan.finish_ranges(ranges, np.ones(robot_scan.finite_count(ranges)), 0.01, 0.05, 5.0)
     noise.pcg64_state((0, 0, 1))
+    # the environment's observation of them (NaN and infinite ranges bounded)
+    robot_scan.bounded_ranges(ranges, 5.0, np.empty(2))
     # the sampling planner's forecast of the people it sees
     window.hazards(np.ones((2, 2)), np.zeros(2), 0.3, np.ones((1, 2)), np.full(1, 0.2),
                    np.zeros((1, 2)), 1.5, 1.0, 0.6, 0.3, 0.1, 0.25, 1.0, 0.1, 1.0, np.empty(2))
