@@ -12,6 +12,7 @@ from sweep_core.model.geometry import CIRCLE
 from sweep_core.numerics.constraints import Rows
 from sweep_core.numerics.projection import Projection
 from sweep_core.numerics.robots.contacts import set_contacts
+from sweep_core.numerics.robots.control import within_reach
 from sweep_core.numerics.robots.scan import bounded_ranges
 
 
@@ -115,3 +116,21 @@ def test_bounded_ranges_as_nan_assignment_and_clip(seed: int) -> None:
     got = np.empty(b)
     bounded_ranges(ranges, range_max, got)
     assert bits(got) == bits(want)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_within_reach_as_the_numpy_distance(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(0, 60))
+    people = wide(rng, (m, 2))
+    radii = np.abs(wide(rng, (m,)))
+    x, y = (float(v) for v in wide(rng, (2,)))
+    d0 = np.hypot(people[:, 0] - x, people[:, 1] - y) - radii
+    # reaches at some of the distances exactly, and between them
+    reach = float(rng.choice(d0)) if m and rng.uniform() < 0.5 else float(10.0 ** rng.uniform(-3, 3))
+    if m:
+        people[rng.uniform(size=m) < 0.1] = np.nan
+    want = np.hypot(people[:, 0] - x, people[:, 1] - y) - radii <= reach
+    got = np.empty(m, dtype=np.bool_)
+    within_reach(people, radii, x, y, reach, got)
+    assert np.array_equal(got, want)

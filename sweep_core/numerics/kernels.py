@@ -27,13 +27,14 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clusters import solve_active
-from sweep_core.numerics.robots import contacts, guard, social_kernels, window
+from sweep_core.numerics.robots import contacts, control, guard, social_kernels, window
 from sweep_core.numerics.robots import scan as robot_scan
 from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
 MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
-                                   noise, constraints, guard, social_kernels, window, contacts)
+                                   noise, constraints, guard, social_kernels, window, contacts,
+                                   control)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -193,6 +194,8 @@ def _exercise() -> None:
     rel, d = np.empty((1, 2)), np.empty(1)
     social_kernels.wall_offsets(0.0, 0.0, np.zeros((1, 2)), np.ones((1, 2)), rel, d)
     social_kernels.scaled_sum(np.ones(1), rel, d)
+    # the people a controller sees (of a scene without robots, none is observed)
+    control.within_reach(np.ones((1, 2)), np.ones(1), 0.0, 0.0, 8.0, np.empty(1, dtype=np.bool_))
     # a robot's contacts from the projection's rows (a prescribed disk's, a free robot's)
     one8 = np.full(1, 2, dtype=np.int8)
     ids, imp = np.empty(1, dtype=np.int64), np.empty((1, 2))
