@@ -192,8 +192,9 @@ class CrowdNavEnv(gymnasium.Env):
         near, ttc = social.nearest(np.array([x, y]), vel, self.spec_robot.radius,
                                    sim.positions, sim.radii, sim.velocities)
         ids, imp = _contacts(st)
+        total, most = (float(imp.sum()), float(imp.max())) if len(imp) else (0.0, 0.0)
         self.rows.append((self.steps * self.dt, x, y, yaw, vel[0], vel[1], near, ttc, len(ids),
-                          float(imp.sum()), float(imp.max()) if len(imp) else 0.0))
+                          total, most))
         self.touched.append(ids)
         togo = float(self.field.travel_distance(np.array([[x, y]]))[0])
         return near, len(ids), togo
