@@ -48,6 +48,7 @@ from sweep_core.errors import SceneError, show
 from sweep_core.io import limits
 from sweep_core.model import elementary
 from sweep_core.model.scene import Scene, load_scene
+from sweep_core.numerics.robots.scan import bounded_ranges
 from sweep_core.numerics.simulator import Simulator
 
 #: the bundled scene of ``gymnasium.make("sweep/CrowdNav-v0")`` without a scene
@@ -163,10 +164,11 @@ class CrowdNavEnv(gymnasium.Env):
         if scan is None:
             return np.full(0, self.range_max)
         # NaN read as range_max; then +inf (no return) becomes range_max and -inf (too close)
-        # 0 by the clip, as nan_to_num's posinf and neginf would
-        ranges = np.array(scan.ranges, dtype=np.float64)
-        ranges[np.isnan(ranges)] = self.range_max
-        return np.clip(ranges, 0.0, self.range_max)
+        # 0 by the clip, as nan_to_num's posinf and neginf would (compiled, one pass)
+        ranges = np.ascontiguousarray(scan.ranges, dtype=np.float64)
+        out = np.empty(len(ranges))
+        bounded_ranges(ranges, self.range_max, out)
+        return out
 
     def _observe(self) -> dict[str, np.ndarray]:
         st = self._state()
@@ -183,16 +185,17 @@ class CrowdNavEnv(gymnasium.Env):
     def _record(self) -> tuple[float, int, float]:
         """Appends this instant to the episode's series; (clearance, contacts, distance to
         go along the geodesic field)."""
-        st, people = self._state(), self.sim.state
+        st, sim = self._state(), self.sim
         x, y, yaw = (float(v) for v in st.pose)
         u, w = float(st.twist[0]), float(st.twist[1])
         s, c = elementary.sincos(yaw)
         vel = np.array([c * u - s * w, s * u + c * w])
         near, ttc = social.nearest(np.array([x, y]), vel, self.spec_robot.radius,
-                                   people.positions, people.radii, people.velocities)
+                                   sim.positions, sim.radii, sim.velocities)
         ids, imp = _contacts(st)
+        total, most = (float(imp.sum()), float(imp.max())) if len(imp) else (0.0, 0.0)
         self.rows.append((self.steps * self.dt, x, y, yaw, vel[0], vel[1], near, ttc, len(ids),
-                          float(imp.sum()), float(imp.max()) if len(imp) else 0.0))
+                          total, most))
         self.touched.append(ids)
         togo = float(self.field.travel_distance(np.array([[x, y]]))[0])
         return near, len(ids), togo

@@ -38,7 +38,7 @@ def crossings(geom: Geometry, q0: np.ndarray, q1: np.ndarray, r1: np.ndarray,
     are the candidates of every agent that moved at most reach + r1_i (a path through a
     segment ends within its length of it, so its value there is at most |q1 - q0| - r1_i);
     agents that moved farther (or all, without ``near``) are searched here."""
-    static = geom.segment_motion < 0
+    static = geom.static_segments
     empty = np.empty(0, dtype=np.intp)
     if len(static) == 0:
         return empty, empty
@@ -55,9 +55,8 @@ def crossings(geom: Geometry, q0: np.ndarray, q1: np.ndarray, r1: np.ndarray,
     found = crossing_pairs(q0, q1, r1, np.ascontiguousarray(i, dtype=np.intp),
                            np.ascontiguousarray(k, dtype=np.intp),
                            -1.0 if near is None else float(near.reach),
-                           np.ascontiguousarray(geom.segment_a, dtype=np.float64),
-                           np.ascontiguousarray(geom.segment_b, dtype=np.float64),
-                           static, DENSE_PAIRS, out_i, out_k, unsure)
+                           geom.packed[2], geom.packed[3], static, DENSE_PAIRS, out_i, out_k,
+                           unsure)
     if found >= 0:
         i, k, unsure = out_i[:found], out_k[:found], unsure[:found]
         hit = ~unsure

@@ -102,6 +102,12 @@ class Geometry:
         return not np.any(self.halfplane_velocity)
 
     @cached_property
+    def static_segments(self) -> np.ndarray:
+        """(S,) bool: the segments that do not move (the crossing check's), computed once
+        (not to be written: a writeable array, the type the compiled check takes)."""
+        return self.segment_motion < 0
+
+    @cached_property
     def has_polygons(self) -> bool:
         """Some segment is the edge of a solid polygon."""
         return bool(np.any(self.segment_polygon >= 0))

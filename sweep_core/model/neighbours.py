@@ -148,9 +148,19 @@ def pairs_within(q: np.ndarray, reach: float, expect: int = 0
     made first, and the search runs again only when more are found (the pairs are the same
     either way)."""
     q = np.ascontiguousarray(q, dtype=np.float64)
-    if len(q) < 2:
+    n = len(q)
+    if n < 2:
         return _NONE, _NONE
-    return _pairs(q, float(reach), int(expect))
+    # the output made here and filled by the compiled search (an array made inside a
+    # compiled function costs more to hand back than the search itself on a small crowd)
+    capacity = max(4 * n, int(expect))
+    while True:
+        i = np.empty(capacity, dtype=np.intp)
+        j = np.empty(capacity, dtype=np.intp)
+        found = _pairs(q, float(reach), i, j)
+        if found <= capacity:
+            return i[:found], j[:found]
+        capacity = found
 
 
 _NONE = np.empty(0, dtype=np.intp)
@@ -172,9 +182,10 @@ class SizedSearch:
 
 
 @numba.njit(cache=True, nogil=True)
-def _pairs(q: np.ndarray, reach: float, expect: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`pairs_within` for N >= 2: the grid's extent, the dense grid or the sorted cells,
-    and output arrays grown until the pairs fit."""
+def _pairs(q: np.ndarray, reach: float, out_i: np.ndarray, out_j: np.ndarray
+           ) -> int:  # pragma: no cover - compiled
+    """:func:`pairs_within` for N >= 2: the grid's extent, then the dense grid or the sorted
+    cells writing the pairs while out_i, out_j have room; the count of pairs found."""
     n = q.shape[0]
     x0, y0, x1, y1 = q[0, 0], q[0, 1], q[0, 0], q[0, 1]
     for a in range(1, n):
@@ -182,16 +193,9 @@ def _pairs(q: np.ndarray, reach: float, expect: int) -> tuple[np.ndarray, np.nda
         y0, y1 = min(y0, q[a, 1]), max(y1, q[a, 1])
     nx = int((x1 - x0) / reach) + 1
     ny = int((y1 - y0) / reach) + 1
-    dense = nx * ny <= _GRID_CELLS_PER_AGENT * n + 64
-    capacity = max(4 * n, expect)
-    while True:
-        i = np.empty(capacity, dtype=np.intp)
-        j = np.empty(capacity, dtype=np.intp)
-        found = (_pairs_grid(q, reach, x0, y0, nx, ny, i, j) if dense
-                 else _pairs_sorted(q, reach, x0, y0, ny + 2, i, j))
-        if found <= capacity:
-            return i[:found], j[:found]
-        capacity = found
+    if nx * ny <= _GRID_CELLS_PER_AGENT * n + 64:
+        return _pairs_grid(q, reach, x0, y0, nx, ny, out_i, out_j)
+    return _pairs_sorted(q, reach, x0, y0, ny + 2, out_i, out_j)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -27,13 +27,14 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clusters import solve_active
-from sweep_core.numerics.robots import guard, social_kernels, window
+from sweep_core.numerics.robots import contacts, control, guard, social_kernels, window
 from sweep_core.numerics.robots import scan as robot_scan
 from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
 MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
-                                   noise, constraints, guard, social_kernels, window)
+                                   noise, constraints, guard, social_kernels, window, contacts,
+                                   control)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -172,6 +173,8 @@ def _exercise() -> None:
     ranges = np.array([1.0, np.inf])
     robot_scan.finish_ranges(ranges, np.ones(robot_scan.finite_count(ranges)), 0.01, 0.05, 5.0)
     noise.pcg64_state((0, 0, 1))
+    # the environment's observation of them (NaN and infinite ranges bounded)
+    robot_scan.bounded_ranges(ranges, 5.0, np.empty(2))
     # the sampling planner's forecast of the people it sees
     window.hazards(np.ones((2, 2)), np.zeros(2), 0.3, np.ones((1, 2)), np.full(1, 0.2),
                    np.zeros((1, 2)), 1.5, 1.0, 0.6, 0.3, 0.1, 0.25, 1.0, 0.1, 1.0, np.empty(2))
@@ -197,6 +200,13 @@ def _exercise() -> None:
     rel, d = np.empty((1, 2)), np.empty(1)
     social_kernels.wall_offsets(0.0, 0.0, np.zeros((1, 2)), np.ones((1, 2)), rel, d)
     social_kernels.scaled_sum(np.ones(1), rel, d)
+    # the people a controller sees (of a scene without robots, none is observed)
+    control.within_reach(np.ones((1, 2)), np.ones(1), 0.0, 0.0, 8.0, np.empty(1, dtype=np.bool_))
+    # a robot's contacts from the projection's rows (a prescribed disk's, a free robot's)
+    one8 = np.full(1, 2, dtype=np.int8)
+    ids, imp = np.empty(1, dtype=np.int64), np.empty((1, 2))
+    contacts.circle_contacts(one8, one, one, np.ones((1, 2)), np.ones(1), 2, 0, 0.1, ids, imp)
+    contacts.pair_contacts(one, one + 1, np.ones((1, 2)), np.ones(1), 1, 1, 0.1, ids, imp)
     social_kernels.nearest_pass(0.0, 0.0, 0.0, 0.0, 0.3, np.ones((1, 2)), np.ones(1),
                                 np.zeros((1, 2)), np.empty(3))
 

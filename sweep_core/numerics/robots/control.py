@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+import numba
 import numpy as np
 
 from sweep_core.model import elementary
@@ -66,11 +67,23 @@ def observe(state: Any, t: float, people: np.ndarray | None = None,
     reach = sensor_range(r.params)
     seen, seen_r = np.empty((0, 2)), np.empty(0)
     if people is not None and radii is not None and len(people) and math.isfinite(reach):
-        d = np.hypot(people[:, 0] - state.pose[0], people[:, 1] - state.pose[1]) - radii
-        near = d <= reach
+        near = np.empty(len(people), dtype=np.bool_)
+        within_reach(np.ascontiguousarray(people, dtype=np.float64),
+                     np.ascontiguousarray(radii, dtype=np.float64), float(state.pose[0]),
+                     float(state.pose[1]), float(reach), near)
         seen, seen_r = people[near], radii[near]
     return Observation(t, state.pose, state.twist, state.scan, r.goal, r.goal_radius, r.radius,
                        seen, seen_r, state.command, dt)
+
+
+@numba.njit(cache=True, nogil=True)
+def within_reach(people: np.ndarray, radii: np.ndarray, x: float, y: float, reach: float,
+                 near: np.ndarray) -> None:  # pragma: no cover - compiled
+    """near (M,) = whether the disk of each person (``people`` (M, 2) m, ``radii`` (M,) m)
+    comes within ``reach`` m of (x, y): hypot(dx, dy) - radius <= reach, the C library's
+    hypot as numpy's, in numpy's order (NaN: not near)."""
+    for k in range(people.shape[0]):
+        near[k] = math.hypot(people[k, 0] - x, people[k, 1] - y) - radii[k] <= reach
 
 
 def goal_field(scene: Scene, robot: Robot) -> Any:

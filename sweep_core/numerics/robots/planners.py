@@ -174,6 +174,8 @@ class Planner:
         """Circle obstacles (centres (C, 2), radii (C,)) at obs.t within the sensor range."""
         g = self.scene.geometry.at(obs.t)
         c, r = g.circle_center.reshape(-1, 2), g.circle_radius
+        if not len(r):  # none to see
+            return c, r
         d = np.hypot(*(c - np.array(obs.pose[:2])).T) - r
         near = d <= self.params["sensor_range"]
         return c[near], r[near]

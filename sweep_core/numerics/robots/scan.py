@@ -146,6 +146,20 @@ def finish_ranges(ranges: np.ndarray, draws: np.ndarray, noise_std: float, range
             ranges[b] = np.inf
 
 
+@numba.njit(cache=True, nogil=True)
+def bounded_ranges(ranges: np.ndarray, range_max: float, out: np.ndarray
+                   ) -> None:  # pragma: no cover - compiled
+    """out (B,) = ranges (B,) m with NaN read as range_max, then clipped to [0, range_max]
+    (+inf to range_max, -inf to 0), the values of numpy's ``ranges[isnan] = range_max;
+    clip(ranges, 0, range_max)`` (a -0.0 range is kept)."""
+    for b in range(ranges.shape[0]):
+        v = ranges[b]
+        if np.isnan(v):
+            v = range_max
+        v = 0.0 if v < 0.0 else v
+        out[b] = range_max if v > range_max else v
+
+
 def scan(spec: ScanSpec, pose: tuple[float, float, float], t: float, step: int,
          geometry: Geometry, disks: np.ndarray, disk_radii: np.ndarray,
          rng: np.random.Generator | None = None) -> Scan:
@@ -153,17 +167,17 @@ def scan(spec: ScanSpec, pose: tuple[float, float, float], t: float, step: int,
     are the people and the other robots (m); ``rng`` draws the range noise (None: none)."""
     geom = geometry.at(t)
     ux, uy = beam_directions(pose[2], spec)
-    if len(geom.circle_radius):
-        disks = np.concatenate([disks, geom.circle_center])
-        disk_radii = np.concatenate([disk_radii, geom.circle_radius])
+    # the geometry's contiguous float64 arrays, made once per geometry; the half-planes'
+    # offsets c + v t at t
+    normals, _, seg_a, seg_b, circle_c, circle_r = geom.packed
+    if len(circle_r):
+        disks = np.concatenate([disks, circle_c])
+        disk_radii = np.concatenate([disk_radii, circle_r])
     centers = np.ascontiguousarray(disks, dtype=float)
     radii = np.ascontiguousarray(disk_radii, dtype=float)
-    hp_c = np.ascontiguousarray(geom.halfplane_offset + geom.halfplane_velocity * t, dtype=float)
     ranges = ray_cast(float(pose[0]), float(pose[1]), ux, uy, centers.reshape(-1, 2), radii,
-                      np.ascontiguousarray(geom.segment_a, dtype=float).reshape(-1, 2),
-                      np.ascontiguousarray(geom.segment_b, dtype=float).reshape(-1, 2),
-                      np.ascontiguousarray(geom.halfplane_normal, dtype=float).reshape(-1, 2),
-                      hp_c, float(spec.range_max))
+                      seg_a.reshape(-1, 2), seg_b.reshape(-1, 2), normals.reshape(-1, 2),
+                      geom.offsets(t), float(spec.range_max))
     noisy = rng is not None and spec.noise_std > 0
     draws = (rng.standard_normal(finite_count(ranges)) if noisy  # type: ignore[union-attr]
              else np.empty(0))
