@@ -34,7 +34,7 @@ import math
 import numba
 import numpy as np
 
-from sweep_core.model import elementary
+from sweep_core.model.elementary import atan2, sincos
 
 #: a direction whose cosine to a person is at most this is not towards them (a sideways
 #: direction's cosine of 1e-17 is rounding, not an advance)
@@ -75,19 +75,47 @@ def safe_speeds(pose: tuple[float, float, float], directions: np.ndarray, radius
     out = np.full(len(directions), math.inf)
     if not len(people):
         return out
-    rel = people - np.array(pose[:2])
-    d = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
-    # (M, K) cosines, each x-then-y product (not BLAS, whose kernels differ by CPU); within
-    # AHEAD of 0: not ahead (rounding)
-    c = (rel[:, :1] / d[:, None]) * directions[:, 0] + (rel[:, 1:] / d[:, None]) * directions[:, 1]
-    gap = np.maximum(d - radius - people_radii - margin, 0.0)
     if people_noise > 0:
+        rel = people - np.array(pose[:2])
+        d = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
+        # (M, K) cosines, each x-then-y product (not BLAS, whose kernels differ by CPU);
+        # within AHEAD of 0: not ahead (rounding)
+        c = (rel[:, :1] / d[:, None]) * directions[:, 0] + \
+            (rel[:, 1:] / d[:, None]) * directions[:, 1]
+        gap = np.maximum(d - radius - people_radii - margin, 0.0)
         room = np.broadcast_to(gap[:, None], c.shape)
         s = reach_root(accel * np.maximum(c, 0.0) / 2.0, people_speed, people_noise, room)
         bound = np.where(room > 0.0, accel * s * s, 0.0)
         return np.asarray(np.where(c > AHEAD, bound, math.inf).min(axis=0, initial=math.inf))
-    smallest_bounds(np.ascontiguousarray(c), gap, float(accel), float(people_speed), out)
+    bounds_along(float(pose[0]), float(pose[1]), np.ascontiguousarray(directions, dtype=np.float64),
+                 float(radius), np.ascontiguousarray(people, dtype=np.float64),
+                 np.ascontiguousarray(people_radii, dtype=np.float64), float(accel),
+                 float(margin), float(people_speed), out)
     return out
+
+
+@numba.njit(cache=True)
+def bounds_along(x: float, y: float, directions: np.ndarray, radius: float, people: np.ndarray,
+                 radii: np.ndarray, accel: float, margin: float, people_speed: float,
+                 out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:func:`safe_speeds` without ``people_noise`` into out (K,): each person's distance d
+    (at least 1e-12), cosines (x / d) u_x + (y / d) u_y with each unit direction (K, 2) and
+    gap max(d - R - r_j - margin, 0) in numpy's order of operations (NaN kept as np.maximum
+    keeps it), then :func:`smallest_bounds`; the same bits as the numpy form."""
+    m, k = people.shape[0], directions.shape[0]
+    c = np.empty((m, k))
+    gap = np.empty(m)
+    for j in range(m):
+        rx, ry = people[j, 0] - x, people[j, 1] - y
+        d = math.hypot(rx, ry)
+        if not (d != d or d >= 1e-12):
+            d = 1e-12
+        ex, ey = rx / d, ry / d
+        for i in range(k):
+            c[j, i] = ex * directions[i, 0] + ey * directions[i, 1]
+        g = ((d - radius) - radii[j]) - margin
+        gap[j] = g if (g != g or g >= 0.0) else 0.0
+    smallest_bounds(c, gap, accel, people_speed, out)
 
 
 @numba.njit(cache=True)
@@ -137,14 +165,28 @@ def nearest_safe(u: np.ndarray, pose: tuple[float, float, float], radius: float,
     speed = float(np.hypot(u[0], u[1]))
     if speed <= 1e-12:
         return np.zeros(2)
-    phi = elementary.atan2(u[1], u[0]) + np.arange(directions) * (2.0 * math.pi / directions)
-    dirs = np.column_stack([elementary.cos_of(phi), elementary.sin_of(phi)])
+    dirs, along = np.empty((directions, 2)), np.empty(directions)
+    headings(float(u[0]), float(u[1]), dirs, along)
     out = np.empty(2)
-    along = dirs[:, 0] * u[0] + dirs[:, 1] * u[1]  # x-then-y, not BLAS
     nearest_of(along, safe_speeds(pose, dirs, radius, people, people_radii, accel, margin,
                                   people_speed, people_noise), dirs, float(u[0]),
                float(u[1]), out)
     return out
+
+
+@numba.njit(cache=True)
+def headings(ux: float, uy: float, dirs: np.ndarray, along: np.ndarray
+             ) -> None:  # pragma: no cover - compiled
+    """dirs (K, 2): the unit vectors at atan2(uy, ux) + k 2 pi / K (k = 0 .. K-1, cos and sin
+    of :mod:`sweep_core.model.elementary`), and along (K,) the components of u along them
+    (x-then-y products)."""
+    count = dirs.shape[0]
+    base = atan2(uy, ux)
+    step = 2.0 * math.pi / count
+    for k in range(count):
+        s, c = sincos(base + k * step)
+        dirs[k, 0], dirs[k, 1] = c, s
+        along[k] = c * ux + s * uy
 
 
 @numba.njit(cache=True)
