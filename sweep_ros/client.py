@@ -360,8 +360,9 @@ def run(args: argparse.Namespace, client: Client) -> int:
     return (0 if res.success else 1) or _one_server(client, "status")
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``python -m sweep_ros.client``."""
+def main(argv: list[str] | None = None, tidy: bool = True) -> int:
+    """Entry point of ``python -m sweep_ros.client``; with ``tidy`` the node is destroyed and
+    rclpy shut down before returning (for a caller that goes on in the same process)."""
     args = build_parser().parse_args(argv)
     import rclpy
 
@@ -379,18 +380,21 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         return 130
     finally:
-        if client is not None:
-            client.node.destroy_node()
-        rclpy.try_shutdown()
+        if tidy:
+            if client is not None:
+                client.node.destroy_node()
+            rclpy.try_shutdown()
 
 
 def cli() -> None:
-    """Console entry point (``sweep_client``, ``python -m sweep_ros.client``): :func:`main`,
-    then the process ends at once with its status, after flushing its output. The DDS
-    library's threads can still be running while the interpreter tears down (measured: one
-    command in a test run under load printed its answer, then died by SIGSEGV), so nothing is
-    left to tear down after rclpy's shutdown."""
-    code = main()
+    """Console entry point (``sweep_client``, ``python -m sweep_ros.client``): :func:`main`
+    without tidying, then the process ends at once with its status, after flushing its
+    output. Destroying the node and shutting rclpy down while the DDS library's threads still
+    run can crash (measured: a command under load printed its answer, then died by SIGSEGV in
+    that teardown; rclpy's destruction of service clients has a known crash of this kind), and
+    a process that ends needs neither: the node's peers see it leave as they see any process
+    that ends. Every command has had its answer (a reply or a verdict) before it returns."""
+    code = main(tidy=False)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)
