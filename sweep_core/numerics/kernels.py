@@ -25,7 +25,7 @@ from numba.core.registry import CPUDispatcher
 from sweep_core.model import elementary, neighbours, wall_kernels
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
-from sweep_core.numerics.projection import dual
+from sweep_core.numerics.projection import clear, dual
 from sweep_core.numerics.projection.clusters import solve_active
 from sweep_core.numerics.robots import contacts, control, guard, social_kernels, window
 from sweep_core.numerics.robots import scan as robot_scan
@@ -34,7 +34,7 @@ from sweep_core.numerics.simulator import Simulator
 #: the modules that hold compiled kernels
 MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
                                    noise, constraints, guard, social_kernels, window, contacts,
-                                   control)
+                                   control, clear)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -160,6 +160,11 @@ def _exercise() -> None:
     schemes.log_each(v)
     one = np.zeros(1, dtype=np.int64)
     dual.slacks(np.zeros((2, 2)), one, one - 1, np.ones((1, 2)), np.zeros(1))
+    # a small scene's prediction checked against its rows without building them (the jam's
+    # polygon sends its steps to the rows)
+    two = np.array([[0.0, 0.0], [1.0, 0.0]])
+    clear.clear_count(two, two, np.full(2, 0.2), 0.1, np.ones((1, 2)), np.zeros(1), two,
+                      two + 1.0, two + 3.0, np.ones(2))
     # the crossing test of a path that reaches a wall segment (no step of the jam does)
     wall_kernels.paths_meet_exactly(np.zeros((1, 2)), np.ones((1, 2)), np.array([[0.0, 1.0]]),
                                     np.array([[1.0, 0.0]]))

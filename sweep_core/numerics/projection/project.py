@@ -32,6 +32,7 @@ from sweep_core.errors import InfeasibleError
 from sweep_core.model.geometry import Geometry
 from sweep_core.numerics.constraints import Rows, linearise
 from sweep_core.numerics.projection import certified, dual, polish, refine
+from sweep_core.numerics.projection.clear import clear_active
 from sweep_core.numerics.projection.clusters import row_matrix, solve_qp
 from sweep_core.numerics.projection.options import ROW_TOLERANCE, SolverOptions
 from sweep_core.numerics.projection.warm import carry_multipliers
@@ -74,6 +75,13 @@ class Projection:
     fallback_agents: int = 0
     stuck: np.ndarray | None = None
     stuck_steps: int = 0
+
+
+_NONE = np.empty(0)
+#: the rows of a projection that built none (arrays of length 0: nothing to write in them)
+NO_ROWS = Rows(np.empty(0, np.intp), np.empty(0, np.intp), np.empty((0, 2)), np.empty(0),
+               np.empty(0, np.intp), np.empty((0, 2)), np.empty(0), np.empty(0, np.int8),
+               np.empty(0, np.intp))
 
 
 def first_cutoff(q: np.ndarray, pred: np.ndarray, r1: np.ndarray) -> float:
@@ -124,6 +132,13 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
     held_for = warm.stuck_steps if warm is not None and warm.stuck is not None else 0
     skip = (warm.stuck if warm is not None and warm.stuck is not None and len(warm.y) == n
             and held_for + 1 < RETRY else None)
+    # a small scene whose prediction holds every row: the answer is the prediction (no QP,
+    # no multiplier), found without building the rows; the cutoff holds (2 max|p - q| <= cut,
+    # first_cutoff), so the loop below would stop at once
+    active = clear_active(geom, q, pred, r1, cut)
+    if active >= 0:
+        return Projection(pred.copy(), NO_ROWS, _NONE, _NONE, active, 0, 0, 0, 0.0, 0, 0, None,
+                          held_for + 1 if skip is not None else 0)
     todo = np.zeros(n, dtype=bool)
     built: Rows | None = None  # the rows of the wider cutoff, when already built
     while True:
