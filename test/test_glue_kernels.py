@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sweep_core.numerics import csm
 from sweep_core.numerics.constraints import Rows
 from sweep_core.numerics.projection import certified
 from sweep_core.numerics.projection.project import first_cutoff
@@ -103,6 +104,21 @@ def test_first_cutoff_and_rounding_floor(seed: int) -> None:
     d = pred - q
     scale = max(float(np.abs(d).max(initial=0.0)), float(np.max(h, initial=0.0)), 1e-3)
     assert bits(certified.rounding_floor(d, h)) == bits(64.0 * float(np.finfo(float).eps) * scale)
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_speed_law_reach_terms(seed: int) -> None:
+    """The speed law's largest |u|^2 and 2 max r: numpy's max of einsum and of r, NaN
+    included."""
+    rng = np.random.default_rng(400 + seed)
+    n = int(rng.integers(1, 40))
+    u, r = wide(rng, (n, 2)), np.abs(wide(rng, (n,)))
+    if seed % 5 == 4:
+        u[int(rng.integers(0, n)), int(rng.integers(0, 2))] = np.nan
+        r[int(rng.integers(0, n))] = np.nan
+    square, top = csm.largest_square(u, r)
+    assert bits(square) == bits(float(np.max(np.einsum("ij,ij->i", u, u))))
+    assert bits(top) == bits(2.0 * float(r.max()))
 
 
 @pytest.mark.parametrize("seed", range(30))

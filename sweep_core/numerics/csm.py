@@ -209,19 +209,51 @@ def csm(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float, strength: 
     n = len(q)
     if n == 0 or (n < 2 and walls is None):
         return u.copy()
-    top = float(np.sqrt(np.max(np.einsum("ij,ij->i", u, u))))
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    r = np.ascontiguousarray(r, dtype=np.float64)
+    u = np.ascontiguousarray(u, dtype=np.float64)
+    # the largest |u_i| is the square root of the largest square (sqrt is monotone and
+    # correctly rounded); 2 max r
+    square, rmax = largest_square(u, r)
+    top = math.sqrt(square)
     if top == 0.0:
         return u.copy()
-    rmax = 2.0 * float(r.max())
     far = max(top * time_gap, CUT * reach if strength > 0.0 else 0.0)
     pi, pj = _SEARCH(q, rmax + far)
-    q = np.ascontiguousarray(q)
-    r = np.ascontiguousarray(r, dtype=np.float64)
-    u = np.ascontiguousarray(u)
-    w = np.zeros((0, 2)) if walls is None else np.ascontiguousarray(walls, dtype=np.float64)
-    e = directions(q, r, u, pi, pj, float(strength), float(reach), w)
-    s, lead = nearest_ahead(q, r, e, pi, pj, float(lateral), float(fade), float(length))
-    v = speeds(u, e, s, float(time_gap), np.zeros(n))
+    w = _NO_WALLS if walls is None else np.ascontiguousarray(walls, dtype=np.float64)
+    return law(q, r, u, pi, pj, float(strength), float(reach), w, float(lateral), float(fade),
+               float(length), float(time_gap), float(beta))
+
+
+_NO_WALLS = np.zeros((0, 2))
+
+
+@numba.njit(cache=True, nogil=True)
+def largest_square(u: np.ndarray, r: np.ndarray) -> tuple[float, float]:  # pragma: no cover
+    """The largest |u_i|^2 (the sum x then y, as ``einsum("ij,ij->i")``; NaN as soon as one
+    is, as numpy's max) and 2 max r_i (m) of (N,) >= 1 values."""
+    square = u[0, 0] * u[0, 0] + u[0, 1] * u[0, 1]
+    for i in range(1, u.shape[0]):
+        v = u[i, 0] * u[i, 0] + u[i, 1] * u[i, 1]
+        if v > square or v != v:
+            square = v if square == square else square
+    top = r[0]
+    for i in range(1, r.shape[0]):
+        if r[i] > top or r[i] != r[i]:
+            top = r[i] if top == top else top
+    return square, 2.0 * top
+
+
+@numba.njit(cache=True, nogil=True)
+def law(q: np.ndarray, r: np.ndarray, u: np.ndarray, pi: np.ndarray, pj: np.ndarray,
+        strength: float, reach: float, walls: np.ndarray, lateral: float, fade: float,
+        length: float, time_gap: float, beta: float) -> np.ndarray:  # pragma: no cover
+    """:func:`csm`'s rules over the candidate pairs (pi, pj): :func:`directions`,
+    :func:`nearest_ahead`, :func:`speeds` and, when beta > 0, :func:`leader_push`, in one
+    call."""
+    e = directions(q, r, u, pi, pj, strength, reach, walls)
+    s, lead = nearest_ahead(q, r, e, pi, pj, lateral, fade, length)
+    v = speeds(u, e, s, time_gap, np.zeros(q.shape[0]))
     if beta == 0.0:
         return v
-    return speeds(u, e, s, float(time_gap), leader_push(v, e, lead, float(beta)))
+    return speeds(u, e, s, time_gap, leader_push(v, e, lead, beta))
