@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sweep_core.model.fields import Goal
 from sweep_core.numerics import csm
 from sweep_core.numerics.constraints import Rows
 from sweep_core.numerics.projection import certified
@@ -119,6 +120,24 @@ def test_speed_law_reach_terms(seed: int) -> None:
     square, top = csm.largest_square(u, r)
     assert bits(square) == bits(float(np.max(np.einsum("ij,ij->i", u, u))))
     assert bits(top) == bits(2.0 * float(r.max()))
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_goal_field(seed: int) -> None:
+    """The goal drift: numpy's d * (speed / maximum(|d|, slow))[:, None], NaN included."""
+    rng = np.random.default_rng(500 + seed)
+    n = int(rng.integers(0, 40))
+    q = rng.uniform(-3.0, 3.0, (n, 2)) * 10.0 ** rng.uniform(-3, 1)
+    goal, speed, slow = rng.uniform(-1.0, 1.0, 2), float(rng.uniform(0.1, 2.0)), 0.5
+    if seed % 5 == 4 and n:
+        q[int(rng.integers(0, n)), int(rng.integers(0, 2))] = np.nan
+    if seed % 7 == 3 and n:
+        q[0] = goal  # at the goal: 0 m/s
+    d = goal - q
+    dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+    want = d * (speed / np.maximum(dist, slow))[:, None]
+    got = Goal(goal=goal, speed=speed, slow_radius=slow)(0.0, q)
+    assert bits(got) == bits(want)
 
 
 @pytest.mark.parametrize("seed", range(30))

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 from numba.core.registry import CPUDispatcher
 
-from sweep_core.model import elementary, neighbours, wall_kernels
+from sweep_core.model import elementary, fields, neighbours, wall_kernels
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import clear, dual
@@ -160,9 +160,11 @@ def _exercise() -> None:
     schemes.log_each(v)
     one = np.zeros(1, dtype=np.int64)
     dual.slacks(np.zeros((2, 2)), one, one - 1, np.ones((1, 2)), np.zeros(1))
+    # a goal drift (the jam's is geodesic)
+    two = np.array([[0.0, 0.0], [1.0, 0.0]])
+    fields.towards_goal(1.0, 2.0, 1.0, 0.5, two, np.empty((2, 2)))
     # a small scene's prediction checked against its rows without building them (the jam's
     # polygon sends its steps to the rows)
-    two = np.array([[0.0, 0.0], [1.0, 0.0]])
     clear.clear_count(two, two, np.full(2, 0.2), 0.1, np.ones((1, 2)), np.zeros(1), two,
                       two + 1.0, two + 3.0, np.ones(2))
     # the crossing test of a path that reaches a wall segment (no step of the jam does)

@@ -341,14 +341,14 @@ class Simulator:
         if self._pop is not None:
             drift, sigma = self._pop.drift(drift), self._pop.sigma(sigma)
             self.scheme.scene = scene
-        if dB is None and np.any(sigma):
+        if dB is None and sigma.any():
             dB = noise.increments(self._rng, h, len(self._q))
         if self.robots is not None:
             res = self.robots.step(self.scheme, t, self._q, h, dB, drift, sigma)
         else:
             res = self.scheme.step(t, self._q, h, dB, drift, sigma)
         y = res.q_new
-        if not np.all(np.isfinite(y)):
+        if not np.isfinite(y).all():
             bad = np.nonzero(~np.all(np.isfinite(y), axis=1))[0]
             raise InfeasibleError(t1, bad.tolist(), "non-finite positions")
         min_gap = math.inf
