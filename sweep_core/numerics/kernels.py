@@ -27,14 +27,14 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import clear, dual
 from sweep_core.numerics.projection.clusters import solve_active
-from sweep_core.numerics.robots import contacts, control, guard, social_kernels, window
+from sweep_core.numerics.robots import contacts, control, guard, overlaps, social_kernels, window
 from sweep_core.numerics.robots import scan as robot_scan
 from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
 MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
                                    noise, constraints, guard, social_kernels, window, contacts,
-                                   control, clear)
+                                   control, clear, overlaps)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -148,6 +148,13 @@ def _exercise() -> None:
     headway.headway(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 1.0)
     csm.csm(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 0.8, 2.0, 0.1)
     csm.csm(far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2)), 0.8, 2.0, 0.1, 0.7, 0.9, 0.9, 0.5)
+    # the speed law's rules as Python calls them one by one (gaps_ahead, the analysis)
+    q8, r8, u8 = far[:8] * 0.01, np.full(8, 0.2), np.ones((8, 2))
+    pi, pj = neighbours.pairs_within(q8, 1.0)
+    e8 = csm.directions(q8, r8, u8, pi, pj, 2.0, 0.1, np.zeros((0, 2)))
+    s8, lead = csm.nearest_ahead(q8, r8, e8, pi, pj, 0.7, 0.9, 0.9)
+    v8 = csm.speeds(u8, e8, s8, 0.8, np.zeros(8))
+    csm.leader_push(v8, e8, lead, 0.5)
     exit_choice.assign(far[:8, :2].copy(), np.ones(2))
     # a source's room check (its grid over the disks present)
     entry.EntryGrid(np.zeros(2), np.ones(2), 0.5, far[:4] * 0.01, np.full(4, 0.2)).clear(
@@ -160,6 +167,10 @@ def _exercise() -> None:
     schemes.log_each(v)
     one = np.zeros(1, dtype=np.int64)
     dual.slacks(np.zeros((2, 2)), one, one - 1, np.ones((1, 2)), np.zeros(1))
+    # the robots' gaps after a step (no robot in the jam)
+    overlaps.robot_gaps(np.ones((1, 2)), np.ones(1), np.zeros((2, 2)), np.full(2, 0.2),
+                        np.ones((1, 2)), np.zeros(1), np.zeros((1, 2)), np.ones((1, 2)),
+                        np.zeros((0, 2)), np.zeros(0), np.empty(4))
     # a goal drift (the jam's is geodesic)
     two = np.array([[0.0, 0.0], [1.0, 0.0]])
     fields.towards_goal(1.0, 2.0, 1.0, 0.5, two, np.empty((2, 2)))

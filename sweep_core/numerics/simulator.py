@@ -353,7 +353,10 @@ class Simulator:
             raise InfeasibleError(t1, bad.tolist(), "non-finite positions")
         min_gap = math.inf
         if self.check:
-            g = gaps(scene.geometry, t1, y, r1)
+            # the robots' check computed the people's gaps already (the same call)
+            g = None if self.robots is None else self.robots.gaps_of(t1, scene.geometry, y, r1)
+            if g is None:
+                g = gaps(scene.geometry, t1, y, r1)
             if g.min_gap < -FEASIBILITY_TOLERANCE:
                 worst = g.worst_pair if g.min_pair <= g.min_single else g.worst_single
                 who = [] if worst is None else (

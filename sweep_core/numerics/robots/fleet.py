@@ -36,8 +36,7 @@ import numpy as np
 
 from sweep_core.errors import InfeasibleError, SceneError, show
 from sweep_core.model import elementary
-from sweep_core.model.crossing import crossings
-from sweep_core.model.gaps import gaps
+from sweep_core.model.gaps import Gaps
 from sweep_core.model.geometry import Geometry
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.robots import Robot, overlap
@@ -47,6 +46,7 @@ from sweep_core.numerics.projection import Projection, project
 from sweep_core.numerics.robots import kinematics
 from sweep_core.numerics.robots.contacts import set_contacts
 from sweep_core.numerics.robots.control import observe
+from sweep_core.numerics.robots.overlaps import check_step
 from sweep_core.numerics.robots.planners import controllers_of
 from sweep_core.numerics.robots.reaction import avoidance
 from sweep_core.numerics.robots.refusals import geometry_problem, goal_refusal
@@ -55,8 +55,6 @@ from sweep_core.numerics.robots.weighted import project_weighted
 from sweep_core.numerics.schemes import Scheme, StepResult
 
 Command = tuple[float, float, float]
-#: largest true-constraint violation (m) accepted after a step (as the simulator's)
-TOLERANCE = 1e-9
 
 
 @dataclass
@@ -132,6 +130,8 @@ class Fleet:
         self.states = {r.name: RobotState(r, (r.pose[0], r.pose[1], kinematics.wrap(r.pose[2])))
                        for r in self.scene.robots}
         self.step_index = 0
+        #: the people's gaps the last step's check computed: (t1, y, r1, geometry, Gaps)
+        self.people_gaps: tuple[float, np.ndarray, np.ndarray, Geometry, Gaps] | None = None
 
     def snapshot(self) -> tuple:
         """What a step changes (the robots' states, the step count), for :meth:`restore`."""
@@ -340,39 +340,25 @@ class Fleet:
             states[k].pose = targets[k]
             states[k].twist = states[k].command
         set_contacts(states, proj, n, len(self.scene.geometry.circle_radius), h)
-        self._check(states, start, proj.y[:n], r1, t1)
+        ends = proj.y[:n]
+        people = check_step(self.scene.geometry, states, [start[k] for k in range(len(states))],
+                            ends, r1, t1)
+        # the people's gaps at the step's end, for the simulator's own check (the same call)
+        self.people_gaps = None if people is None else (t1, ends, r1, self.scene.geometry,
+                                                        people)
 
-    def _check(self, states: list[RobotState], start: dict, y: np.ndarray, r1: np.ndarray,
-               t1: float) -> None:
-        centres = np.array([st.pose[:2] for st in states]).reshape(-1, 2)
-        radii = np.array([st.robot.radius for st in states])
-        q_all = np.concatenate([y, centres])
-        r_all = np.concatenate([r1, radii])
-        g = gaps(self.scene.geometry, t1, q_all, r_all)
-        n = len(y)
-
-        def who(i: int) -> str:
-            return f"robot {states[i - n].robot.name}" if i >= n else f"agent {i}"
-
-        if g.min_gap < -TOLERANCE:
-            if g.min_pair <= g.min_single and g.worst_pair is not None:
-                i, j, _ = g.worst_pair
-                what = f"{who(int(i))} and {who(int(j))} overlap"
-                robot = who(int(j)) if int(j) >= n else who(int(i))
-            else:
-                i, kind, item, _ = g.worst_single  # type: ignore[misc]
-                what = (f"{who(int(i))} overlaps "
-                        f"{self.scene.geometry.describe(int(kind), int(item))}")
-                robot = who(int(i))
-            raise InfeasibleError(t1, [], f"{what} by {-g.min_gap:.3g} m", fix=(
-                f"the solver left {robot} overlapping: tighten the solver's tol or use a "
-                "smaller dt"))
-        before = np.array([start[k][:2] for k in range(len(states))]).reshape(-1, 2)
-        through, _ = crossings(self.scene.geometry, before, centres, radii)
-        if len(through):
-            name = states[int(through[0])].robot.name
-            raise InfeasibleError(t1, [], f"robot {name} went through a wall during the step",
-                                  fix=f"use a smaller dt, or a lower max_speed for robot {name}")
+    def gaps_of(self, t1: float, geom: Geometry, y: np.ndarray, r1: np.ndarray) -> Gaps | None:
+        """The people's gaps (:func:`~sweep_core.model.gaps.gaps`) at (t1, y) with radii r1
+        and geometry ``geom``, when the last step's check computed them with those very
+        arguments (None otherwise). The time may differ by rounding (t + h here, (k + 1) h
+        there) where it decides nothing: no obstacle or half-plane moves (the check computes
+        no gaps with user constraints)."""
+        kept = self.people_gaps
+        if (kept is None or kept[3] is not geom
+                or (kept[0] != t1 and (geom.is_moving or not geom.fixed_halfplanes))
+                or not np.array_equal(kept[1], y) or not np.array_equal(kept[2], r1)):
+            return None
+        return kept[4]
 
     def after_step(self, t: float, people: np.ndarray, radii: np.ndarray) -> None:
         """Scans due at this step (the step index counts steps taken; step 0 is the start)."""
