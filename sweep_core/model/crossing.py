@@ -57,7 +57,9 @@ def crossings(geom: Geometry, q0: np.ndarray, q1: np.ndarray, r1: np.ndarray,
                            -1.0 if near is None else float(near.reach),
                            geom.packed[2], geom.packed[3], static, DENSE_PAIRS, out_i, out_k,
                            unsure)
-    if found >= 0:
+    if found == 0:  # no path near a segment (most steps)
+        return empty, empty
+    if found > 0:
         i, k, unsure = out_i[:found], out_k[:found], unsure[:found]
         hit = ~unsure
         if unsure.any():
