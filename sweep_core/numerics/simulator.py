@@ -334,7 +334,8 @@ class Simulator:
         t1 = (self._k + 1) * h
         scene = self._live()
         r1 = scene.radii(t1)
-        if len(r1) and float(r1.min()) <= 0:
+        # constant radii were checked positive when the scene was read
+        if len(r1) and not scene.radius_law.is_constant and float(r1.min()) <= 0:
             raise SceneError("agents.radius_law", f"radii reach {float(r1.min()):.6g} m <= 0 at "
                              f"t = {t1:.6g} s", "stop earlier or shrink the radii more slowly")
         drift, sigma = self._drift, self._sigma
