@@ -234,7 +234,8 @@ class CrowdNavEnv(gymnasium.Env):
         if a.shape != self.box.shape or not np.isfinite(a).all():
             raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, "
                              f"got {show(a)}", "give an element of env.action_space")
-        a = np.clip(a, self.box.low, self.box.high)
+        # np.clip's values on finite actions, without its Python wrapper
+        a = np.minimum(np.maximum(a, self.box.low), self.box.high)
         cmd = (a[0], a[1], a[2]) if self.holonomic else (a[0], 0.0, a[1])
         assert self.sim.robots is not None
         self.sim.robots.command(self.name, tuple(float(v) for v in cmd))
