@@ -133,3 +133,21 @@ def test_episodes_do_not_build_the_driven_robots_controller(monkeypatch):
     monkeypatch.setattr(planners, "controller_for", refuse)
     env = CrowdNavEnv(scene, max_steps=30)
     assert same(episode(env, 3, 30), want)
+
+
+def test_an_action_outside_the_box_drives_as_the_box_clipped_one():
+    """Actions beyond the box (and signed zeros) give the episode of the actions clipped to
+    the box by np.clip, bit for bit."""
+    env_a, env_b = (CrowdNavEnv(small_scene(), dt=0.1, max_steps=30) for _ in range(2))
+    low, high = env_a.action_space.low, env_a.action_space.high
+    rng = np.random.default_rng(4)
+    out_a, out_b = [env_a.reset(seed=9)], [env_b.reset(seed=9)]
+    for _ in range(30):
+        action = rng.uniform(-3.0, 3.0, 2) * high
+        action[rng.uniform(size=2) < 0.2] = -0.0
+        out_a.append(env_a.step(action))
+        out_b.append(env_b.step(np.clip(action, low, high)))
+        if out_a[-1][2] or out_a[-1][3]:
+            break
+    assert same(out_a, out_b)
+    assert any(st[4]["clipped"] for st in out_a[1:])  # the engine's own limits took part too

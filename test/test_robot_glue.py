@@ -9,11 +9,18 @@ import numpy as np
 import pytest
 
 from sweep_core.model.geometry import CIRCLE
+from sweep_core.model.robots import ScanSpec
 from sweep_core.numerics.constraints import Rows
 from sweep_core.numerics.projection import Projection
 from sweep_core.numerics.robots.contacts import set_contacts
 from sweep_core.numerics.robots.control import within_reach
-from sweep_core.numerics.robots.scan import bounded_ranges
+from sweep_core.numerics.robots.scan import (
+    beam_directions,
+    bounded_ranges,
+    cast_beams,
+    finite_count,
+    ray_cast,
+)
 
 
 def bits(a: object) -> bytes:
@@ -134,3 +141,27 @@ def test_within_reach_as_the_numpy_distance(seed: int) -> None:
     got = np.empty(m, dtype=np.bool_)
     within_reach(people, radii, x, y, reach, got)
     assert np.array_equal(got, want)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_cast_beams_equals_directions_ray_cast_and_count(seed: int) -> None:
+    """cast_beams gives the ranges and hit count of beam_directions, ray_cast and
+    finite_count called one after the other, bit for bit (disks inside and outside, segments,
+    half-planes, yaws over several turns)."""
+    rng = np.random.default_rng(seed)
+    for _ in range(50):
+        spec = ScanSpec(0.05, float(rng.uniform(1.0, 10.0)), -float(rng.uniform(0.1, 3.1)),
+                        float(rng.uniform(0.1, 3.1)), float(rng.uniform(0.01, 0.3)), 10.0, 0.0)
+        yaw = float(rng.uniform(-20.0, 20.0))
+        ox, oy = (float(v) for v in rng.uniform(-3.0, 3.0, 2))
+        c, s, w = (int(v) for v in rng.integers(0, 12, 3))
+        centers, radii = rng.uniform(-6.0, 6.0, (c, 2)), rng.uniform(0.05, 1.5, c)
+        seg_a, seg_b = rng.uniform(-6.0, 6.0, (s, 2)), rng.uniform(-6.0, 6.0, (s, 2))
+        hp_n = rng.standard_normal((w, 2))
+        hp_n /= np.hypot(hp_n[:, 0], hp_n[:, 1])[:, None]
+        hp_c = rng.uniform(-8.0, 0.0, w)
+        ux, uy = beam_directions(yaw, spec)
+        want = ray_cast(ox, oy, ux, uy, centers, radii, seg_a, seg_b, hp_n, hp_c, spec.range_max)
+        got, hits = cast_beams(yaw, spec.angles(), ox, oy, centers, radii, seg_a, seg_b, hp_n,
+                               hp_c, spec.range_max)
+        assert bits(got) == bits(want) and hits == finite_count(want)

@@ -174,13 +174,14 @@ class CrowdNavEnv(gymnasium.Env):
         st = self._state()
         x, y, yaw = (float(v) for v in st.pose)
         s, c = elementary.sincos(yaw)
-        d = self.spec_robot.goal - np.array([x, y])
+        goal = self.spec_robot.goal
+        dx, dy = float(goal[0]) - x, float(goal[1]) - y
         ranges = self._ranges()
         if len(ranges) != self.beams:  # no scan taken yet
             ranges = np.full(self.beams, self.range_max)
         return {"odom": np.array([x, y, yaw, *(float(v) for v in st.twist)]),
                 "scan": ranges,
-                "goal": np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])}
+                "goal": np.array([c * dx + s * dy, -s * dx + c * dy])}
 
     def _record(self) -> tuple[float, int, float]:
         """Appends this instant to the episode's series; (clearance, contacts, distance to
@@ -189,12 +190,13 @@ class CrowdNavEnv(gymnasium.Env):
         x, y, yaw = (float(v) for v in st.pose)
         u, w = float(st.twist[0]), float(st.twist[1])
         s, c = elementary.sincos(yaw)
-        vel = np.array([c * u - s * w, s * u + c * w])
-        near, ttc = social.nearest(np.array([x, y]), vel, self.spec_robot.radius,
-                                   sim.positions, sim.radii, sim.velocities)
+        vx, vy = c * u - s * w, s * u + c * w
+        near, ttc = social.nearest(np.array([x, y]), np.array([vx, vy]),
+                                   self.spec_robot.radius, sim.positions, sim.radii,
+                                   sim.velocities)
         ids, imp = _contacts(st)
         total, most = (float(imp.sum()), float(imp.max())) if len(imp) else (0.0, 0.0)
-        self.rows.append((self.steps * self.dt, x, y, yaw, vel[0], vel[1], near, ttc, len(ids),
+        self.rows.append((self.steps * self.dt, x, y, yaw, vx, vy, near, ttc, len(ids),
                           total, most))
         self.touched.append(ids)
         togo = float(self.field.travel_distance(np.array([[x, y]]))[0])
@@ -232,7 +234,8 @@ class CrowdNavEnv(gymnasium.Env):
         if a.shape != self.box.shape or not np.isfinite(a).all():
             raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, "
                              f"got {show(a)}", "give an element of env.action_space")
-        a = np.clip(a, self.box.low, self.box.high)
+        # np.clip's values on finite actions, without its Python wrapper
+        a = np.minimum(np.maximum(a, self.box.low), self.box.high)
         cmd = (a[0], a[1], a[2]) if self.holonomic else (a[0], 0.0, a[1])
         assert self.sim.robots is not None
         self.sim.robots.command(self.name, tuple(float(v) for v in cmd))
@@ -260,9 +263,15 @@ class CrowdNavEnv(gymnasium.Env):
         return {"t_s": row[0], "clearance_m": near, "ttc_s": row[7], "contacts": contacts,
                 "clipped": int(st.clipped), "blocked": int(st.blocked)}
 
+#: the impulses of no contact (read only)
+_NO_IMPULSE = np.empty(0)
+_NO_IMPULSE.flags.writeable = False
+
 
 def _contacts(st: Any) -> tuple[np.ndarray, np.ndarray]:
     """A robot state's contacts: person ids (K,) and |impulse| (K,) m/s."""
     ids = np.asarray(st.contact_ids, dtype=np.int64).reshape(-1)
+    if not len(ids):  # the common case: no contact, no impulse
+        return ids, _NO_IMPULSE
     imp = np.asarray(st.contact_impulse, dtype=np.float64).reshape(-1, 2)
     return ids, np.hypot(imp[:, 0], imp[:, 1])

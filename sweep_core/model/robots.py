@@ -31,7 +31,8 @@ from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model.controller_spec import controller_from_spec
 from sweep_core.model.gaps import gaps
-from sweep_core.model.geometry import Geometry
+from sweep_core.model.geometry import DENSE_SEGMENTS, Geometry, inside_polygons
+from sweep_core.model.wall_kernels import single_gaps
 
 KINEMATICS = ("diff_drive", "holonomic")
 REACTIONS = ("none", "avoid")
@@ -313,7 +314,7 @@ def overlap(robot: Robot, xy: Any, geometry: Geometry, positions: np.ndarray, ra
         gap = math.hypot(c[0, 0] - x, c[0, 1] - y) - r - robot.radius
         if gap < -tol:
             return f"{where()} overlaps {label} by {-gap:.3g} m"
-    if not geometry.is_empty:
+    if not geometry.is_empty and not _clear_of_geometry(geometry, t, c, robot.radius, tol):
         g = gaps(geometry, t, c, np.array([robot.radius]))
         if g.worst_single is not None and g.min_single < -tol:
             _, kind, item, gap = g.worst_single
@@ -321,6 +322,31 @@ def overlap(robot: Robot, xy: Any, geometry: Geometry, positions: np.ndarray, ra
     if blocked is not None and bool(blocked(c)[0]):
         return f"{where()} has its centre in a blocked (occupied or unknown) cell of the map"
     return ""
+
+
+_NO_POLYGON = np.zeros((0, 0), dtype=np.bool_)
+
+
+def _clear_of_geometry(geometry: Geometry, t: float, c: np.ndarray, radius: float,
+                       tol: float) -> bool:
+    """True when the disk at c (1, 2) m of the radius (m) surely clears every wall and
+    obstacle at time t by more than -tol: the compiled pass :func:`gaps` makes for one disk
+    (the same kernel, arguments and values), without its summary. False when unsure (a user
+    constraint, a NaN value, many segments) or overlapping: the caller then asks :func:`gaps`."""
+    here = geometry.at(t)
+    if here.user or len(here.segment_a) > DENSE_SEGMENTS:
+        return False
+    hn, _, sa, sb, cc, cr = here.packed
+    inside = inside_polygons(c, here) if here.has_polygons else _NO_POLYGON
+    contact_tol = 1e-6  # gaps' default, so that the kernel does the same work
+    out = np.empty(6)
+    single_gaps(c, np.array([float(radius)]), hn, here.offsets(t), sa, sb, inside, cc, cr,
+                contact_tol, max(contact_tol, 2.0 * float(radius), 1e-3),
+                np.empty(len(hn) + len(sa) + len(cr)), np.empty(len(sa), dtype=np.intp),
+                np.empty(len(sa), dtype=np.intp), out)
+    if out[3] == -2.0:  # a NaN value
+        return False
+    return bool(out[3] < 0 or out[2] >= -tol)
 
 
 def reaction_from_spec(value: Any) -> tuple[CrowdReaction, dict]:

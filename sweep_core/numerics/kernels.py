@@ -227,6 +227,9 @@ def _exercise() -> None:
     contacts.pair_contacts(one, one + 1, np.ones((1, 2)), np.ones(1), 1, 1, 0.1, ids, imp)
     social_kernels.nearest_pass(0.0, 0.0, 0.0, 0.0, 0.3, np.ones((1, 2)), np.ones(1),
                                 np.zeros((1, 2)), np.empty(3))
+    # perf7: a scan's directions, ray cast and hit count in one call
+    robot_scan.cast_beams(0.0, np.zeros(2), 0.0, 0.0, np.ones((1, 2)), np.ones(1),
+                          np.ones((1, 2)), 2 * np.ones((1, 2)), np.ones((1, 2)), np.ones(1), 5.0)
 
 
 def warm_up(notify: Callable[[str], None] | None = None) -> WarmUp:

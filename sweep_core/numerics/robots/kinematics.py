@@ -52,7 +52,8 @@ def clip(robot: Robot, command: tuple[float, float, float],
     each component's change limited to the acceleration times h; the speed |(vx, vy)| to
     max_speed (scaled along its direction) and |omega| to max_angular_speed. Returns it and
     whether anything was changed."""
-    vx, vy, omega = (float(v) for v in command)
+    given = (float(command[0]), float(command[1]), float(command[2]))
+    vx, vy, omega = given
     if robot.kinematics == "diff_drive":
         vy = 0.0
     dv = robot.max_acceleration * h
@@ -66,4 +67,4 @@ def clip(robot: Robot, command: tuple[float, float, float],
         vx, vy = vx * scale, vy * scale
     omega = min(max(omega, -robot.max_angular_speed), robot.max_angular_speed)
     out = (vx, vy, omega)
-    return out, out != tuple(float(v) for v in command)
+    return out, out != given

@@ -126,6 +126,20 @@ def finite_count(ranges: np.ndarray) -> int:  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
+def cast_beams(yaw: float, angles: np.ndarray, ox: float, oy: float, centers: np.ndarray,
+               radii: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray, hp_n: np.ndarray,
+               hp_c: np.ndarray, range_max: float
+               ) -> tuple[np.ndarray, int]:  # pragma: no cover - compiled
+    """One call for a scan's geometry: the beams' directions at yaw + angles (B,) rad (as
+    :func:`beam_directions`), their ranges (B,) m (:func:`ray_cast`, same arguments after the
+    directions) and the count of finite ones (:func:`finite_count`)."""
+    ux, uy = np.empty(len(angles)), np.empty(len(angles))
+    _cos_sin(yaw, angles, ux, uy)
+    ranges = ray_cast(ox, oy, ux, uy, centers, radii, seg_a, seg_b, hp_n, hp_c, range_max)
+    return ranges, finite_count(ranges)
+
+
+@numba.njit(cache=True, nogil=True)
 def finish_ranges(ranges: np.ndarray, draws: np.ndarray, noise_std: float, range_min: float,
                   range_max: float) -> None:  # pragma: no cover - compiled
     """In place: the k-th finite range gets noise_std times the k-th draw (none without
@@ -166,7 +180,6 @@ def scan(spec: ScanSpec, pose: tuple[float, float, float], t: float, step: int,
     """The scan from ``pose`` (x, y, yaw) at time t (s): ``disks`` (C, 2) and ``disk_radii`` (C,)
     are the people and the other robots (m); ``rng`` draws the range noise (None: none)."""
     geom = geometry.at(t)
-    ux, uy = beam_directions(pose[2], spec)
     # the geometry's contiguous float64 arrays, made once per geometry; the half-planes'
     # offsets c + v t at t
     normals, _, seg_a, seg_b, circle_c, circle_r = geom.packed
@@ -175,11 +188,12 @@ def scan(spec: ScanSpec, pose: tuple[float, float, float], t: float, step: int,
         disk_radii = np.concatenate([disk_radii, circle_r])
     centers = np.ascontiguousarray(disks, dtype=float)
     radii = np.ascontiguousarray(disk_radii, dtype=float)
-    ranges = ray_cast(float(pose[0]), float(pose[1]), ux, uy, centers.reshape(-1, 2), radii,
-                      seg_a.reshape(-1, 2), seg_b.reshape(-1, 2), normals.reshape(-1, 2),
-                      geom.offsets(t), float(spec.range_max))
+    ranges, hits = cast_beams(float(pose[2]), _angles(spec), float(pose[0]), float(pose[1]),
+                              centers.reshape(-1, 2), radii, seg_a.reshape(-1, 2),
+                              seg_b.reshape(-1, 2), normals.reshape(-1, 2), geom.offsets(t),
+                              float(spec.range_max))
     noisy = rng is not None and spec.noise_std > 0
-    draws = (rng.standard_normal(finite_count(ranges)) if noisy  # type: ignore[union-attr]
+    draws = (rng.standard_normal(hits) if noisy  # type: ignore[union-attr]
              else np.empty(0))
     finish_ranges(ranges, draws, float(spec.noise_std) if noisy else 0.0,
                   float(spec.range_min), float(spec.range_max))
