@@ -32,16 +32,17 @@ from sweep_ros import results
 
 
 def client_runner(installed, tmp_path):  # noqa: F811 - the fixture's value
-    """``python -m sweep_ros.client --timeout 60 ARGS`` with the installed package's
+    """``python -m sweep_ros.client --timeout 180 ARGS`` with the installed package's
     interpreter."""
     exe, env = installed
     python = exe.read_text().splitlines()[0].removeprefix("#!").strip()
 
     def run(*args: str) -> subprocess.CompletedProcess:
-        # a generous timeout: a first goal may compile the geodesic kernels on a loaded machine
-        return subprocess.run([python, "-m", "sweep_ros.client", "--timeout", "60", *args],
+        # a generous timeout: a first goal builds its field (and may compile the geodesic
+        # kernels) on a machine whose two cores the rest of the suite keeps busy
+        return subprocess.run([python, "-m", "sweep_ros.client", "--timeout", "180", *args],
                               env=env,
-                              cwd=tmp_path, capture_output=True, text=True, timeout=120)
+                              cwd=tmp_path, capture_output=True, text=True, timeout=240)
     return run
 
 
