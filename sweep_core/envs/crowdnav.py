@@ -263,6 +263,7 @@ class CrowdNavEnv(gymnasium.Env):
         return {"t_s": row[0], "clearance_m": near, "ttc_s": row[7], "contacts": contacts,
                 "clipped": int(st.clipped), "blocked": int(st.blocked)}
 
+
 #: the impulses of no contact (read only)
 _NO_IMPULSE = np.empty(0)
 _NO_IMPULSE.flags.writeable = False
