@@ -93,9 +93,39 @@ def test_the_single_environments_rate_resets_it_at_the_end_of_an_episode(monkeyp
     env = Episodes()
     monkeypatch.setattr(envs, "make_single", lambda: env)
     monkeypatch.setattr(envs, "has_vector", lambda: False)
-    rows = steps.env_rates(70, 32)
+    rows = steps.env_rates(70, 5)
     assert len(rows) == 1 and np.isfinite(rows[0]["sweep_median_ms"])
-    assert env.resets == 1 + (10 + 70) // 7
+    # per seed: its reset, then 10 + 14 steps, reset after every 7th
+    assert env.resets == 5 * (1 + (10 + 14 - 1) // 7)
+    assert "over 70 env steps" in rows[0]["note"]
+
+
+def test_the_single_environment_steps_the_vectorised_rows_episodes(monkeypatch):
+    """The single row times the steps the vectorised rows time: seeds 0 .. K - 1 in turn, 10
+    untimed and steps // K timed steps each."""
+    import sweep_core.envs as envs
+
+    calls: list = []
+
+    class Single:
+        action_space = type("Box", (), {"shape": (2,)})()
+
+        def reset(self, seed=None):
+            calls.append(("reset", seed))
+            return {}, {}
+
+        def step(self, action):
+            calls.append(("step", float(action[0])))
+            return {}, 0.0, False, False, {}
+
+        def close(self) -> None:
+            pass
+
+    monkeypatch.setattr(envs, "make_single", lambda: Single())
+    monkeypatch.setattr(envs, "has_vector", lambda: False)
+    steps.env_rates(9, 3)
+    assert calls == [c for seed in range(3)
+                     for c in [("reset", seed)] + [("step", 0.8)] * 13]
 
 
 def test_the_workers_row_steps_the_vector_environment_in_workers(monkeypatch):

@@ -25,13 +25,16 @@ calls: the step, its recording and the loop) against an identical simulator's un
 taken inside each ``on_state`` call, so the two alternate step by step (``--run-steps`` of
 each; median and p90).
 
-Environment: ``gymnasium.make("sweep/CrowdNav-v0")`` stepped with a fixed forward command,
-reset at the end of each episode (steps per second over ``--env-steps`` steps, resets
-included); and the vectorised environment
+Environment: the vectorised environment
 ``gymnasium.make_vec(..., num_envs=K, vectorization_mode="vector_entry_point")`` when it is
-registered (env steps per second: K per call; it resets its own environments), in this
-process and split over ``--env-workers`` worker processes; in the note, the same per second
-of the process's CPU time (the parent's alone where workers step the environments).
+registered, reset with seed 0 (environment i: seed i), stepped with a fixed forward command
+10 times untimed, then ``--env-steps`` / K timed calls (env steps per second: K per call; it
+resets its own environments), in this process and split over ``--env-workers`` worker
+processes; and ``gymnasium.make("sweep/CrowdNav-v0")`` over the same episodes, seed after
+seed (the same 10 untimed and --env-steps / K timed steps of each, reset at the end of an
+episode), so that the rows time the same steps. Resets are included; in the note, the same
+per second of the process's CPU time (the parent's alone where workers step the
+environments).
 """
 from __future__ import annotations
 
@@ -230,7 +233,7 @@ def env_rates(steps: int, num_envs: int, workers: int = 1) -> list[dict[str, Any
     except ImportError as err:
         return [{"measure": "env steps/s", "scene": "crowdnav", "agents": 11, "other": "",
                  "note": f"n/a: gymnasium is not installed ({err})"}]
-    rows = [_rate("env steps/s, single", steps, 1, lambda: envs.make_single())]
+    rows = [_rate_single(steps, num_envs, envs.make_single)]
     if envs.has_vector():
         rows.append(_rate(f"env steps/s, K={num_envs}", steps, num_envs,
                           lambda: envs.make_vector(num_envs)))
@@ -266,6 +269,36 @@ def _rate(label: str, steps: int, k: int, make: Callable[[], Any], workers: int 
             "other_median_ms": math.nan, "other_p90_ms": math.nan, "ratio": math.nan,
             "note": f"{rate:.0f} env steps/s over {calls * k} env steps, resets included; "
                     + cpu_note}
+
+
+def _rate_single(steps: int, k: int, make: Callable[[], Any]) -> dict[str, Any]:
+    """The single environment over the episodes the vectorised rows step: seeds 0 .. k - 1
+    in turn, each reset with its seed, 10 untimed steps, then ``steps // k`` timed steps (the
+    vectorised rows' calls), reset at the end of an episode (resets timed)."""
+    env = make()
+    calls = max(1, steps // k)
+    seconds = cpu = 0.0
+    try:
+        action = np.zeros(env.action_space.shape)
+        action[..., 0] = 0.8
+        for seed in range(k):
+            env.reset(seed=seed)
+            for _ in range(10):  # the vectorised rows' warm-up
+                _step(env, action, 1)
+            start, began = time.perf_counter(), time.process_time()
+            for _ in range(calls):
+                _step(env, action, 1)
+            seconds += time.perf_counter() - start
+            cpu += time.process_time() - began
+    finally:
+        env.close()
+    n = calls * k
+    return {"measure": "env steps/s, single", "scene": "crowdnav", "agents": 11, "other": "",
+            "sweep_median_ms": 1e3 * seconds / n, "sweep_p90_ms": math.nan,
+            "other_median_ms": math.nan, "other_p90_ms": math.nan, "ratio": math.nan,
+            "note": f"{n / seconds:.0f} env steps/s over {n} env steps (the vectorised rows' "
+                    f"episodes: seeds 0-{k - 1}, {calls} steps each after 10), resets "
+                    f"included; CPU time: {n / max(cpu, 1e-9):.0f} env steps/s"}
 
 
 def _step(env: Any, action: np.ndarray, k: int) -> None:
