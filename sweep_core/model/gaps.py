@@ -58,7 +58,7 @@ def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
     """Evaluate every constraint that can be violated or touching at (t, q)."""
     q = np.ascontiguousarray(q, dtype=np.float64)
     r = np.ascontiguousarray(r, dtype=np.float64)
-    r_max = float(r.max(initial=0.0))
+    r_max = max(float(r.max()), 0.0) if len(r) else 0.0  # r.max(initial=0.0), NaN kept
     if len(q) > 1:
         i, j = pairs_within(q, 2.0 * r_max + contact_tol)
         pg = np.empty(len(i))

@@ -222,7 +222,7 @@ class Fleet:
         before = [st.copy() for st in states]
         try:
             proj = self._project(scheme, states, targets, t1, q, pred, r1)
-            self._finish(states, targets, proj, q, r1, t1, h, len(q))
+            people = self._finish(states, targets, proj, q, r1, t1, h, len(q))
         except InfeasibleError:
             if not any(moving):
                 raise
@@ -233,10 +233,10 @@ class Fleet:
                 if moving[k]:
                     self._stop(st, targets, k)
             proj = self._project(scheme, states, targets, t1, q, pred, r1)
-            self._finish(states, targets, proj, q, r1, t1, h, len(q))
+            people = self._finish(states, targets, proj, q, r1, t1, h, len(q))
         scheme.warm = proj
         self.step_index += 1
-        return StepResult(proj.y[:len(q)].copy(), pred, proj)
+        return StepResult(people, pred, proj)
 
     def _settle(self, states: list[RobotState], targets: list, moving: list[bool],
                 t1: float) -> None:
@@ -322,8 +322,9 @@ class Fleet:
                                  np.array(radii, dtype=np.float64))
 
     def _finish(self, states: list[RobotState], targets: list, proj: Projection, q: np.ndarray,
-                r1: np.ndarray, t1: float, h: float, n: int) -> None:
-        """Robots' new poses, twists and contacts; the true gaps of everyone checked."""
+                r1: np.ndarray, t1: float, h: float, n: int) -> np.ndarray:
+        """Robots' new poses, twists and contacts; the true gaps of everyone checked. Returns
+        the people's positions at the step's end (N, 2), a copy of the projection's."""
         free = [k for k, st in enumerate(states) if not st.robot.prescribed]
         fixed = [k for k, st in enumerate(states) if st.robot.prescribed]
         start = {k: states[k].pose for k in range(len(states))}
@@ -340,23 +341,24 @@ class Fleet:
             states[k].pose = targets[k]
             states[k].twist = states[k].command
         set_contacts(states, proj, n, len(self.scene.geometry.circle_radius), h)
-        ends = proj.y[:n]
+        ends = proj.y[:n].copy()
         people = check_step(self.scene.geometry, states, [start[k] for k in range(len(states))],
                             ends, r1, t1)
         # the people's gaps at the step's end, for the simulator's own check (the same call)
         self.people_gaps = None if people is None else (t1, ends, r1, self.scene.geometry,
                                                         people)
+        return ends
 
     def gaps_of(self, t1: float, geom: Geometry, y: np.ndarray, r1: np.ndarray) -> Gaps | None:
         """The people's gaps (:func:`~sweep_core.model.gaps.gaps`) at (t1, y) with radii r1
         and geometry ``geom``, when the last step's check computed them with those very
         arguments (None otherwise). The time may differ by rounding (t + h here, (k + 1) h
         there) where it decides nothing: no obstacle or half-plane moves (the check computes
-        no gaps with user constraints)."""
+        no gaps with user constraints). ``y`` must be the very array the step returned."""
         kept = self.people_gaps
-        if (kept is None or kept[3] is not geom
+        if (kept is None or kept[3] is not geom or kept[1] is not y
                 or (kept[0] != t1 and (geom.is_moving or not geom.fixed_halfplanes))
-                or not np.array_equal(kept[1], y) or not np.array_equal(kept[2], r1)):
+                or (kept[2] is not r1 and not np.array_equal(kept[2], r1))):
             return None
         return kept[4]
 
