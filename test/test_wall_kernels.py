@@ -127,6 +127,43 @@ def test_gaps_pairs_are_the_numpy_forms_bits() -> None:
     assert got.contacts == int(np.count_nonzero(want <= 1e-6)) + singles
 
 
+def _fields(g) -> tuple:
+    arrays = tuple(np.asarray(a).view(np.uint8).tobytes() for a in
+                   (g.pair_i, g.pair_j, g.pair_gap, g.near_agent, g.near_segment))
+    return (g.min_pair, g.min_single, g.contacts, g.worst_pair, g.worst_single, g.reach) + arrays
+
+
+@pytest.mark.parametrize("case", ["walls", "no walls", "touching", "packed", "nan", "two"])
+def test_small_crowds_gaps_in_one_call_are_the_passes_one_by_one(
+        monkeypatch: pytest.MonkeyPatch, case: str) -> None:
+    """gaps() of at most SMALL agents (one compiled call: the neighbour search, the pairs' and
+    the walls' passes) gives every field, bit for bit, that the passes called one by one
+    give; crowds with more pairs than the call has room for, and NaN, included."""
+    from sweep_core.model import gaps as summary
+
+    geom = _scene().geometry
+    rng = np.random.default_rng(11)
+    n = {"two": 2, "packed": 30}.get(case, summary.SMALL)
+    q = rng.uniform(-4.0, 9.0, (n, 2))
+    r = rng.uniform(0.15, 0.3, n)
+    if case == "no walls":
+        geom = Scene.from_dict({"agents": {"positions": [[0.0, 0.0]], "radius": 0.2}}).geometry
+    if case == "touching":
+        q[1] = q[0] + [r[0] + r[1], 0.0]  # touching, overlapping, on a segment
+        q[3] = q[2] + [0.1, 0.2]
+        q[4] = [-3.0 + 7.0 * 0.3, 5.0 + 0.3 - r[4] / 2]
+    if case == "packed":  # more pairs within reach than 4 N
+        q = rng.uniform(0.0, 0.5, (n, 2))
+    if case == "nan":
+        q[5] = np.nan
+    one_call = summary.gaps(geom, 0.0, q, r)
+    monkeypatch.setattr(summary, "SMALL", 0)
+    passes = summary.gaps(geom, 0.0, q, r)
+    assert _fields(one_call) == _fields(passes)
+    if case in ("walls", "touching"):
+        assert one_call.worst_single is not None and len(one_call.pair_i) > 0
+
+
 @pytest.mark.parametrize("with_near", [True, False])
 def test_crossings_in_one_pass_are_the_searched_ones(monkeypatch: pytest.MonkeyPatch,
                                                      with_near: bool) -> None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from sweep_core.model.geometry import (
@@ -18,7 +19,7 @@ from sweep_core.model.geometry import (
     inside_polygons,
     single_rows,
 )
-from sweep_core.model.neighbours import pairs_within
+from sweep_core.model.neighbours import pairs_into, pairs_within
 from sweep_core.model.wall_kernels import pair_gaps, single_gaps
 
 _NO_POLYGON = np.zeros((0, 0), dtype=np.bool_)
@@ -59,6 +60,10 @@ def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
     q = np.ascontiguousarray(q, dtype=np.float64)
     r = np.ascontiguousarray(r, dtype=np.float64)
     r_max = max(float(r.max()), 0.0) if len(r) else 0.0  # r.max(initial=0.0), NaN kept
+    if 1 < len(q) <= SMALL:
+        done = _small(geom, t, q, r, r_max, contact_tol)
+        if done is not None:
+            return done
     if len(q) > 1:
         i, j = pairs_within(q, 2.0 * r_max + contact_tol)
         pg = np.empty(len(i))
@@ -98,6 +103,75 @@ def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
                     worst_single = (int(a[w]), kind, int(k[w]), min_single)
     return Gaps(min_pair, min_single, contacts, worst_pair, worst_single, i, j, pg, near[0],
                 near[1], reach)
+
+
+#: crowds of at most this many agents take :func:`_small`'s single compiled call
+SMALL = 64
+
+
+def _small(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, r_max: float,
+           contact_tol: float) -> Gaps | None:
+    """:func:`gaps` in one compiled call (:func:`small_gaps`: the neighbour search, the pairs'
+    and the walls' passes, the same kernels in the same order, so the same values and the
+    same summary) for a geometry without user constraints; None when that does not apply
+    (user constraints, a NaN wall value, more pairs than 4 N) and the caller's path runs."""
+    here = geom.at(t)
+    n = len(q)
+    if here.user or n * len(here.segment_a) > DENSE_SEGMENTS:
+        return None
+    hc = here.offsets(t)
+    inside = inside_polygons(q, here) if here.has_polygons else _NO_POLYGON
+    hn, _, sa, sb, cc, cr = here.packed
+    walls = not geom.is_empty
+    cap = 4 * n
+    i, j, pg = np.empty(cap, dtype=np.intp), np.empty(cap, dtype=np.intp), np.empty(cap)
+    vals = np.empty(n * (len(hc) + len(sa) + len(cr)) if walls else 0)
+    near_a = np.empty(n * len(sa) if walls else 0, dtype=np.intp)
+    near_k = np.empty(len(near_a), dtype=np.intp)
+    out = np.empty(10)
+    small_gaps(q, r, 2.0 * r_max + contact_tol, walls, hn, hc, sa, sb, inside, cc, cr,
+               float(contact_tol), max(contact_tol, 2.0 * r_max, 1e-3), i, j, pg, vals,
+               near_a, near_k, out)
+    found = int(out[6])
+    if found > cap or out[3] == -2.0:
+        return None
+    w = int(out[8])
+    worst_pair = None if w < 0 else (int(i[w]), int(j[w]), float(pg[w]))
+    worst_single = None
+    if out[3] >= 0:
+        worst_single = (int(out[4]), int(out[3]), int(out[5]), float(out[2]))
+    near = int(out[9])
+    return Gaps(np.inf if w < 0 else float(pg[w]), float(out[2]) if walls else np.inf,
+                int(out[7]) + (int(out[1]) if walls else 0), worst_pair, worst_single,
+                i[:found], j[:found], pg[:found], near_a[:near], near_k[:near],
+                float(out[0]) if walls else 0.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def small_gaps(q: np.ndarray, r: np.ndarray, pair_reach: float, walls: bool, hn: np.ndarray,
+               hc: np.ndarray, sa: np.ndarray, sb: np.ndarray, inside: np.ndarray,
+               cc: np.ndarray, cr: np.ndarray, contact_tol: float, reach: float,
+               i: np.ndarray, j: np.ndarray, pg: np.ndarray, vals: np.ndarray,
+               near_a: np.ndarray, near_k: np.ndarray, out: np.ndarray
+               ) -> None:  # pragma: no cover - compiled
+    """:func:`gaps`' passes in one call for q (N, 2), r (N,), N >= 2: the pairs within
+    ``pair_reach`` into i, j (room for their length), their gaps into pg
+    (:func:`~sweep_core.model.wall_kernels.pair_gaps`), then, when ``walls``,
+    :func:`~sweep_core.model.wall_kernels.single_gaps` with the wall arguments, vals,
+    near_a, near_k and out[0:6]. out[6] the pairs found (more than len(i): nothing else
+    done), out[7] the pairs' contacts, out[8] the first smallest pair (-1: none), out[9]
+    single_gaps' count of near segment pairs (0 without walls)."""
+    out[9] = 0.0
+    out[3] = -1.0
+    found = pairs_into(q, pair_reach, i, j)
+    out[6] = found
+    if found > i.shape[0]:
+        return
+    contacts, w = pair_gaps(q, r, i[:found], j[:found], contact_tol, pg[:found])
+    out[7], out[8] = contacts, w
+    if walls:
+        out[9] = single_gaps(q, r, hn, hc, sa, sb, inside, cc, cr, contact_tol, reach, vals,
+                             near_a, near_k, out)
 
 
 def _dense_gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, contact_tol: float,

@@ -157,7 +157,7 @@ def pairs_within(q: np.ndarray, reach: float, expect: int = 0
     while True:
         i = np.empty(capacity, dtype=np.intp)
         j = np.empty(capacity, dtype=np.intp)
-        found = _pairs(q, float(reach), i, j)
+        found = pairs_into(q, float(reach), i, j)
         if found <= capacity:
             return i[:found], j[:found]
         capacity = found
@@ -182,10 +182,11 @@ class SizedSearch:
 
 
 @numba.njit(cache=True, nogil=True)
-def _pairs(q: np.ndarray, reach: float, out_i: np.ndarray, out_j: np.ndarray
-           ) -> int:  # pragma: no cover - compiled
-    """:func:`pairs_within` for N >= 2: the grid's extent, then the dense grid or the sorted
-    cells writing the pairs while out_i, out_j have room; the count of pairs found."""
+def pairs_into(q: np.ndarray, reach: float, out_i: np.ndarray, out_j: np.ndarray
+               ) -> int:  # pragma: no cover - compiled
+    """:func:`pairs_within`'s search for N >= 2 (for compiled callers): the grid's extent,
+    then the dense grid or the sorted cells writing the pairs while out_i, out_j have room;
+    the count of pairs found (more than their length: search again with more room)."""
     n = q.shape[0]
     x0, y0, x1, y1 = q[0, 0], q[0, 1], q[0, 0], q[0, 1]
     for a in range(1, n):
