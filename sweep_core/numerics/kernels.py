@@ -27,14 +27,22 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import clear, dual
 from sweep_core.numerics.projection.clusters import solve_active
-from sweep_core.numerics.robots import contacts, control, guard, overlaps, social_kernels, window
+from sweep_core.numerics.robots import (
+    clear_step,
+    contacts,
+    control,
+    guard,
+    overlaps,
+    social_kernels,
+    window,
+)
 from sweep_core.numerics.robots import scan as robot_scan
 from sweep_core.numerics.simulator import Simulator
 
 #: the modules that hold compiled kernels
 MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
                                    noise, constraints, guard, social_kernels, window, contacts,
-                                   control, clear, overlaps)
+                                   control, clear, overlaps, clear_step)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -178,6 +186,11 @@ def _exercise() -> None:
     # polygon sends its steps to the rows)
     clear.clear_count(two, two, np.full(2, 0.2), 0.1, np.ones((1, 2)), np.zeros(1), two,
                       two + 1.0, two + 3.0, np.ones(2))
+    # a simple robot step in one call (the jam has no robot; its polygon would send it back)
+    clear_step.clear_robot_step(two, two, np.full(2, 0.2), np.array([[3.0, 0.0]]),
+                                np.array([[3.1, 0.0]]), np.full(1, 0.3), np.ones(1, np.bool_),
+                                np.ones((1, 2)), np.full(1, -5.0), two + 5.0, two + 6.0,
+                                two + 9.0, np.ones(2), np.ones(2, np.bool_), 1 << 16)
     # the crossing test of a path that reaches a wall segment (no step of the jam does)
     wall_kernels.paths_meet_exactly(np.zeros((1, 2)), np.ones((1, 2)), np.array([[0.0, 1.0]]),
                                     np.array([[1.0, 0.0]]))

@@ -1,0 +1,181 @@
+"""A robot step that needs no projection, decided and checked in one compiled call.
+
+On a small scene with static walls (a robot among ten people, as the CrowdNav environment
+steps it) most robot steps are simple: no prescribed robot's target overlaps anything, the
+people's prediction already holds every linearised row of C~(t1, q) with the robots' target
+disks as obstacles, and nothing overlaps at the step's end. :meth:`Fleet.step
+<sweep_core.numerics.robots.fleet.Fleet.step>` then settles the targets (a geometry pass per
+robot), adds the robots' disks to the geometry, answers the projection without building rows
+(:mod:`sweep_core.numerics.projection.clear`), sets empty contacts and checks the step
+(:func:`~sweep_core.numerics.robots.overlaps.check_step`): tens of microseconds of Python
+around a few microseconds of arithmetic.
+
+:func:`clear_robot_step` asks the same questions of the same kernels, in one call: the
+targets' walls and each other (the settle's), the cutoff (``first_cutoff``'s), the rows at
+the prediction (``clear_count`` with the robots' target disks appended to the circles, as
+``Geometry.with_circles`` appends them), the robots' gaps at the step's end (``robot_gaps``)
+and their centre paths against the wall segments (``crossing_pairs``). Only when every answer
+is the simple one does the fleet take the step from it; otherwise nothing has changed and the
+step runs through the general path, which asks again and acts on the answer (a stop, a QP, an
+error naming who overlaps). Each value is computed by the same kernel from the same
+arguments, so a step taken here has the bits the general path gives it.
+
+It applies (:func:`applies`) when every robot is prescribed (weight inf), the scene has no map
+of blocked cells, at most ``clear.MAX_AGENTS`` people, and a geometry without user
+constraints, polygons, moving obstacles or moving half-planes.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numba
+import numpy as np
+
+from sweep_core.model.crossing import DENSE_PAIRS
+from sweep_core.model.gaps import Gaps, gaps
+from sweep_core.model.geometry import DENSE_SEGMENTS, Geometry
+from sweep_core.model.wall_kernels import crossing_pairs, single_gaps
+from sweep_core.numerics.projection.clear import MAX_AGENTS, MIN_CUT, clear_count
+from sweep_core.numerics.projection.project import NO_ROWS, Projection, largest_step
+from sweep_core.numerics.robots.overlaps import TOLERANCE, robot_gaps
+
+#: the overlap tolerance of the settle's target check (``model.robots.overlap``'s tol), m
+SETTLE_TOLERANCE = 1e-9
+#: ``gaps``' contact tolerance, which the settle's wall pass is given (m)
+CONTACT_TOL = 1e-6
+#: what :func:`clear_robot_step` returns when the step is not a simple one
+NOT_CLEAR = -1
+
+
+_NO_MULTIPLIER = np.empty(0)
+
+
+def applies(geom: Geometry, people: int, all_prescribed: bool, has_map: bool) -> bool:
+    """Whether :func:`clear_robot_step` may answer a step of this scene (module docstring):
+    ``geom`` the scene's geometry, ``people`` its people now."""
+    return (all_prescribed and not has_map and 0 < people <= MAX_AGENTS and not geom.user
+            and not geom.is_moving and not geom.has_polygons and geom.fixed_halfplanes
+            and people * len(geom.segment_a) <= DENSE_SEGMENTS)
+
+
+def robot_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
+               states: list[Any], targets: list[tuple], moving: list[bool], has_map: bool,
+               warm: Projection | None) -> tuple[Projection, np.ndarray, Gaps] | None:
+    """A fleet's step when it is a simple one: the robots (``states``, ``RobotState``) moved
+    to their ``targets`` (x, y, yaw) with their commands as twists and no contact, and
+    :func:`simple_step`'s answer returned; None with nothing changed otherwise, or when the
+    scene is not one this applies to (:func:`applies`; ``has_map``: blocked cells) or the last
+    projection (``warm``) held clusters back (the general path then counts their steps)."""
+    if (not applies(geom, len(q), all(st.robot.prescribed for st in states), has_map)
+            or (warm is not None and warm.stuck is not None and len(warm.y) == len(q))):
+        return None
+    done = simple_step(geom, t1, q, pred, r1,
+                       np.array([st.pose[:2] for st in states], dtype=np.float64),
+                       np.array([p[:2] for p in targets], dtype=np.float64),
+                       np.array([st.robot.radius for st in states], dtype=np.float64),
+                       np.array(moving, dtype=np.bool_))
+    if done is None:
+        return None
+    for k, st in enumerate(states):
+        st.pose, st.twist = targets[k], st.command
+        st.contact_ids = np.empty(0, dtype=np.int64)
+        st.contact_xy, st.contact_impulse = np.empty((0, 2)), np.empty((0, 2))
+    return done
+
+
+def simple_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
+                start: np.ndarray, target: np.ndarray, radius: np.ndarray,
+                moving: np.ndarray) -> tuple[Projection, np.ndarray, Gaps] | None:
+    """The step's projection (the prediction, no rows), the people's positions at its end (a
+    copy) and their gaps there, when the step is a simple one (:func:`clear_robot_step`, and
+    no two people overlap by more than TOLERANCE at the end); None otherwise, nothing
+    changed. Arguments as :func:`clear_robot_step`'s; ``geom`` the scene's geometry (static:
+    :func:`applies`) and t1 (s) the step's end."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    pred = np.ascontiguousarray(pred, dtype=np.float64)
+    r1 = np.ascontiguousarray(r1, dtype=np.float64)
+    hn, hc, sa, sb, cc, cr = geom.packed
+    active = clear_robot_step(q, pred, r1, start, target, radius, moving, hn, hc, sa, sb,
+                              cc, cr, geom.static_segments, DENSE_PAIRS)
+    if active < 0:
+        return None
+    y = pred.copy()
+    ends = y.copy()
+    people = gaps(geom, t1, ends, r1)
+    if not (people.min_pair >= -TOLERANCE and people.min_single >= -TOLERANCE):
+        return None
+    return (Projection(y, NO_ROWS, _NO_MULTIPLIER, _NO_MULTIPLIER, active, 0, 0, 0, 0.0, 0,
+                       0, None, 0), ends, people)
+
+
+@numba.njit(cache=True, nogil=True)
+def clear_robot_step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.ndarray,
+                     target: np.ndarray, radius: np.ndarray, moving: np.ndarray,
+                     hn: np.ndarray, hc: np.ndarray, sa: np.ndarray, sb: np.ndarray,
+                     cc: np.ndarray, cr: np.ndarray, static: np.ndarray, dense_pairs: int
+                     ) -> int:  # pragma: no cover - compiled
+    """The number of rows holding with equality at the prediction (``Projection.active``)
+    when the step from q (N, 2) to pred (N, 2), r1 (N,) m at t1, with the prescribed robots
+    going from ``start`` (R, 2) to ``target`` (R, 2), radii ``radius`` (R,), ``moving`` (R,)
+    bool (a non-zero command), is a simple one; else NOT_CLEAR. The geometry's packed arrays
+    at t1: half-planes hn, hc, segments sa, sb, circles cc, cr, ``static`` (S,) the segments
+    that do not move. A simple step (each test the general path's, in its arithmetic):
+
+    - no moving robot's target disk overlaps another robot's target by more than
+      SETTLE_TOLERANCE, nor is it unsure of clearing the walls and obstacles (``single_gaps``
+      for the one disk, as ``model.robots`` asks it);
+    - the cutoff 3 max|p - q| + 1e-3 max r1 is at least MIN_CUT and the prediction holds every
+      row within it (``clear_count``, the targets appended to the circles);
+    - at the step's end (people at pred, robots at their targets) no robot's gap to a person,
+      another robot, a wall or an obstacle is below -TOLERANCE or NaN (``robot_gaps``);
+    - no robot's centre path meets a wall segment, nor might it (``crossing_pairs`` finds no
+      candidate).
+    """
+    robots = target.shape[0]
+    nh, ns, nc = hn.shape[0], sa.shape[0], cc.shape[0]
+    no_polygon = np.zeros((0, 0), dtype=np.bool_)
+    vals = np.empty(nh + ns + nc)
+    near_a = np.empty(ns, dtype=np.intp)
+    near_k = np.empty(ns, dtype=np.intp)
+    summary = np.empty(6)
+    one = np.empty((1, 2))
+    one_r = np.empty(1)
+    for k in range(robots):
+        if not moving[k]:
+            continue
+        x, y, rk = target[k, 0], target[k, 1], radius[k]
+        for j in range(robots):
+            if j != k:
+                dx, dy = x - target[j, 0], y - target[j, 1]
+                if not math.hypot(dx, dy) - radius[j] - rk >= -SETTLE_TOLERANCE:
+                    return NOT_CLEAR
+        one[0, 0], one[0, 1], one_r[0] = x, y, rk
+        single_gaps(one, one_r, hn, hc, sa, sb, no_polygon, cc, cr, CONTACT_TOL,
+                    max(CONTACT_TOL, 2.0 * rk, 1e-3), vals, near_a, near_k, summary)
+        if summary[3] == -2.0 or (summary[3] >= 0 and summary[2] < -SETTLE_TOLERANCE):
+            return NOT_CLEAR
+    square, r_max = largest_step(q, pred, r1)
+    cut = 3.0 * math.sqrt(square) + 1e-3 * r_max
+    if not cut >= MIN_CUT:
+        return NOT_CLEAR
+    circles = np.empty((nc + robots, 2))
+    circle_r = np.empty(nc + robots)
+    circles[:nc], circle_r[:nc] = cc, cr
+    circles[nc:], circle_r[nc:] = target, radius
+    active = clear_count(q, pred, r1, cut, hn, hc, sa, sb, circles, circle_r)
+    if active < 0:
+        return NOT_CLEAR
+    worst = np.empty(4)
+    robot_gaps(target, radius, pred, r1, hn, hc, sa, sb, cc, cr, worst)
+    if worst[1] == -2.0 or (worst[1] >= 0 and not worst[0] >= -TOLERANCE):
+        return NOT_CLEAR
+    room = min(robots * ns, dense_pairs)
+    out_i = np.empty(room, dtype=np.intp)
+    out_k = np.empty(room, dtype=np.intp)
+    unsure = np.empty(room, dtype=np.bool_)
+    none = np.empty(0, dtype=np.intp)
+    if ns and crossing_pairs(start, target, radius, none, none, -1.0, sa, sb, static,
+                             dense_pairs, out_i, out_k, unsure) != 0:
+        return NOT_CLEAR
+    return active

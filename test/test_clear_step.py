@@ -1,0 +1,137 @@
+"""A simple robot step taken in one compiled call (``robots.clear_step``) has the bits the
+general path gives it, and every step that is not simple goes to the general path."""
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+import pytest
+
+import sweep_core as sc
+from sweep_core.model.scene import load_scene
+from sweep_core.numerics.robots import clear_step
+
+WALLS = [{"kind": "segment", "a": [-1.0, 0.0], "b": [9.0, 0.0]},
+         {"kind": "segment", "a": [-1.0, 4.0], "b": [9.0, 4.0]},
+         {"kind": "halfplane", "normal": [1.0, 0.0], "offset": -1.0}]
+
+
+def two_robots(sigma: float) -> sc.Scene:
+    """People walking slowly west between two walls, a circle obstacle, and two prescribed robots:
+    ``a`` driving east towards ``b``, then turning towards the lower wall, ``b`` turning
+    towards the upper wall (:func:`run`'s commands)."""
+    rng = np.random.default_rng(5)
+    q = np.column_stack([rng.uniform(3.0, 8.0, 12), rng.uniform(0.5, 3.5, 12)])
+    q = q[np.argsort(q[:, 0])]
+    keep: list[int] = []
+    for k in range(len(q)):  # people clear of each other and of the obstacle
+        if (np.hypot(*(q[k] - [5.0, 2.0])) > 0.6
+                and (not keep or np.min(np.hypot(*(q[keep] - q[k]).T)) > 0.55)):
+            keep.append(k)
+    kin = {"type": "diff_drive", "max_speed": 1.2, "max_angular_speed": 2.0,
+           "max_acceleration": 3.0, "max_angular_acceleration": 6.0}
+    return sc.Scene.from_dict({
+        "agents": {"positions": q[keep].tolist(), "radius": 0.25},
+        "drift": {"kind": "goal", "goal": [-2.0, 2.0], "speed": 0.3},
+        "noise": {"sigma": sigma},
+        "walls": WALLS,
+        "obstacles": [{"kind": "circle", "center": [5.0, 2.0], "radius": 0.3}],
+        "robots": [{"name": "a", "radius": 0.3, "pose": [0.5, 2.0, 0.0], "kinematics": kin,
+                    "weight": "inf"},
+                   {"name": "b", "radius": 0.3, "pose": [1.6, 2.0, 0.0], "kinematics": kin,
+                    "weight": "inf"}]})
+
+
+def run(scene: sc.Scene, steps: int, dt: float, commands: bool) -> tuple[str, dict]:
+    """A hash of everything a step leaves (people, robots' poses, twists, contacts, stops, the
+    projection's active rows, the smallest gap) over ``steps`` steps, and how many steps the
+    compiled call took."""
+    taken = {"simple": 0, "general": 0}
+    sim = sc.Simulator(scene, dt=dt, seed=3)
+    h = hashlib.sha256()
+    for k in range(steps):
+        if commands:
+            sim.robots.command("a", (1.2, 0.0, 0.0) if k < 9 else
+                               (0.5, 0.0, -1.2) if k < 40 else (0.0, 0.0, 0.0))
+            sim.robots.command("b", (0.4 if k < 30 else 0.0, 0.0, 1.0 if k < 40 else 0.0))
+        index = sim.robots.step_index
+        sim.step()
+        assert sim.robots.step_index == index + 1
+        h.update(sim.positions.tobytes())
+        for name in sim.robots.names:
+            st = sim.robots.state(name)
+            h.update(np.array(st.pose + st.twist + st.command).tobytes())
+            h.update(st.contact_ids.tobytes() + st.contact_impulse.tobytes())
+            h.update(f"{st.blocked} {st.stopped}".encode())
+        h.update(np.array([sim.last.projection.active, sim.min_gap]).tobytes())
+    return h.hexdigest(), taken
+
+
+def counted(monkeypatch: pytest.MonkeyPatch, taken: dict) -> None:
+    original = clear_step.simple_step
+
+    def wrapped(*args, **kwargs):
+        out = original(*args, **kwargs)
+        taken["simple" if out is not None else "general"] += 1
+        return out
+
+    monkeypatch.setattr(clear_step, "simple_step", wrapped)
+
+
+@pytest.mark.parametrize("case", ["crowdnav", "two robots", "two robots, noisy"])
+def test_simple_steps_have_the_general_paths_bits(monkeypatch: pytest.MonkeyPatch,
+                                                  case: str) -> None:
+    """Runs with the compiled call and with the general path alone give the same bits; each
+    run takes both (so that the cases the call sends back are covered too)."""
+    if case == "crowdnav":
+        scene, steps, dt, commands = load_scene("crowdnav"), 150, 0.1, False
+    else:
+        scene, steps, dt, commands = two_robots(0.4 if "noisy" in case else 0.05), 120, 0.05, True
+    taken = {"simple": 0, "general": 0}
+    counted(monkeypatch, taken)
+    fast, _ = run(scene, steps, dt, commands)
+    assert taken["simple"] > 10 and taken["general"] > 3, taken
+    monkeypatch.setattr(clear_step, "applies", lambda *args: False)
+    general, _ = run(scene, steps, dt, commands)
+    assert fast == general
+
+
+def test_a_stop_a_row_a_wall_or_nan_is_not_simple() -> None:
+    """The compiled call answers only simple steps: a target overlapping another robot's, a
+    target in a wall, a prediction failing a row, a robot's path through a wall, or NaN
+    send the step back (NOT_CLEAR); a simple one gives the rows holding with equality."""
+    geom = two_robots(0.0).geometry
+    hn, hc, sa, sb, cc, cr = geom.packed
+    q = np.array([[3.0, 1.0], [3.0, 3.0]])
+    r1 = np.full(2, 0.25)
+    radius = np.full(2, 0.3)
+
+    def verdict(pred, start, target, moving=(True, True)) -> int:
+        return clear_step.clear_robot_step(
+            q, np.asarray(pred, dtype=np.float64), r1, np.asarray(start, dtype=np.float64),
+            np.asarray(target, dtype=np.float64), radius, np.array(moving), hn, hc, sa, sb,
+            cc, cr, geom.static_segments, 1 << 16)
+
+    start = [[1.0, 2.0], [2.0, 2.0]]
+    simple = [[1.05, 2.0], [2.05, 2.0]]
+    assert verdict(q + 0.01, start, simple) == 0
+    # people touching exactly at the prediction: one pair row holds with equality
+    assert verdict([[3.0, 1.5], [3.0, 2.0]], start, simple) == 1
+    assert verdict(q, start, [[1.5, 2.0], [2.05, 2.0]]) == clear_step.NOT_CLEAR  # a on b
+    assert verdict(q, start, [[1.05, 2.0], [2.05, 0.2]]) == clear_step.NOT_CLEAR  # in a wall
+    assert verdict(q, [[1.05, 2.0], [2.0, 2.0]], [[1.05, 2.0], [2.0, -0.5]],
+                   (False, False)) == clear_step.NOT_CLEAR  # through the wall, not settled
+    assert verdict([[3.0, 1.0], [3.0, 1.2]], start, simple) == clear_step.NOT_CLEAR  # a row
+    assert verdict([[3.0, 1.0], [2.2, 2.0]], start, simple) == clear_step.NOT_CLEAR  # robot
+    assert verdict([[np.nan, 1.0], [3.0, 3.0]], start, simple) == clear_step.NOT_CLEAR
+
+
+def test_it_applies_only_to_small_static_scenes() -> None:
+    geom = two_robots(0.0).geometry
+    assert clear_step.applies(geom, 12, True, False)
+    assert not clear_step.applies(geom, 12, False, False)  # a robot of finite weight
+    assert not clear_step.applies(geom, 12, True, True)  # a map of blocked cells
+    assert not clear_step.applies(geom, 0, True, False)
+    assert not clear_step.applies(geom, 65, True, False)
+    moving = load_scene("moving_obstacle").geometry
+    assert moving.is_moving and not clear_step.applies(moving, 10, True, False)
