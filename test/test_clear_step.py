@@ -9,6 +9,7 @@ import pytest
 
 import sweep_core as sc
 from sweep_core.model.scene import load_scene
+from sweep_core.numerics import simulator
 from sweep_core.numerics.robots import clear_step
 
 WALLS = [{"kind": "segment", "a": [-1.0, 0.0], "b": [9.0, 0.0]},
@@ -89,8 +90,14 @@ def test_simple_steps_have_the_general_paths_bits(monkeypatch: pytest.MonkeyPatc
         scene, steps, dt, commands = two_robots(0.4 if "noisy" in case else 0.05), 120, 0.05, True
     taken = {"simple": 0, "general": 0}
     counted(monkeypatch, taken)
+    checked = []
+    crossings = simulator.crossings
+    monkeypatch.setattr(simulator, "crossings", lambda *a: checked.append(1) or crossings(*a))
     fast, _ = run(scene, steps, dt, commands)
     assert taken["simple"] > 10 and taken["general"] > 3, taken
+    # a simple step checked the people's paths (none might cross a wall): the simulator does
+    # not check them again
+    assert len(checked) == taken["general"]
     monkeypatch.setattr(clear_step, "applies", lambda *args: False)
     general, _ = run(scene, steps, dt, commands)
     assert fast == general
@@ -107,10 +114,15 @@ def test_a_stop_a_row_a_wall_or_nan_is_not_simple() -> None:
     radius = np.full(2, 0.3)
 
     def verdict(pred, start, target, moving=(True, True)) -> int:
+        n, ns = len(q), len(sa)
+        ints = [np.empty(size, dtype=np.intp) for size in (4 * n, 4 * n, n * ns, n * ns)]
         return clear_step.clear_robot_step(
             q, np.asarray(pred, dtype=np.float64), r1, np.asarray(start, dtype=np.float64),
             np.asarray(target, dtype=np.float64), radius, np.array(moving), hn, hc, sa, sb,
-            cc, cr, geom.static_segments, 1 << 16)
+            cc, cr, geom.static_segments, 1 << 16, True, ints[0], ints[1], np.empty(4 * n),
+            np.empty(n * (len(hc) + ns + len(cr))), ints[2], ints[3],
+            np.empty(2 * n * ns, dtype=np.intp), np.empty(2 * n * ns, dtype=np.intp),
+            np.empty(2 * n * ns, dtype=np.bool_), np.empty(12))
 
     start = [[1.0, 2.0], [2.0, 2.0]]
     simple = [[1.05, 2.0], [2.05, 2.0]]

@@ -363,7 +363,9 @@ class Simulator:
                 who = [] if worst is None else (
                     list(worst[:2]) if g.min_pair <= g.min_single else [worst[0]])
                 raise InfeasibleError(t1, who, f"true constraint violated by {-g.min_gap:.3g} m")
-            through, item = crossings(scene.geometry, self._q, y, r1, g)
+            through, item = (_NO_PATH, _NO_PATH) if (
+                self.robots is not None and self.robots.paths_clear(t1, scene.geometry, y, r1)
+            ) else crossings(scene.geometry, self._q, y, r1, g)
             if len(through):
                 raise InfeasibleError(t1, sorted(set(through.tolist())), "the centre of agent "
                                       f"{int(through[0])} went through "
@@ -384,6 +386,10 @@ class Simulator:
         self._contacts = res.projection.active
         self._min_gap = min_gap
         self.last = res
+
+
+#: no crossing (the robots' step found that no path might cross a wall)
+_NO_PATH = np.empty(0, dtype=np.intp)
 
 
 def violating_agents(scene: Scene, t: float, q: np.ndarray) -> list[int]:

@@ -33,7 +33,7 @@ import numba
 import numpy as np
 
 from sweep_core.model.crossing import DENSE_PAIRS
-from sweep_core.model.gaps import Gaps, gaps
+from sweep_core.model.gaps import Gaps, small_gaps
 from sweep_core.model.geometry import DENSE_SEGMENTS, Geometry
 from sweep_core.model.wall_kernels import crossing_pairs, single_gaps
 from sweep_core.numerics.projection.clear import MAX_AGENTS, MIN_CUT, clear_count
@@ -61,7 +61,7 @@ def applies(geom: Geometry, people: int, all_prescribed: bool, has_map: bool) ->
 
 def robot_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
                states: list[Any], targets: list[tuple], moving: list[bool], has_map: bool,
-               warm: Projection | None) -> tuple[Projection, np.ndarray, Gaps] | None:
+               warm: Projection | None) -> tuple[Projection, np.ndarray, Gaps, bool] | None:
     """A fleet's step when it is a simple one: the robots (``states``, ``RobotState``) moved
     to their ``targets`` (x, y, yaw) with their commands as twists and no contact, and
     :func:`simple_step`'s answer returned; None with nothing changed otherwise, or when the
@@ -86,7 +86,7 @@ def robot_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: n
 
 def simple_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
                 start: np.ndarray, target: np.ndarray, radius: np.ndarray,
-                moving: np.ndarray) -> tuple[Projection, np.ndarray, Gaps] | None:
+                moving: np.ndarray) -> tuple[Projection, np.ndarray, Gaps, bool] | None:
     """The step's projection (the prediction, no rows), the people's positions at its end (a
     copy) and their gaps there, when the step is a simple one (:func:`clear_robot_step`, and
     no two people overlap by more than TOLERANCE at the end); None otherwise, nothing
@@ -96,25 +96,45 @@ def simple_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: 
     pred = np.ascontiguousarray(pred, dtype=np.float64)
     r1 = np.ascontiguousarray(r1, dtype=np.float64)
     hn, hc, sa, sb, cc, cr = geom.packed
+    n, ns = len(q), len(sa)
+    cap = 4 * n  # pairs_within's first room
+    i, j, pg = np.empty(cap, dtype=np.intp), np.empty(cap, dtype=np.intp), np.empty(cap)
+    walls = not geom.is_empty
+    vals = np.empty(n * (len(hc) + ns + len(cr)) if walls else 0)
+    near_a = np.empty(n * ns if walls else 0, dtype=np.intp)
+    near_k = np.empty(len(near_a), dtype=np.intp)
+    room = len(near_a) + min(n * ns, DENSE_PAIRS)
+    out = np.empty(12)
     active = clear_robot_step(q, pred, r1, start, target, radius, moving, hn, hc, sa, sb,
-                              cc, cr, geom.static_segments, DENSE_PAIRS)
+                              cc, cr, geom.static_segments, DENSE_PAIRS, walls, i, j, pg,
+                              vals, near_a, near_k, np.empty(room, dtype=np.intp),
+                              np.empty(room, dtype=np.intp), np.empty(room, dtype=np.bool_),
+                              out)
     if active < 0:
         return None
     y = pred.copy()
-    ends = y.copy()
-    people = gaps(geom, t1, ends, r1)
-    if not (people.min_pair >= -TOLERANCE and people.min_single >= -TOLERANCE):
-        return None
+    found, w, near = int(out[6]), int(out[8]), int(out[9])
+    worst_pair = None if w < 0 else (int(i[w]), int(j[w]), float(pg[w]))
+    worst_single = None
+    if walls and out[3] >= 0:
+        worst_single = (int(out[4]), int(out[3]), int(out[5]), float(out[2]))
+    people = Gaps(math.inf if w < 0 else float(pg[w]), float(out[2]) if walls else math.inf,
+                  int(out[7]) + (int(out[1]) if walls else 0), worst_pair, worst_single,
+                  i[:found], j[:found], pg[:found], near_a[:near], near_k[:near],
+                  float(out[0]) if walls else 0.0)
     return (Projection(y, NO_ROWS, _NO_MULTIPLIER, _NO_MULTIPLIER, active, 0, 0, 0, 0.0, 0,
-                       0, None, 0), ends, people)
+                       0, None, 0), y.copy(), people, bool(out[10]))
 
 
 @numba.njit(cache=True, nogil=True)
 def clear_robot_step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.ndarray,
                      target: np.ndarray, radius: np.ndarray, moving: np.ndarray,
                      hn: np.ndarray, hc: np.ndarray, sa: np.ndarray, sb: np.ndarray,
-                     cc: np.ndarray, cr: np.ndarray, static: np.ndarray, dense_pairs: int
-                     ) -> int:  # pragma: no cover - compiled
+                     cc: np.ndarray, cr: np.ndarray, static: np.ndarray, dense_pairs: int,
+                     walls: bool, i: np.ndarray, j: np.ndarray, pg: np.ndarray,
+                     vals: np.ndarray, near_a: np.ndarray, near_k: np.ndarray,
+                     out_i: np.ndarray, out_k: np.ndarray, unsure: np.ndarray,
+                     out: np.ndarray) -> int:  # pragma: no cover - compiled
     """The number of rows holding with equality at the prediction (``Projection.active``)
     when the step from q (N, 2) to pred (N, 2), r1 (N,) m at t1, with the prescribed robots
     going from ``start`` (R, 2) to ``target`` (R, 2), radii ``radius`` (R,), ``moving`` (R,)
@@ -130,14 +150,22 @@ def clear_robot_step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.
     - at the step's end (people at pred, robots at their targets) no robot's gap to a person,
       another robot, a wall or an obstacle is below -TOLERANCE or NaN (``robot_gaps``);
     - no robot's centre path meets a wall segment, nor might it (``crossing_pairs`` finds no
-      candidate).
-    """
+      candidate);
+    - the people's gaps at the step's end (``gaps``' passes, :func:`~sweep_core.model.gaps.
+      small_gaps`, into i, j, pg (room 4 N), vals, near_a, near_k and out[0:10], as ``gaps``
+      documents them; ``walls``: the geometry is not empty) find no pair or wall value below
+      -TOLERANCE or NaN and no more pairs than i has room for.
+
+    out[10] is 1.0 when no person's centre path from q to pred meets a static wall segment,
+    nor might it (``crossings``' one pass, with those gaps' near pairs and reach, finds no
+    candidate, in out_i, out_k, unsure of room len(near_a) + min(N S, dense_pairs)), else 0.0:
+    the simulator's own crossing check then runs."""
     robots = target.shape[0]
     nh, ns, nc = hn.shape[0], sa.shape[0], cc.shape[0]
     no_polygon = np.zeros((0, 0), dtype=np.bool_)
-    vals = np.empty(nh + ns + nc)
-    near_a = np.empty(ns, dtype=np.intp)
-    near_k = np.empty(ns, dtype=np.intp)
+    one_vals = np.empty(nh + ns + nc)
+    one_a = np.empty(ns, dtype=np.intp)
+    one_k = np.empty(ns, dtype=np.intp)
     summary = np.empty(6)
     one = np.empty((1, 2))
     one_r = np.empty(1)
@@ -145,14 +173,14 @@ def clear_robot_step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.
         if not moving[k]:
             continue
         x, y, rk = target[k, 0], target[k, 1], radius[k]
-        for j in range(robots):
-            if j != k:
-                dx, dy = x - target[j, 0], y - target[j, 1]
-                if not math.hypot(dx, dy) - radius[j] - rk >= -SETTLE_TOLERANCE:
+        for o in range(robots):
+            if o != k:
+                dx, dy = x - target[o, 0], y - target[o, 1]
+                if not math.hypot(dx, dy) - radius[o] - rk >= -SETTLE_TOLERANCE:
                     return NOT_CLEAR
         one[0, 0], one[0, 1], one_r[0] = x, y, rk
         single_gaps(one, one_r, hn, hc, sa, sb, no_polygon, cc, cr, CONTACT_TOL,
-                    max(CONTACT_TOL, 2.0 * rk, 1e-3), vals, near_a, near_k, summary)
+                    max(CONTACT_TOL, 2.0 * rk, 1e-3), one_vals, one_a, one_k, summary)
         if summary[3] == -2.0 or (summary[3] >= 0 and summary[2] < -SETTLE_TOLERANCE):
             return NOT_CLEAR
     square, r_max = largest_step(q, pred, r1)
@@ -171,11 +199,47 @@ def clear_robot_step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.
     if worst[1] == -2.0 or (worst[1] >= 0 and not worst[0] >= -TOLERANCE):
         return NOT_CLEAR
     room = min(robots * ns, dense_pairs)
-    out_i = np.empty(room, dtype=np.intp)
-    out_k = np.empty(room, dtype=np.intp)
-    unsure = np.empty(room, dtype=np.bool_)
     none = np.empty(0, dtype=np.intp)
     if ns and crossing_pairs(start, target, radius, none, none, -1.0, sa, sb, static,
-                             dense_pairs, out_i, out_k, unsure) != 0:
+                             dense_pairs, np.empty(room, dtype=np.intp),
+                             np.empty(room, dtype=np.intp), np.empty(room, dtype=np.bool_)
+                             ) != 0:
+        return NOT_CLEAR
+    if not _people_clear(q, pred, r1, dense_pairs, walls, hn, hc, sa, sb, cc, cr, static, i, j,
+                         pg, vals, near_a, near_k, out_i, out_k, unsure, out):
         return NOT_CLEAR
     return active
+
+
+@numba.njit(cache=True, nogil=True)
+def _people_clear(q: np.ndarray, y: np.ndarray, r1: np.ndarray, dense_pairs: int, walls: bool,
+                  hn: np.ndarray, hc: np.ndarray, sa: np.ndarray, sb: np.ndarray,
+                  cc: np.ndarray, cr: np.ndarray, static: np.ndarray, i: np.ndarray,
+                  j: np.ndarray, pg: np.ndarray, vals: np.ndarray, near_a: np.ndarray,
+                  near_k: np.ndarray, out_i: np.ndarray, out_k: np.ndarray,
+                  unsure: np.ndarray, out: np.ndarray) -> bool:  # pragma: no cover - compiled
+    """:func:`clear_robot_step`'s last test: the people's gaps at y (N, 2) and whether their
+    paths from q might cross a wall segment (its docstring)."""
+    r_max = 0.0
+    for a in range(r1.shape[0]):
+        if not r1[a] <= r_max:  # r1.max(), kept only when finite (NaN: not clear)
+            if r1[a] != r1[a]:
+                return False
+            r_max = r1[a]
+    small_gaps(y, r1, 2.0 * r_max + CONTACT_TOL, walls, hn, hc, sa, sb,
+               np.zeros((0, 0), dtype=np.bool_), cc, cr, CONTACT_TOL,
+               max(CONTACT_TOL, 2.0 * r_max, 1e-3), i, j, pg, vals, near_a, near_k, out)
+    if out[6] > i.shape[0] or out[3] == -2.0:
+        return False
+    w = int(out[8])
+    if w >= 0 and not pg[w] >= -TOLERANCE:
+        return False
+    if walls and out[3] >= 0 and not out[2] >= -TOLERANCE:
+        return False
+    out[10] = 1.0
+    if sa.shape[0] and walls:
+        near = int(out[9])
+        if crossing_pairs(q, y, r1, near_a[:near], near_k[:near], out[0], sa, sb, static,
+                          dense_pairs, out_i, out_k, unsure) != 0:
+            out[10] = 0.0
+    return True

@@ -135,8 +135,10 @@ class Fleet:
         self.states = {r.name: RobotState(r, (r.pose[0], r.pose[1], kinematics.wrap(r.pose[2])))
                        for r in self.scene.robots}
         self.step_index = 0
-        #: the people's gaps the last step's check computed: (t1, y, r1, geometry, Gaps)
-        self.people_gaps: tuple[float, np.ndarray, np.ndarray, Geometry, Gaps] | None = None
+        #: the people's gaps the last step's check computed: (t1, y, r1, geometry, Gaps,
+        #: whether it found that no person's path might cross a wall segment)
+        self.people_gaps: tuple[float, np.ndarray, np.ndarray, Geometry, Gaps, bool] | None \
+            = None
 
     def snapshot(self) -> tuple:
         """What a step changes (the robots' states, the step count), for :meth:`restore`."""
@@ -226,8 +228,8 @@ class Fleet:
         simple = robot_step(self.scene.geometry, t1, q, pred, r1, states, targets, moving,
                             self._blocked is not None, scheme.warm)
         if simple is not None:  # the general path's bits, in one compiled call
-            proj, people, gaps = simple
-            self.people_gaps = (t1, people, r1, self.scene.geometry, gaps)
+            proj, people, gaps, paths_clear = simple
+            self.people_gaps = (t1, people, r1, self.scene.geometry, gaps, paths_clear)
             scheme.warm = proj
             self.step_index += 1
             return StepResult(people, pred, proj)
@@ -359,7 +361,7 @@ class Fleet:
                             ends, r1, t1)
         # the people's gaps at the step's end, for the simulator's own check (the same call)
         self.people_gaps = None if people is None else (t1, ends, r1, self.scene.geometry,
-                                                        people)
+                                                        people, False)
         return ends
 
     def gaps_of(self, t1: float, geom: Geometry, y: np.ndarray, r1: np.ndarray) -> Gaps | None:
@@ -374,6 +376,13 @@ class Fleet:
                 or (kept[2] is not r1 and not np.array_equal(kept[2], r1))):
             return None
         return kept[4]
+
+    def paths_clear(self, t1: float, geom: Geometry, y: np.ndarray, r1: np.ndarray) -> bool:
+        """Whether the last step, with the arguments :meth:`gaps_of` matches, found that no
+        person's centre path from the step's start to ``y`` might meet a wall segment (the
+        crossing check's own pass found no candidate): the check then has nothing to do."""
+        kept = self.people_gaps
+        return kept is not None and kept[5] and self.gaps_of(t1, geom, y, r1) is not None
 
     def after_step(self, t: float, people: np.ndarray, radii: np.ndarray) -> None:
         """Scans due at this step (the step index counts steps taken; step 0 is the start)."""
