@@ -44,8 +44,11 @@ from sweep_core.numerics.robots.overlaps import TOLERANCE, robot_gaps
 SETTLE_TOLERANCE = 1e-9
 #: ``gaps``' contact tolerance, which the settle's wall pass is given (m)
 CONTACT_TOL = 1e-6
-#: what :func:`clear_robot_step` returns when the step is not a simple one
+#: what :func:`clear_robot_step` returns when the step is not a simple one: a moving robot's
+#: target overlaps something, or the settle's test is unsure
 NOT_CLEAR = -1
+#: ... or when no robot would stop (the settle has nothing to do) but the rest is not simple
+SETTLED = -2
 
 
 _NO_MULTIPLIER = np.empty(0)
@@ -61,22 +64,23 @@ def applies(geom: Geometry, people: int, all_prescribed: bool, has_map: bool) ->
 
 def robot_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
                states: list[Any], targets: list[tuple], moving: list[bool], has_map: bool,
-               warm: Projection | None) -> tuple[Projection, np.ndarray, Gaps, bool] | None:
+               warm: Projection | None) -> tuple[Projection, np.ndarray, Gaps, bool] | bool:
     """A fleet's step when it is a simple one: the robots (``states``, ``RobotState``) moved
     to their ``targets`` (x, y, yaw) with their commands as twists and no contact, and
-    :func:`simple_step`'s answer returned; None with nothing changed otherwise, or when the
-    scene is not one this applies to (:func:`applies`; ``has_map``: blocked cells) or the last
+    :func:`simple_step`'s answer returned; otherwise, nothing changed, True when no robot
+    would stop (the general path may skip its settle) and False when some might, the scene is
+    not one this applies to (:func:`applies`; ``has_map``: blocked cells) or the last
     projection (``warm``) held clusters back (the general path then counts their steps)."""
     if (not applies(geom, len(q), all(st.robot.prescribed for st in states), has_map)
             or (warm is not None and warm.stuck is not None and len(warm.y) == len(q))):
-        return None
+        return False
     done = simple_step(geom, t1, q, pred, r1,
                        np.array([st.pose[:2] for st in states], dtype=np.float64),
                        np.array([p[:2] for p in targets], dtype=np.float64),
                        np.array([st.robot.radius for st in states], dtype=np.float64),
                        np.array(moving, dtype=np.bool_))
-    if done is None:
-        return None
+    if not isinstance(done, tuple):
+        return done
     for k, st in enumerate(states):
         st.pose, st.twist = targets[k], st.command
         st.contact_ids = np.empty(0, dtype=np.int64)
@@ -86,12 +90,12 @@ def robot_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: n
 
 def simple_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
                 start: np.ndarray, target: np.ndarray, radius: np.ndarray,
-                moving: np.ndarray) -> tuple[Projection, np.ndarray, Gaps, bool] | None:
+                moving: np.ndarray) -> tuple[Projection, np.ndarray, Gaps, bool] | bool:
     """The step's projection (the prediction, no rows), the people's positions at its end (a
-    copy) and their gaps there, when the step is a simple one (:func:`clear_robot_step`, and
-    no two people overlap by more than TOLERANCE at the end); None otherwise, nothing
-    changed. Arguments as :func:`clear_robot_step`'s; ``geom`` the scene's geometry (static:
-    :func:`applies`) and t1 (s) the step's end."""
+    copy), their gaps there and whether their paths are clear of the wall segments, when the
+    step is a simple one (:func:`clear_robot_step`); otherwise, nothing changed, True when no
+    robot would stop (SETTLED) and False else. Arguments as :func:`clear_robot_step`'s;
+    ``geom`` the scene's geometry (static: :func:`applies`) and t1 (s) the step's end."""
     q = np.ascontiguousarray(q, dtype=np.float64)
     pred = np.ascontiguousarray(pred, dtype=np.float64)
     r1 = np.ascontiguousarray(r1, dtype=np.float64)
@@ -111,7 +115,7 @@ def simple_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: 
                               np.empty(room, dtype=np.intp), np.empty(room, dtype=np.bool_),
                               out)
     if active < 0:
-        return None
+        return active == SETTLED
     y = pred.copy()
     found, w, near = int(out[6]), int(out[8]), int(out[9])
     worst_pair = None if w < 0 else (int(i[w]), int(j[w]), float(pg[w]))
@@ -138,7 +142,9 @@ def clear_robot_step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.
     """The number of rows holding with equality at the prediction (``Projection.active``)
     when the step from q (N, 2) to pred (N, 2), r1 (N,) m at t1, with the prescribed robots
     going from ``start`` (R, 2) to ``target`` (R, 2), radii ``radius`` (R,), ``moving`` (R,)
-    bool (a non-zero command), is a simple one; else NOT_CLEAR. The geometry's packed arrays
+    bool (a non-zero command), is a simple one; else NOT_CLEAR, or SETTLED when only the
+    first test passed (no robot stops: the general path's settle would stop none). The
+    geometry's packed arrays
     at t1: half-planes hn, hc, segments sa, sb, circles cc, cr, ``static`` (S,) the segments
     that do not move. A simple step (each test the general path's, in its arithmetic):
 
@@ -186,28 +192,28 @@ def clear_robot_step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.
     square, r_max = largest_step(q, pred, r1)
     cut = 3.0 * math.sqrt(square) + 1e-3 * r_max
     if not cut >= MIN_CUT:
-        return NOT_CLEAR
+        return SETTLED
     circles = np.empty((nc + robots, 2))
     circle_r = np.empty(nc + robots)
     circles[:nc], circle_r[:nc] = cc, cr
     circles[nc:], circle_r[nc:] = target, radius
     active = clear_count(q, pred, r1, cut, hn, hc, sa, sb, circles, circle_r)
     if active < 0:
-        return NOT_CLEAR
+        return SETTLED
     worst = np.empty(4)
     robot_gaps(target, radius, pred, r1, hn, hc, sa, sb, cc, cr, worst)
     if worst[1] == -2.0 or (worst[1] >= 0 and not worst[0] >= -TOLERANCE):
-        return NOT_CLEAR
+        return SETTLED
     room = min(robots * ns, dense_pairs)
     none = np.empty(0, dtype=np.intp)
     if ns and crossing_pairs(start, target, radius, none, none, -1.0, sa, sb, static,
                              dense_pairs, np.empty(room, dtype=np.intp),
                              np.empty(room, dtype=np.intp), np.empty(room, dtype=np.bool_)
                              ) != 0:
-        return NOT_CLEAR
+        return SETTLED
     if not _people_clear(q, pred, r1, dense_pairs, walls, hn, hc, sa, sb, cc, cr, static, i, j,
                          pg, vals, near_a, near_k, out_i, out_k, unsure, out):
-        return NOT_CLEAR
+        return SETTLED
     return active
 
 

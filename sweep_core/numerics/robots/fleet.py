@@ -227,13 +227,14 @@ class Fleet:
         moving = [st.robot.prescribed and st.command != (0.0, 0.0, 0.0) for st in states]
         simple = robot_step(self.scene.geometry, t1, q, pred, r1, states, targets, moving,
                             self._blocked is not None, scheme.warm)
-        if simple is not None:  # the general path's bits, in one compiled call
+        if isinstance(simple, tuple):  # the general path's bits, in one compiled call
             proj, people, gaps, paths_clear = simple
             self.people_gaps = (t1, people, r1, self.scene.geometry, gaps, paths_clear)
             scheme.warm = proj
             self.step_index += 1
             return StepResult(people, pred, proj)
-        self._settle(states, targets, moving, t1)
+        if not simple:  # (True: the call found that no robot stops)
+            self._settle(states, targets, moving, t1)
         before = [st.copy() for st in states]
         try:
             proj = self._project(scheme, states, targets, t1, q, pred, r1)
