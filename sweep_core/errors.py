@@ -72,6 +72,10 @@ class SceneError(SweepError, ValueError):
             msg += f" (fix: {fix})"
         super().__init__(msg)
 
+    def __reduce__(self) -> tuple:
+        """Pickled with its arguments (a worker process sends it to its parent)."""
+        return (type(self), (self.field, self.problem, self.fix), self.__dict__)
+
 
 class CostError(SceneError):
     """A scene asks for more than a bound on what building it costs (agents a source emits,
@@ -109,7 +113,7 @@ class InfeasibleError(SweepError):
 
     def __reduce__(self) -> tuple:
         """Pickled with its arguments (an ensemble's worker sends it to the client)."""
-        return (type(self), (self.t, self.agents, self.detail, self._given))
+        return (type(self), (self.t, self.agents, self.detail, self._given), self.__dict__)
 
 
 class RecordingError(SweepError):
@@ -131,3 +135,7 @@ class OutputError(SweepError):
         self.problem = problem
         self.fix = fix
         super().__init__(f"{path}: {problem} (fix: {fix})")
+
+    def __reduce__(self) -> tuple:
+        """Pickled with its arguments (a worker process sends it to its parent)."""
+        return (type(self), (self.path, self.problem, self.fix), self.__dict__)

@@ -36,6 +36,10 @@ class CommandError(ValueError):
         self.problem = problem
         super().__init__(f"{topic}: {problem}")
 
+    def __reduce__(self) -> tuple:
+        """Pickled with its arguments (a worker process sends it to its parent)."""
+        return (type(self), (self.topic, self.problem), self.__dict__)
+
 
 # ---------------------------------------------------------------------------------------------
 # Time

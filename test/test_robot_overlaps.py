@@ -117,3 +117,24 @@ def test_the_simulator_takes_the_peoples_gaps_from_the_check() -> None:
     finally:
         simulator.gaps = real
     assert not calls
+
+
+@pytest.mark.parametrize("where", ["person", "robot", "halfplane", "segment", "circle"])
+def test_a_nan_value_of_any_kind_is_reported_as_nan(where: str) -> None:
+    """robot_gaps' kind is NAN when any one value is NaN, whichever kind and wherever it comes
+    in the pass (a smaller finite value before or after it does not hide it)."""
+    from sweep_core.numerics.robots.overlaps import NAN, robot_gaps
+
+    c, rc = np.array([[0.0, 0.0], [3.0, 0.0]]), np.array([0.3, 0.3])
+    q, r = np.array([[1.0, 0.0], [0.3, 0.0]]), np.array([0.2, 0.2])
+    hn, hc = np.array([[0.0, 1.0]]), np.array([-2.0])
+    sa, sb = np.array([[-1.0, 1.0]]), np.array([[1.0, 1.0]])
+    cc, cr = np.array([[0.0, -1.0]]), np.array([0.2])
+    arrays = {"person": q, "robot": c, "halfplane": hc, "segment": sb, "circle": cr}
+    out = np.empty(4)
+    robot_gaps(c, rc, q, r, hn, hc, sa, sb, cc, cr, out)
+    assert out[1] >= 0 and out[0] == pytest.approx(-0.2)  # robot 0 and person 1 overlap
+    target = arrays[where]
+    target.reshape(-1)[-1] = np.nan
+    robot_gaps(c, rc, q, r, hn, hc, sa, sb, cc, cr, out)
+    assert out[1] == NAN

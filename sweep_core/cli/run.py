@@ -44,6 +44,10 @@ class Interrupted(KeyboardInterrupt):
         super().__init__(signal.Signals(signum).name)
         self.signum = signum
 
+    def __reduce__(self) -> tuple:
+        """Pickled with its argument (the signal's number, not its name)."""
+        return (type(self), (self.signum,), self.__dict__)
+
 
 class StopOnSignal:
     """SIGINT and SIGTERM set a flag that the run checks after every step.

@@ -42,6 +42,10 @@ class JSONLimitError(ValueError):
         #: the bound exceeded is on what building the data would cost (its node count)
         self.cost = cost
 
+    def __reduce__(self) -> tuple:
+        """Pickled with its arguments (a worker process sends it to its parent)."""
+        return (type(self), (self.problem, self.fix, self.cost), self.__dict__)
+
 
 def looks_like_json(text: str) -> bool:
     """Whether ``text`` is meant as a JSON object: its first character other than white

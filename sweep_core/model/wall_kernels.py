@@ -31,6 +31,47 @@ from sweep_core.model.outlines import segments_meet
 _ORIENT_BOUND = (3.0 + 16.0 * 2.0 ** -53) * 2.0 ** -53
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def segment_foot(x: float, y: float, ax: float, ay: float, bx: float, by: float
+                 ) -> tuple[float, float, float, float, float]:  # pragma: no cover - compiled
+    """The point of the segment [a, b] closest to (x, y) (m): (dist, dx, dy, fx, fy), the foot
+    f = a + s (b - a) with s = <(x, y) - a, b - a> / |b - a|^2 clamped to [0, 1], the offset
+    (dx, dy) = (x, y) - f and dist = sqrt(dx^2 + dy^2) (the bits of the numpy form)."""
+    abx, aby = bx - ax, by - ay
+    s = ((x - ax) * abx + (y - ay) * aby) / (abx * abx + aby * aby)
+    s = min(max(s, 0.0), 1.0)
+    fx, fy = ax + s * abx, ay + s * aby
+    dx, dy = x - fx, y - fy
+    return math.sqrt(dx * dx + dy * dy), dx, dy, fx, fy
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def halfplane_value(x: float, y: float, nx: float, ny: float, c: float, ra: float
+                    ) -> float:  # pragma: no cover - compiled
+    """The value (m) of the half-plane <n, z> >= c (offset c at t) for the disk at (x, y) of
+    radius ra: (x nx + y ny - c) - ra."""
+    return (x * nx + y * ny - c) - ra
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def disk_gap(x0: float, y0: float, x1: float, y1: float, r0: float, r1: float
+             ) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
+    """The gap (m) of the disks at (x0, y0), radius r0 and (x1, y1), radius r1:
+    ((dist - r0) - r1, dist, dx, dy) with (dx, dy) = (x0 - x1, y0 - y1), dist its length.
+    Subtracted in this order, so a disk at (x, y), radius ra against a circle obstacle at c,
+    radius rc is disk_gap(x, y, cx, cy, rc, ra) (the numpy form's (dist - rc) - ra)."""
+    dx, dy = x0 - x1, y0 - y1
+    dist = math.sqrt(dx * dx + dy * dy)
+    return dist - r0 - r1, dist, dx, dy
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def unit(dx: float, dy: float, dist: float) -> tuple[float, float]:  # pragma: no cover
+    """(dx, dy) / dist, with dist floored at 1e-300 (a row's unit normal; dist its length)."""
+    den = max(dist, 1e-300)
+    return dx / den, dy / den
+
+
 @numba.njit(cache=True, nogil=True)
 def near_rows(q: np.ndarray, r: np.ndarray, reach: float, hn: np.ndarray, hc: np.ndarray,
               sa: np.ndarray, sb: np.ndarray, inside: np.ndarray, cc: np.ndarray,
@@ -50,7 +91,7 @@ def near_rows(q: np.ndarray, r: np.ndarray, reach: float, hn: np.ndarray, hc: np
     for a in range(n):
         x, y, ra = q[a, 0], q[a, 1], r[a]
         for k in range(hn.shape[0]):
-            val = (x * hn[k, 0] + y * hn[k, 1] - hc[k]) - ra
+            val = halfplane_value(x, y, hn[k, 0], hn[k, 1], hc[k], ra)
             if val <= reach:
                 agent[m], item[m], g[m] = a, k, val
                 nrm[m, 0], nrm[m, 1], foot[m] = hn[k, 0], hn[k, 1], hc[k]
@@ -60,19 +101,12 @@ def near_rows(q: np.ndarray, r: np.ndarray, reach: float, hn: np.ndarray, hc: np
     for a in range(n):
         x, y, ra = q[a, 0], q[a, 1], r[a]
         for k in range(sa.shape[0]):
-            ax, ay = sa[k, 0], sa[k, 1]
-            abx, aby = sb[k, 0] - ax, sb[k, 1] - ay
-            s = ((x - ax) * abx + (y - ay) * aby) / (abx * abx + aby * aby)
-            s = min(max(s, 0.0), 1.0)
-            fx, fy = ax + s * abx, ay + s * aby
-            dx, dy = x - fx, y - fy
-            dist = math.sqrt(dx * dx + dy * dy)
+            dist, dx, dy, fx, fy = segment_foot(x, y, sa[k, 0], sa[k, 1], sb[k, 0], sb[k, 1])
             val = dist - ra
             if polygons and inside[a, k]:
                 val = -dist - ra
             if val <= reach:
-                den = max(dist, 1e-300)
-                ex, ey = dx / den, dy / den
+                ex, ey = unit(dx, dy, dist)
                 agent[m], item[m], g[m] = a, k, val
                 nrm[m, 0], nrm[m, 1], foot[m] = ex, ey, ex * fx + ey * fy
                 m += 1
@@ -81,12 +115,9 @@ def near_rows(q: np.ndarray, r: np.ndarray, reach: float, hn: np.ndarray, hc: np
     for a in range(n):
         x, y, ra = q[a, 0], q[a, 1], r[a]
         for k in range(cc.shape[0]):
-            dx, dy = x - cc[k, 0], y - cc[k, 1]
-            dist = math.sqrt(dx * dx + dy * dy)
-            val = (dist - cr[k]) - ra
+            val, dist, dx, dy = disk_gap(x, y, cc[k, 0], cc[k, 1], cr[k], ra)
             if val <= reach:
-                den = max(dist, 1e-300)
-                ex, ey = dx / den, dy / den
+                ex, ey = unit(dx, dy, dist)
                 agent[m], item[m], g[m] = a, k, val
                 nrm[m, 0], nrm[m, 1] = ex, ey
                 foot[m] = (ex * cc[k, 0] + ey * cc[k, 1]) + cr[k]
@@ -161,8 +192,7 @@ def pair_gaps(q: np.ndarray, r: np.ndarray, i: np.ndarray, j: np.ndarray, contac
     contacts, w = 0, -1
     for m in range(i.shape[0]):
         a, b = i[m], j[m]
-        dx, dy = q[a, 0] - q[b, 0], q[a, 1] - q[b, 1]
-        v = math.sqrt(dx * dx + dy * dy) - r[a] - r[b]
+        v = disk_gap(q[a, 0], q[a, 1], q[b, 0], q[b, 1], r[a], r[b])[0]
         pg[m] = v
         if v <= contact_tol:
             contacts += 1
@@ -192,17 +222,12 @@ def single_gaps(q: np.ndarray, r: np.ndarray, hn: np.ndarray, hc: np.ndarray,
     for a in range(n):
         x, y, ra = q[a, 0], q[a, 1], r[a]
         for k in range(nh):
-            vals[m] = (x * hn[k, 0] + y * hn[k, 1] - hc[k]) - ra
+            vals[m] = halfplane_value(x, y, hn[k, 0], hn[k, 1], hc[k], ra)
             m += 1
     for a in range(n):
         x, y, ra = q[a, 0], q[a, 1], r[a]
         for k in range(ns):
-            ax, ay = sa[k, 0], sa[k, 1]
-            abx, aby = sb[k, 0] - ax, sb[k, 1] - ay
-            s = ((x - ax) * abx + (y - ay) * aby) / (abx * abx + aby * aby)
-            s = min(max(s, 0.0), 1.0)
-            dx, dy = x - (ax + s * abx), y - (ay + s * aby)
-            dist = math.sqrt(dx * dx + dy * dy)
+            dist = segment_foot(x, y, sa[k, 0], sa[k, 1], sb[k, 0], sb[k, 1])[0]
             val = dist - ra
             if polygons and inside[a, k]:
                 val = -dist - ra
@@ -211,8 +236,7 @@ def single_gaps(q: np.ndarray, r: np.ndarray, hn: np.ndarray, hc: np.ndarray,
     for a in range(n):
         x, y, ra = q[a, 0], q[a, 1], r[a]
         for k in range(nc):
-            dx, dy = x - cc[k, 0], y - cc[k, 1]
-            vals[m] = (math.sqrt(dx * dx + dy * dy) - cr[k]) - ra
+            vals[m] = disk_gap(x, y, cc[k, 0], cc[k, 1], cr[k], ra)[0]
             m += 1
     for u in range(m):
         if math.isnan(vals[u]):
@@ -325,12 +349,10 @@ def pair_rows(q: np.ndarray, r: np.ndarray, i: np.ndarray, j: np.ndarray, cut: f
     m = 0
     for u in range(i.shape[0]):
         a, b = i[u], j[u]
-        dx, dy = q[a, 0] - q[b, 0], q[a, 1] - q[b, 1]
-        dist = math.sqrt(dx * dx + dy * dy)
-        if dist - r[a] - r[b] <= cut:
-            den = max(dist, 1e-300)
+        val, dist, dx, dy = disk_gap(q[a, 0], q[a, 1], q[b, 0], q[b, 1], r[a], r[b])
+        if val <= cut:
             out_i[m], out_j[m] = a, b
-            out_e[m, 0], out_e[m, 1] = dx / den, dy / den
+            out_e[m, 0], out_e[m, 1] = unit(dx, dy, dist)
             out_b[m] = r[a] + r[b]
             m += 1
     return m

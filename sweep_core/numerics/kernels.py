@@ -179,6 +179,12 @@ def _exercise() -> None:
     overlaps.robot_gaps(np.ones((1, 2)), np.ones(1), np.zeros((2, 2)), np.full(2, 0.2),
                         np.ones((1, 2)), np.zeros(1), np.zeros((1, 2)), np.ones((1, 2)),
                         np.zeros((0, 2)), np.zeros(0), np.empty(4))
+    # the inline value helpers (compiled into the kernels above; their own entries cached too)
+    wall_kernels.segment_foot(0.5, 1.0, 0.0, 0.0, 1.0, 0.0)
+    wall_kernels.halfplane_value(0.5, 1.0, 0.0, 1.0, 0.0, 0.2)
+    wall_kernels.disk_gap(0.5, 1.0, 0.0, 0.0, 0.2, 0.2)
+    wall_kernels.unit(0.5, 1.0, 1.2)
+    overlaps.keep_smallest(0.5, overlaps.PERSON, 0, 1, np.inf, -1, -1, -1)
     # a goal drift (the jam's is geodesic)
     two = np.array([[0.0, 0.0], [1.0, 0.0]])
     fields.towards_goal(1.0, 2.0, 1.0, 0.5, two, np.empty((2, 2)))

@@ -31,6 +31,7 @@ import numba
 import numpy as np
 
 from sweep_core.model.geometry import DENSE_SEGMENTS, Geometry
+from sweep_core.model.wall_kernels import disk_gap, halfplane_value, segment_foot, unit
 from sweep_core.numerics.projection.options import ROW_TOLERANCE
 
 #: agents at most: every pair is visited (N (N - 1) / 2), where the neighbour search visits
@@ -75,11 +76,9 @@ def clear_count(q: np.ndarray, p: np.ndarray, r: np.ndarray, cut: float, hn: np.
             return -1
     for a in range(n):
         for b in range(a + 1, n):
-            dx, dy = q[a, 0] - q[b, 0], q[a, 1] - q[b, 1]
-            dist = math.sqrt(dx * dx + dy * dy)
-            if dist - r[a] - r[b] <= cut:
-                den = max(dist, 1e-300)
-                ex, ey = dx / den, dy / den
+            val, dist, dx, dy = disk_gap(q[a, 0], q[a, 1], q[b, 0], q[b, 1], r[a], r[b])
+            if val <= cut:
+                ex, ey = unit(dx, dy, dist)
                 res = (ex * (p[a, 0] - p[b, 0]) + ey * (p[a, 1] - p[b, 1])) - (r[a] + r[b])
                 if not res >= 0.0:
                     return -1
@@ -88,35 +87,25 @@ def clear_count(q: np.ndarray, p: np.ndarray, r: np.ndarray, cut: float, hn: np.
     for a in range(n):
         x, y, ra = q[a, 0], q[a, 1], r[a]
         for k in range(hn.shape[0]):
-            val = (x * hn[k, 0] + y * hn[k, 1] - hc[k]) - ra
-            if val <= cut:
+            if halfplane_value(x, y, hn[k, 0], hn[k, 1], hc[k], ra) <= cut:
                 res = (hn[k, 0] * p[a, 0] + hn[k, 1] * p[a, 1]) - (hc[k] + ra)
                 if not res >= 0.0:
                     return -1
                 if res <= ROW_TOLERANCE:
                     active += 1
         for k in range(sa.shape[0]):
-            ax, ay = sa[k, 0], sa[k, 1]
-            abx, aby = sb[k, 0] - ax, sb[k, 1] - ay
-            s = ((x - ax) * abx + (y - ay) * aby) / (abx * abx + aby * aby)
-            s = min(max(s, 0.0), 1.0)
-            fx, fy = ax + s * abx, ay + s * aby
-            dx, dy = x - fx, y - fy
-            dist = math.sqrt(dx * dx + dy * dy)
+            dist, dx, dy, fx, fy = segment_foot(x, y, sa[k, 0], sa[k, 1], sb[k, 0], sb[k, 1])
             if dist - ra <= cut:
-                den = max(dist, 1e-300)
-                ex, ey = dx / den, dy / den
+                ex, ey = unit(dx, dy, dist)
                 res = (ex * p[a, 0] + ey * p[a, 1]) - ((ex * fx + ey * fy) + ra)
                 if not res >= 0.0:
                     return -1
                 if res <= ROW_TOLERANCE:
                     active += 1
         for k in range(cc.shape[0]):
-            dx, dy = x - cc[k, 0], y - cc[k, 1]
-            dist = math.sqrt(dx * dx + dy * dy)
-            if (dist - cr[k]) - ra <= cut:
-                den = max(dist, 1e-300)
-                ex, ey = dx / den, dy / den
+            val, dist, dx, dy = disk_gap(x, y, cc[k, 0], cc[k, 1], cr[k], ra)
+            if val <= cut:
+                ex, ey = unit(dx, dy, dist)
                 foot = (ex * cc[k, 0] + ey * cc[k, 1]) + cr[k]
                 res = (ex * p[a, 0] + ey * p[a, 1]) - (foot + ra)
                 if not res >= 0.0:

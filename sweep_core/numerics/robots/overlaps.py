@@ -21,6 +21,7 @@ from sweep_core.errors import InfeasibleError
 from sweep_core.model.crossing import crossings
 from sweep_core.model.gaps import Gaps, gaps
 from sweep_core.model.geometry import Geometry
+from sweep_core.model.wall_kernels import disk_gap, halfplane_value, segment_foot
 
 #: a gap below -TOLERANCE (m) after a step is an overlap
 TOLERANCE = 1e-9
@@ -28,6 +29,8 @@ TOLERANCE = 1e-9
 #: robot_gaps' kinds of the smallest value: robot-person and robot-robot pairs, then a robot
 #: against a half-plane, a segment or a circle (the geometry's kind codes plus 2)
 PERSON, ROBOT, HALFPLANE_OF, SEGMENT_OF, CIRCLE_OF = 0, 1, 2, 3, 4
+#: robot_gaps' kind when a value is NaN
+NAN = -2
 
 
 def check_step(geom: Geometry, states: list[Any], start: list[tuple], y: np.ndarray,
@@ -55,7 +58,7 @@ def check_step(geom: Geometry, states: list[Any], start: list[tuple], y: np.ndar
                    np.ascontiguousarray(r1, dtype=np.float64), hn, here.offsets(t1), sa, sb,
                    cc, cr, out)
         kind = int(out[1])
-        if kind == -2:  # a NaN: everyone's gaps together, as below
+        if kind == NAN:  # a NaN: everyone's gaps together, as below
             people = None
         else:
             worst = _smallest(people, float(out[0]), kind, int(out[2]), int(out[3]), n)
@@ -107,6 +110,19 @@ def _smallest(people: Gaps, value: float, kind: int, a: int, b: int, n: int
     return None if single is None else (single[0], False, single[1])
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def keep_smallest(v: float, what: int, a: int, b: int, best: float, kind: int, first: int,
+                   second: int) -> tuple[float, int, int, int]:  # pragma: no cover - compiled
+    """:func:`robot_gaps`' running minimum (best, kind, first, second) after the value v (m)
+    of kind ``what`` between a and b: v and its place when v is smaller (or nothing was kept,
+    kind -1), else unchanged; kind NAN from the first NaN value on."""
+    if kind == NAN or v != v:
+        return best, NAN, first, second
+    if v < best or kind < 0:
+        return v, what, a, b
+    return best, kind, first, second
+
+
 @numba.njit(cache=True, nogil=True)
 def robot_gaps(c: np.ndarray, rc: np.ndarray, q: np.ndarray, r: np.ndarray, hn: np.ndarray,
                hc: np.ndarray, sa: np.ndarray, sb: np.ndarray, cc: np.ndarray,
@@ -120,48 +136,25 @@ def robot_gaps(c: np.ndarray, rc: np.ndarray, q: np.ndarray, r: np.ndarray, hn: 
     for k in range(c.shape[0]):
         x, y, rk = c[k, 0], c[k, 1], rc[k]
         for i in range(q.shape[0]):
-            dx, dy = q[i, 0] - x, q[i, 1] - y
-            v = math.sqrt(dx * dx + dy * dy) - r[i] - rk
-            if v != v:
-                out[1] = -2.0
-                return
-            if v < best or kind < 0:
-                best, kind, first, second = v, PERSON, k, i
+            v = disk_gap(q[i, 0], q[i, 1], x, y, r[i], rk)[0]
+            best, kind, first, second = keep_smallest(v, PERSON, k, i, best, kind, first,
+                                                       second)
         for j in range(k + 1, c.shape[0]):
-            dx, dy = x - c[j, 0], y - c[j, 1]
-            v = math.sqrt(dx * dx + dy * dy) - rk - rc[j]
-            if v != v:
-                out[1] = -2.0
-                return
-            if v < best or kind < 0:
-                best, kind, first, second = v, ROBOT, k, j
+            v = disk_gap(x, y, c[j, 0], c[j, 1], rk, rc[j])[0]
+            best, kind, first, second = keep_smallest(v, ROBOT, k, j, best, kind, first,
+                                                       second)
     for k in range(c.shape[0]):
         x, y, rk = c[k, 0], c[k, 1], rc[k]
         for m in range(hn.shape[0]):
-            v = (x * hn[m, 0] + y * hn[m, 1] - hc[m]) - rk
-            if v != v:
-                out[1] = -2.0
-                return
-            if v < best or kind < 0:
-                best, kind, first, second = v, HALFPLANE_OF, k, m
+            v = halfplane_value(x, y, hn[m, 0], hn[m, 1], hc[m], rk)
+            best, kind, first, second = keep_smallest(v, HALFPLANE_OF, k, m, best, kind,
+                                                       first, second)
         for m in range(sa.shape[0]):
-            ax, ay = sa[m, 0], sa[m, 1]
-            abx, aby = sb[m, 0] - ax, sb[m, 1] - ay
-            s = ((x - ax) * abx + (y - ay) * aby) / (abx * abx + aby * aby)
-            s = min(max(s, 0.0), 1.0)
-            dx, dy = x - (ax + s * abx), y - (ay + s * aby)
-            v = math.sqrt(dx * dx + dy * dy) - rk
-            if v != v:
-                out[1] = -2.0
-                return
-            if v < best or kind < 0:
-                best, kind, first, second = v, SEGMENT_OF, k, m
+            v = segment_foot(x, y, sa[m, 0], sa[m, 1], sb[m, 0], sb[m, 1])[0] - rk
+            best, kind, first, second = keep_smallest(v, SEGMENT_OF, k, m, best, kind,
+                                                       first, second)
         for m in range(cc.shape[0]):
-            dx, dy = x - cc[m, 0], y - cc[m, 1]
-            v = (math.sqrt(dx * dx + dy * dy) - cr[m]) - rk
-            if v != v:
-                out[1] = -2.0
-                return
-            if v < best or kind < 0:
-                best, kind, first, second = v, CIRCLE_OF, k, m
+            v = disk_gap(x, y, cc[m, 0], cc[m, 1], cr[m], rk)[0]
+            best, kind, first, second = keep_smallest(v, CIRCLE_OF, k, m, best, kind,
+                                                       first, second)
     out[0], out[1], out[2], out[3] = best, kind, first, second
