@@ -25,7 +25,7 @@ from sweep_core.model import elementary
 from sweep_core.model.fields import Groups
 from sweep_core.model.geometry import Geometry
 from sweep_core.numerics.robots.fleet import Fleet
-from sweep_core.numerics.simulator import Simulator
+from sweep_core.numerics.simulator import Simulator, State
 
 MARKERS, WALLS = "/markers", "/walls"
 #: the rate (Hz of simulated time) at which ``sweep run`` records ``/markers`` by default
@@ -107,11 +107,11 @@ def robot_batches(fleet: Fleet | None, height: float = 1.0) -> list[MarkerBatch]
                         np.array([HEADING_COLOR] * k))]
 
 
-def state_batches(sim: Simulator, groups: np.ndarray | None = None, height: float = 1.0
-                  ) -> list[MarkerBatch]:
+def state_batches(sim: Simulator, groups: np.ndarray | None = None, height: float = 1.0,
+                  state: State | None = None) -> list[MarkerBatch]:
     """``/markers`` of a simulator now: its people (``groups``: :func:`agent_groups`, given
-    when known) and its robots."""
-    state = sim.state
+    when known) and its robots; ``state``: ``sim.state``, when the caller has it."""
+    state = sim.state if state is None else state
     ids = np.arange(len(state.positions)) if state.ids is None else state.ids
     g = agent_groups(sim) if groups is None else groups
     return [agent_batch(state.positions, state.radii, ids, g, height),

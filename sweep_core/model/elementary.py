@@ -270,6 +270,19 @@ def _flat(values: object) -> np.ndarray:
     return np.asarray(values, dtype=np.float64)
 
 
+@numba.njit(cache=True, nogil=True)
+def z_rotations(yaw: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """out (N, 4) = the unit quaternions (x, y, z, w) = (0, 0, sin(yaw / 2), cos(yaw / 2)) of
+    rotations by yaw (N,) rad about z: the half angle 0.5 yaw, then :func:`sincos` (the bits
+    of :func:`sin_of` and :func:`cos_of` of 0.5 yaw)."""
+    for k in range(yaw.shape[0]):
+        s, c = sincos(0.5 * yaw[k])
+        out[k, 0] = 0.0
+        out[k, 1] = 0.0
+        out[k, 2] = s
+        out[k, 3] = c
+
+
 def sin_of(values: object) -> np.ndarray:
     """sin of each entry (any shape, rad) as float64, the same bits on every CPU."""
     a = _flat(values)

@@ -225,6 +225,7 @@ def _exercise() -> None:
     elementary.sincos(0.5)
     elementary.atan2(0.5, 1.0)
     elementary.sin_of(v), elementary.cos_of(v), elementary.exp_of(v), elementary.atan2_of(v, v)
+    elementary.z_rotations(v, np.empty((3, 4)))  # the markers' orientations
     # the planners' safety layer
     guard.nearest_safe(np.array([1.0, 0.0]), (0.0, 0.0, 0.0), 0.3, np.ones((1, 2)),
                        np.ones(1) * 0.2, 1.0, 0.05, 0.5)

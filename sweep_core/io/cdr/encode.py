@@ -93,6 +93,22 @@ def encode_pose_array(
     return buf[4:].tobytes()
 
 
+#: clouds of at most this many data bytes are joined from bytes (no kept buffer)
+_SMALL_CLOUD = 256
+
+
+@lru_cache(maxsize=256)
+def _cloud_layout(names: tuple[str, ...], n: int, height: int) -> bytes:
+    """A PointCloud2's bytes between its header and its data: height, width, the fields
+    (FLOAT32 at offsets 0, 4, ...), is_bigendian false and padding, point_step, row_step and
+    the data's length, for n points in ``height`` rows."""
+    point_step = 4 * len(names)
+    width = n // height
+    return b"".join((pack_2u32(height, width), _fields_block(names),
+                     b"\x00\x00\x00\x00",  # is_bigendian = false + 3 bytes padding
+                     pack_3u32(point_step, point_step * width, point_step * n)))
+
+
 @lru_cache(maxsize=64)
 def _fields_block(names: tuple[str, ...]) -> bytes:
     """The ``PointField[] fields`` sequence for FLOAT32 fields at offsets 0, 4, 8, ...
@@ -133,7 +149,7 @@ def encode_point_cloud2(stamp_ns: int, frame_id: str, fields: Mapping[str, np.nd
             id, name, shape, height or a non-numeric column.
     """
     prefix = header_prefix(stamp_ns, frame_id)
-    if not isinstance(fields, Mapping) or len(fields) == 0:
+    if not (type(fields) is dict or isinstance(fields, Mapping)) or len(fields) == 0:
         raise ValueError("fields: must be a non-empty mapping of field name to an (N,) array")
     names = tuple(fields)
     n = -1
@@ -163,18 +179,15 @@ def encode_point_cloud2(stamp_ns: int, frame_id: str, fields: Mapping[str, np.nd
         raise ValueError(f"height: {height!r} does not divide the {n} points into rows (give "
                          "1 for an unorganised cloud, or a divisor of the number of points)")
     nf = len(names)
-    point_step = 4 * nf
-    nbytes = point_step * n
-    width = n // height
-    head = b"".join(
-        (
-            prefix,
-            pack_2u32(height, width),
-            _fields_block(names),
-            b"\x00\x00\x00\x00",  # is_bigendian = false + 3 bytes padding
-            pack_3u32(point_step, point_step * width, nbytes),  # point_step, row_step, len(data)
-        )
-    )
+    nbytes = 4 * nf * n
+    head = prefix + _cloud_layout(names, n, height)
+    if nbytes <= _SMALL_CLOUD:  # a few points: the bytes joined, no kept buffer
+        small = np.empty((n, nf), dtype="<f4")
+        with np.errstate(over="ignore", invalid="ignore"):
+            for i, col in enumerate(cols):
+                small[:, i] = col
+        return b"".join((head, small.tobytes(), b"\x01" if np.isfinite(small).all() else
+                         b"\x00"))
     # One output buffer; the data block starts 4-aligned, so it is filled in place as float32.
     buf = scratch(("PointCloud2", n, names, len(head)), len(head) + nbytes + 1)[0]
     buf[: len(head)] = np.frombuffer(head, dtype=np.uint8)

@@ -122,9 +122,9 @@ def _layout(start: int, frame: bytes, ns: str, kind: int, action: int
 
 def _columns(batch: MarkerBatch) -> dict[str, np.ndarray]:
     n = len(batch)
-    half = 0.5 * np.asarray(batch.yaw, dtype=np.float64).reshape(n)
-    orientation = np.zeros((n, 4))
-    orientation[:, 2], orientation[:, 3] = elementary.sin_of(half), elementary.cos_of(half)
+    orientation = np.empty((n, 4))
+    elementary.z_rotations(np.ascontiguousarray(batch.yaw, dtype=np.float64).reshape(n),
+                           orientation)
     return {"id": np.asarray(batch.ids).astype("<i4").reshape(n, 1),
             "position": np.asarray(batch.position, dtype="<f8").reshape(n, 3),
             "orientation": orientation,

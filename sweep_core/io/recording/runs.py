@@ -28,7 +28,7 @@ from sweep_core.io.recording.background import BackgroundRecorder
 from sweep_core.io.recording.format import qos_profiles
 from sweep_core.model.geodesic import navigation_fields
 from sweep_core.numerics import paths
-from sweep_core.numerics.simulator import Simulator
+from sweep_core.numerics.simulator import Simulator, State
 
 
 @dataclass
@@ -136,20 +136,20 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
         def record(s: Simulator) -> None:
             nonlocal steps
             try:
-                encode(s)
+                state = encode(s)
             finally:
                 hand_over()
             if rec.error:
                 raise RecordingError(rec.error)
-            if live is not None and s.state.step % record_every == 0:
-                live.pace(s.state.t)
-            if s.state.step:
+            if live is not None and state.step % record_every == 0:
+                live.pace(state.t)
+            if state.step:
                 steps += 1
             if on_state is not None:
                 on_state(s)
 
-        def encode(s: Simulator) -> None:
-            """The messages of the state ``s`` is in, to ``write``."""
+        def encode(s: Simulator) -> State:
+            """The messages of the state ``s`` is in, to ``write``; that state."""
             nonlocal recorded
             state = s.state
             if s.robots is not None:  # their messages; the applied commands every step
@@ -166,13 +166,15 @@ def record_run(sim: Simulator, t_end: float, out: Path, metadata: dict[str, str]
                 walls.record(write, s, ns, with_markers)
                 if with_markers:
                     write(markers.MARKERS, ns, encode_marker_array(
-                        ns, frame_id, markers.state_batches(s, height=marker_height)))
+                        ns, frame_id, markers.state_batches(s, height=marker_height,
+                                                            state=state)))
                 recorded += 1
                 if navigation and topics.navigation_key(s.drift, state.t) != navigation[0]:
                     navigation[0] = topics.navigation_key(s.drift, state.t)
                     ns = topics.stamp_ns(state.t)
                     write("/" + topics.NAVIGATION, ns,
                               topics.encode_navigation(ns, frame_id, s.drift, state.t))
+            return state
 
         start = time.perf_counter()
         try:
