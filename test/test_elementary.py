@@ -155,6 +155,16 @@ def test_array_forms_equal_the_scalars() -> None:
     assert E.sin_of(3.0).shape == () and E.cos_of([]).shape == (0,)
 
 
+def test_z_rotations_are_sin_and_cos_of_the_half_yaw() -> None:
+    """The markers' quaternions (0, 0, sin(yaw / 2), cos(yaw / 2)), bit for bit the array
+    forms of 0.5 yaw; signed zeros, NaN and huge angles included."""
+    yaw = np.concatenate([ANGLES[:200], [0.0, -0.0, np.nan, np.inf, 1e300, -7.5]])
+    out = np.full((len(yaw), 4), 9.0)
+    E.z_rotations(yaw, out)
+    want = np.column_stack([np.zeros((len(yaw), 2)), E.sin_of(0.5 * yaw), E.cos_of(0.5 * yaw)])
+    assert out.tobytes() == want.tobytes()
+
+
 # -- the same bits with the CPU-specific variants off ---------------------------------------
 
 HASH_ELEMENTARY = """
