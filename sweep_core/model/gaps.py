@@ -123,24 +123,37 @@ def _small(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, r_max: float,
     inside = inside_polygons(q, here) if here.has_polygons else _NO_POLYGON
     hn, _, sa, sb, cc, cr = here.packed
     walls = not geom.is_empty
-    cap = 4 * n
-    i, j, pg = np.empty(cap, dtype=np.intp), np.empty(cap, dtype=np.intp), np.empty(cap)
-    vals = np.empty(n * (len(hc) + len(sa) + len(cr)) if walls else 0)
-    near_a = np.empty(n * len(sa) if walls else 0, dtype=np.intp)
-    near_k = np.empty(len(near_a), dtype=np.intp)
-    out = np.empty(10)
+    i, j, pg, vals, near_a, near_k, out = small_room(n, len(hc), len(sa), len(cr), walls)
     small_gaps(q, r, 2.0 * r_max + contact_tol, walls, hn, hc, sa, sb, inside, cc, cr,
                float(contact_tol), max(contact_tol, 2.0 * r_max, 1e-3), i, j, pg, vals,
                near_a, near_k, out)
-    found = int(out[6])
-    if found > cap or out[3] == -2.0:
+    if out[6] > len(i) or out[3] == -2.0:
         return None
-    w = int(out[8])
+    return small_summary(i, j, pg, near_a, near_k, out, walls)
+
+
+def small_room(n: int, halfplanes: int, segments: int, circles: int, walls: bool
+               ) -> tuple[np.ndarray, ...]:
+    """The arrays :func:`small_gaps` fills for n agents among that many half-planes,
+    segments and circles (``walls``: the geometry is not empty): i, j, pg (room for 4 n
+    pairs, as :func:`~sweep_core.model.neighbours.pairs_within` first makes), vals, near_a,
+    near_k and out (12,)."""
+    cap = 4 * n
+    vals = np.empty(n * (halfplanes + segments + circles) if walls else 0)
+    near_a = np.empty(n * segments if walls else 0, dtype=np.intp)
+    return (np.empty(cap, dtype=np.intp), np.empty(cap, dtype=np.intp), np.empty(cap), vals,
+            near_a, np.empty(len(near_a), dtype=np.intp), np.empty(12))
+
+
+def small_summary(i: np.ndarray, j: np.ndarray, pg: np.ndarray, near_a: np.ndarray,
+                  near_k: np.ndarray, out: np.ndarray, walls: bool) -> Gaps:
+    """The :class:`Gaps` of what :func:`small_gaps` wrote into :func:`small_room`'s arrays
+    (when it found no more pairs than i has room for and no NaN wall value)."""
+    found, w, near = int(out[6]), int(out[8]), int(out[9])
     worst_pair = None if w < 0 else (int(i[w]), int(j[w]), float(pg[w]))
     worst_single = None
-    if out[3] >= 0:
+    if walls and out[3] >= 0:
         worst_single = (int(out[4]), int(out[3]), int(out[5]), float(out[2]))
-    near = int(out[9])
     return Gaps(np.inf if w < 0 else float(pg[w]), float(out[2]) if walls else np.inf,
                 int(out[7]) + (int(out[1]) if walls else 0), worst_pair, worst_single,
                 i[:found], j[:found], pg[:found], near_a[:near], near_k[:near],

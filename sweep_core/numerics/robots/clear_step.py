@@ -33,12 +33,12 @@ import numba
 import numpy as np
 
 from sweep_core.model.crossing import DENSE_PAIRS
-from sweep_core.model.gaps import Gaps, small_gaps
+from sweep_core.model.gaps import Gaps, small_gaps, small_room, small_summary
 from sweep_core.model.geometry import DENSE_SEGMENTS, Geometry
 from sweep_core.model.wall_kernels import crossing_pairs, single_gaps
 from sweep_core.numerics.projection.clear import MAX_AGENTS, MIN_CUT, clear_count
 from sweep_core.numerics.projection.project import NO_ROWS, Projection, largest_step
-from sweep_core.numerics.robots.overlaps import TOLERANCE, robot_gaps
+from sweep_core.numerics.robots.overlaps import NAN, TOLERANCE, robot_gaps
 
 #: the overlap tolerance of the settle's target check (``model.robots.overlap``'s tol), m
 SETTLE_TOLERANCE = 1e-9
@@ -100,15 +100,9 @@ def simple_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: 
     pred = np.ascontiguousarray(pred, dtype=np.float64)
     r1 = np.ascontiguousarray(r1, dtype=np.float64)
     hn, hc, sa, sb, cc, cr = geom.packed
-    n, ns = len(q), len(sa)
-    cap = 4 * n  # pairs_within's first room
-    i, j, pg = np.empty(cap, dtype=np.intp), np.empty(cap, dtype=np.intp), np.empty(cap)
     walls = not geom.is_empty
-    vals = np.empty(n * (len(hc) + ns + len(cr)) if walls else 0)
-    near_a = np.empty(n * ns if walls else 0, dtype=np.intp)
-    near_k = np.empty(len(near_a), dtype=np.intp)
-    room = len(near_a) + min(n * ns, DENSE_PAIRS)
-    out = np.empty(12)
+    i, j, pg, vals, near_a, near_k, out = small_room(len(q), len(hc), len(sa), len(cr), walls)
+    room = len(near_a) + min(len(q) * len(sa), DENSE_PAIRS)
     active = clear_robot_step(q, pred, r1, start, target, radius, moving, hn, hc, sa, sb,
                               cc, cr, geom.static_segments, DENSE_PAIRS, walls, i, j, pg,
                               vals, near_a, near_k, np.empty(room, dtype=np.intp),
@@ -117,17 +111,9 @@ def simple_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: 
     if active < 0:
         return active == SETTLED
     y = pred.copy()
-    found, w, near = int(out[6]), int(out[8]), int(out[9])
-    worst_pair = None if w < 0 else (int(i[w]), int(j[w]), float(pg[w]))
-    worst_single = None
-    if walls and out[3] >= 0:
-        worst_single = (int(out[4]), int(out[3]), int(out[5]), float(out[2]))
-    people = Gaps(math.inf if w < 0 else float(pg[w]), float(out[2]) if walls else math.inf,
-                  int(out[7]) + (int(out[1]) if walls else 0), worst_pair, worst_single,
-                  i[:found], j[:found], pg[:found], near_a[:near], near_k[:near],
-                  float(out[0]) if walls else 0.0)
     return (Projection(y, NO_ROWS, _NO_MULTIPLIER, _NO_MULTIPLIER, active, 0, 0, 0, 0.0, 0,
-                       0, None, 0), y.copy(), people, bool(out[10]))
+                       0, None, 0), y.copy(), small_summary(i, j, pg, near_a, near_k, out, walls),
+            bool(out[10]))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -202,7 +188,7 @@ def clear_robot_step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.
         return SETTLED
     worst = np.empty(4)
     robot_gaps(target, radius, pred, r1, hn, hc, sa, sb, cc, cr, worst)
-    if worst[1] == -2.0 or (worst[1] >= 0 and not worst[0] >= -TOLERANCE):
+    if worst[1] == NAN or (worst[1] >= 0 and not worst[0] >= -TOLERANCE):
         return SETTLED
     room = min(robots * ns, dense_pairs)
     none = np.empty(0, dtype=np.intp)
@@ -211,27 +197,25 @@ def clear_robot_step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.
                              np.empty(room, dtype=np.intp), np.empty(room, dtype=np.bool_)
                              ) != 0:
         return SETTLED
-    if not _people_clear(q, pred, r1, dense_pairs, walls, hn, hc, sa, sb, cc, cr, static, i, j,
-                         pg, vals, near_a, near_k, out_i, out_k, unsure, out):
+    if not _people_clear(q, pred, r1, r_max, dense_pairs, walls, hn, hc, sa, sb, cc, cr, static,
+                         i, j, pg, vals, near_a, near_k, out_i, out_k, unsure, out):
         return SETTLED
     return active
 
 
 @numba.njit(cache=True, nogil=True)
-def _people_clear(q: np.ndarray, y: np.ndarray, r1: np.ndarray, dense_pairs: int, walls: bool,
-                  hn: np.ndarray, hc: np.ndarray, sa: np.ndarray, sb: np.ndarray,
-                  cc: np.ndarray, cr: np.ndarray, static: np.ndarray, i: np.ndarray,
-                  j: np.ndarray, pg: np.ndarray, vals: np.ndarray, near_a: np.ndarray,
-                  near_k: np.ndarray, out_i: np.ndarray, out_k: np.ndarray,
-                  unsure: np.ndarray, out: np.ndarray) -> bool:  # pragma: no cover - compiled
+def _people_clear(q: np.ndarray, y: np.ndarray, r1: np.ndarray, r_max: float,
+                  dense_pairs: int, walls: bool, hn: np.ndarray, hc: np.ndarray,
+                  sa: np.ndarray, sb: np.ndarray, cc: np.ndarray, cr: np.ndarray,
+                  static: np.ndarray, i: np.ndarray, j: np.ndarray, pg: np.ndarray,
+                  vals: np.ndarray, near_a: np.ndarray, near_k: np.ndarray,
+                  out_i: np.ndarray, out_k: np.ndarray, unsure: np.ndarray,
+                  out: np.ndarray) -> bool:  # pragma: no cover - compiled
     """:func:`clear_robot_step`'s last test: the people's gaps at y (N, 2) and whether their
-    paths from q might cross a wall segment (its docstring)."""
-    r_max = 0.0
-    for a in range(r1.shape[0]):
-        if not r1[a] <= r_max:  # r1.max(), kept only when finite (NaN: not clear)
-            if r1[a] != r1[a]:
-                return False
-            r_max = r1[a]
+    paths from q might cross a wall segment (its docstring). r_max: the largest of r1
+    (finite: ``largest_step``'s, which a NaN would have made the cutoff fail on); ``gaps``
+    takes max(r1.max(), 0)."""
+    r_max = max(r_max, 0.0)
     small_gaps(y, r1, 2.0 * r_max + CONTACT_TOL, walls, hn, hc, sa, sb,
                np.zeros((0, 0), dtype=np.bool_), cc, cr, CONTACT_TOL,
                max(CONTACT_TOL, 2.0 * r_max, 1e-3), i, j, pg, vals, near_a, near_k, out)
