@@ -248,8 +248,7 @@ def _rate(label: str, steps: int, k: int, make: Callable[[], Any], workers: int 
     env = make()
     try:
         env.reset(seed=0)
-        action = np.zeros(env.action_space.shape)
-        action[..., 0] = 0.8  # ahead at 0.8 m/s, not turning
+        action = _ahead(env)
         for _ in range(10):  # warm-up
             _step(env, action, k)
         calls = max(1, steps // k)
@@ -260,15 +259,26 @@ def _rate(label: str, steps: int, k: int, make: Callable[[], Any], workers: int 
         cpu = time.process_time() - cpu
     finally:
         env.close()
-    rate = calls * k / seconds
     cpu_note = (f"CPU time: {calls * k / max(cpu, 1e-9):.0f} env steps/s" if workers == 1 else
                 f"{workers} worker processes, each stepping K/{workers} (their CPU time not "
                 "counted here)")
+    return _env_row(label, calls * k, seconds, f"resets included; {cpu_note}")
+
+
+def _ahead(env: Any) -> np.ndarray:
+    """The rows' action: ahead at 0.8 m/s, not turning (for each environment of a batch)."""
+    action = np.zeros(env.action_space.shape)
+    action[..., 0] = 0.8
+    return action
+
+
+def _env_row(label: str, n: int, seconds: float, note: str) -> dict[str, Any]:
+    """An environment row: ``n`` env steps in ``seconds`` (wall clock); ``note`` follows the
+    rate."""
     return {"measure": label, "scene": "crowdnav", "agents": 11, "other": "",
-            "sweep_median_ms": 1e3 * seconds / (calls * k), "sweep_p90_ms": math.nan,
+            "sweep_median_ms": 1e3 * seconds / n, "sweep_p90_ms": math.nan,
             "other_median_ms": math.nan, "other_p90_ms": math.nan, "ratio": math.nan,
-            "note": f"{rate:.0f} env steps/s over {calls * k} env steps, resets included; "
-                    + cpu_note}
+            "note": f"{n / seconds:.0f} env steps/s over {n} env steps, {note}"}
 
 
 def _rate_single(steps: int, k: int, make: Callable[[], Any]) -> dict[str, Any]:
@@ -279,8 +289,7 @@ def _rate_single(steps: int, k: int, make: Callable[[], Any]) -> dict[str, Any]:
     calls = max(1, steps // k)
     seconds = cpu = 0.0
     try:
-        action = np.zeros(env.action_space.shape)
-        action[..., 0] = 0.8
+        action = _ahead(env)
         for seed in range(k):
             env.reset(seed=seed)
             for _ in range(10):  # the vectorised rows' warm-up
@@ -293,12 +302,9 @@ def _rate_single(steps: int, k: int, make: Callable[[], Any]) -> dict[str, Any]:
     finally:
         env.close()
     n = calls * k
-    return {"measure": "env steps/s, single", "scene": "crowdnav", "agents": 11, "other": "",
-            "sweep_median_ms": 1e3 * seconds / n, "sweep_p90_ms": math.nan,
-            "other_median_ms": math.nan, "other_p90_ms": math.nan, "ratio": math.nan,
-            "note": f"{n / seconds:.0f} env steps/s over {n} env steps (the vectorised rows' "
-                    f"episodes: seeds 0-{k - 1}, {calls} steps each after 10), resets "
-                    f"included; CPU time: {n / max(cpu, 1e-9):.0f} env steps/s"}
+    return _env_row("env steps/s, single", n, seconds,
+                    f"the vectorised rows' episodes (seeds 0-{k - 1}, {calls} steps each after "
+                    f"10), resets included; CPU time: {n / max(cpu, 1e-9):.0f} env steps/s")
 
 
 def _step(env: Any, action: np.ndarray, k: int) -> None:
