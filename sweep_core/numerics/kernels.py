@@ -25,7 +25,7 @@ from numba.core.registry import CPUDispatcher
 from sweep_core.model import elementary, fields, neighbours, wall_kernels
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
-from sweep_core.numerics.projection import clear, dual
+from sweep_core.numerics.projection import certified, clear, dual, pairwise
 from sweep_core.numerics.projection.clusters import solve_active
 from sweep_core.numerics.robots import (
     clear_step,
@@ -172,6 +172,11 @@ def _exercise() -> None:
     v = np.ones(3)
     dual.dot(v, v)
     dual.maximum(1.0, 2.0)  # inlined where the kernels call it; its own entry cached too
+    # the certified rounds' helpers (called from compiled code; their own entries cached too)
+    pairwise.numpy_sum(np.ones(300))
+    pairwise.block_sum(v, 0, 3)
+    certified.same_face(v, np.ones(3, dtype=np.bool_))
+    certified.rounding_floor(np.ones((2, 2)), v)  # a cluster held from the rounds
     schemes.log_each(v)
     one = np.zeros(1, dtype=np.int64)
     dual.slacks(np.zeros((2, 2)), one, one - 1, np.ones((1, 2)), np.zeros(1))

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from sweep_core.numerics.projection import dual, factored
+from sweep_core.numerics.projection import dual, factored, pairwise
 
 #: projected Gauss-Seidel sweeps per round (they find the active rows)
 SWEEPS = 10
@@ -53,6 +53,8 @@ PASSES = 4
 #: bundled door scene in at most 5; a degenerate hexagonal lattice never does, and every
 #: stalled round is time lost before the cluster solvers: docs/jam_solvers.md)
 STALL = 4
+#: the spacing of doubles at 1
+EPS = float(np.finfo(float).eps)
 
 
 @dataclass
@@ -60,7 +62,7 @@ class Certified:
     """x (N, 2) displacements (m); lam (K,) multipliers (m); label (N,) cluster of each agent
     (-1: in no row); gap (clusters,) duality gap of each (m^2, inf: a row violated); budget
     (clusters,) the gap each may keep; done (clusters,) gap <= budget; rounds: rounds run;
-    skin: the skin delta of the last round (m)."""
+    skin: the skin delta of the last round (m); floor: :func:`rounding_floor` of d and h."""
 
     x: np.ndarray
     lam: np.ndarray
@@ -70,6 +72,7 @@ class Certified:
     done: np.ndarray
     rounds: int
     skin: float
+    floor: float
 
     @property
     def clusters(self) -> int:
@@ -92,22 +95,24 @@ def rounding_floor(d: np.ndarray, h: np.ndarray) -> float:
     with them the floor was 3 times larger in a jam at a door (bounds down to -0.15 m against
     displacements of 0.05 m), and the skin's cost in the gap, 4 floor sum lam, kept the bound
     of half the steps of a 1000-agent jam of radii 0.20-0.27 m above 1e-6 m."""
-    large_d, large_h = largest_scale(np.ascontiguousarray(d, dtype=np.float64).reshape(-1),
-                                     np.ascontiguousarray(h, dtype=np.float64))
-    scale = max(large_d, large_h, 1e-3)
-    return 64.0 * float(np.finfo(float).eps) * scale
+    return floor_of(np.ascontiguousarray(d, dtype=np.float64).reshape(-1, 2),
+                    np.ascontiguousarray(h, dtype=np.float64))
 
 
 @numba.njit(cache=True, nogil=True)
-def largest_scale(d: np.ndarray, h: np.ndarray) -> tuple[float, float]:  # pragma: no cover
-    """max(|d|) and max(h), each from 0 (numpy's max with ``initial=0``: NaN as soon as one
-    value is)."""
+def floor_of(d: np.ndarray, h: np.ndarray) -> float:  # pragma: no cover - compiled
+    """:func:`rounding_floor` of d (N, 2) and h (K,): 64 EPS times the largest of max |d| and
+    max h (each numpy's max from 0: NaN as soon as one value is) and 1e-3, taken as Python's
+    max takes it (a NaN first stays, a NaN after is passed over)."""
     large_d = large_h = 0.0
-    for v in d:
-        large_d = dual.maximum(large_d, abs(v))
-    for v in h:
-        large_h = dual.maximum(large_h, v)
-    return large_d, large_h
+    for i in range(d.shape[0]):
+        large_d = dual.maximum(large_d, abs(d[i, 0]))
+        large_d = dual.maximum(large_d, abs(d[i, 1]))
+    for k in range(h.shape[0]):
+        large_h = dual.maximum(large_h, h[k])
+    scale = large_h if large_h > large_d else large_d
+    scale = 1e-3 if 1e-3 > scale else scale
+    return 64.0 * EPS * scale
 
 
 def certify(x: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.ndarray,
@@ -119,8 +124,17 @@ def certify(x: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np
     share of the agents plus its share of the multipliers (the shares sum to 1 over clusters,
     so the squared bounds sum to at most tol^2), and never below the skin's rounding floor's
     cost 4 floor sum_c lam."""
+    return certificate(x, ri, rj, re, h, lam, label, clusters, tol, floor)
+
+
+@numba.njit(cache=True, nogil=True)
+def certificate(x: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.ndarray,
+                lam: np.ndarray, label: np.ndarray, clusters: int, tol: float, floor: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
+    """:func:`certify`, compiled."""
     comp, low, total = dual.cluster_certificates(x, ri, rj, re, h, lam, label, clusters)
-    budget = budgets(label, clusters, total, tol, floor)
+    budget = np.empty(clusters)
+    shares(label, total, pairwise.numpy_sum(total), 0.5 * tol * tol, 4.0 * floor, budget)
     gap, done = np.empty(clusters), np.empty(clusters, dtype=np.bool_)
     judged(comp, low, budget, gap, done)
     return gap, budget, done, low
@@ -175,39 +189,103 @@ def solve(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.n
 
     d: (N, 2) predicted displacements p - q (m); ri, rj, re, h: the rows (:mod:`.dual`);
     lam0: (K,) starting multipliers (>= 0, m); tol: the bound wanted (m); max_rounds: cap on
-    the rounds (0: certify the start only)."""
-    n = len(d)
-    lam = np.array(lam0, dtype=float)
-    label, clusters = dual.cluster_labels(n, ri, rj)
-    floor = rounding_floor(d, h)
-    x = dual.apply_multipliers(d, ri, rj, re, lam)
-    rounds = stall = 0
-    best = np.inf
-    skin = floor
-    settled: np.ndarray | None = None  # the face after the previous round
-    while True:
-        gap, budget, done, low = certify(x, ri, rj, re, h, lam, label, clusters, tol, floor)
-        if done.all() or rounds >= max_rounds:
-            break
-        # progress: the largest violation of a true row, or the square root of the largest
-        # gap once the rows hold (both in m)
-        undone = ~done
-        worst = max(float(np.max(np.sqrt(gap[undone & np.isfinite(gap)]), initial=0.0)),
-                    float(-np.min(np.minimum(low, 0.0)[undone], initial=0.0)))
-        if worst < 0.5 * best:
-            best, stall = worst, 0
-        else:
-            stall += 1
-            if stall >= STALL:
-                break
-        skin = max(floor, min(1e-8 * tol, tol * tol / (16.0 * max(float(lam.sum()), 1e-300))))
-        tight = h + skin
-        dual.pgs(x, ri, rj, re, tight, lam, SWEEPS)
-        face = lam > 0.0
-        if not (settled is not None and np.array_equal(face, settled)
-                and factored.face_step(x, d, ri, rj, re, tight, lam)):
+    the rounds (0: certify the start only). The rounds run compiled (:func:`rounds`); a round
+    whose sweeps leave the face as the previous round did comes back here for the factored
+    step (sparse Cholesky), then the compiled rounds go on."""
+    (lam, label, clusters, floor, count, value, settled, x, tight, gap, budget, done,
+     factor) = first_rounds(d, ri, rj, re, h, np.ascontiguousarray(lam0, dtype=np.float64),
+                            tol, max_rounds)
+    while factor:
+        if not factored.face_step(x, d, ri, rj, re, tight, lam):
             dual.face_step(x, d, ri, rj, re, tight, lam, CG_ITERS, PASSES)
-        settled = lam > 0.0
+        settled[:] = lam > 0.0
         x = dual.apply_multipliers(d, ri, rj, re, lam)
-        rounds += 1
-    return Certified(x, lam, label, gap, budget, done, rounds, skin)
+        count[0] += 1
+        x, tight, gap, budget, done, factor = rounds(d, ri, rj, re, h, lam, x, label, clusters,
+                                                     tol, floor, max_rounds, count, value,
+                                                     settled)
+    return Certified(x, lam, label, gap, budget, done, int(count[0]), float(value[1]), floor)
+
+
+@numba.njit(cache=True, nogil=True)
+def first_rounds(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.ndarray,
+                 lam0: np.ndarray, tol: float, max_rounds: int
+                 ) -> tuple:  # pragma: no cover - compiled
+    """:func:`solve`'s start and its :func:`rounds` up to the first factored step (or the
+    end): lam (a copy of lam0), the clusters' labels and count, the rounding floor, the
+    rounds' state (count, value, settled) and what :func:`rounds` returns."""
+    lam = lam0.copy()
+    label, clusters = dual.cluster_labels(d.shape[0], ri, rj)
+    floor = floor_of(d, h)
+    count = np.zeros(3, dtype=np.int64)  # rounds, stalled rounds, whether a face is settled
+    value = np.array([np.inf, floor])  # the best progress, the skin
+    settled = np.zeros(ri.shape[0], dtype=np.bool_)
+    x = dual.apply_multipliers(d, ri, rj, re, lam)
+    x, tight, gap, budget, done, factor = rounds(d, ri, rj, re, h, lam, x, label, clusters, tol,
+                                                 floor, max_rounds, count, value, settled)
+    return (lam, label, clusters, floor, count, value, settled, x, tight, gap, budget, done,
+            factor)
+
+
+@numba.njit(cache=True, nogil=True)
+def rounds(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.ndarray,
+           lam: np.ndarray, x: np.ndarray, label: np.ndarray, clusters: int, tol: float,
+           floor: float, max_rounds: int, count: np.ndarray, value: np.ndarray,
+           settled: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                         np.ndarray, bool]:  # pragma: no cover - compiled
+    """The rounds of :func:`solve` from x = d + A^T lam, in place on lam, count (rounds,
+    stalled rounds, 1 once ``settled`` holds the face lam > 0 after the last round), value
+    (best progress m, skin m) and settled (K,). Returns x, the tightened bounds of the round,
+    the last certificate's gap, budget and done (per cluster), and whether it stopped for the
+    factored face step (the round's sweeps are done; the caller takes the face step, sets
+    settled and x, and counts the round) rather than at the end."""
+    while True:
+        gap, budget, done, low = certificate(x, ri, rj, re, h, lam, label, clusters, tol,
+                                             floor)
+        if done.all() or count[0] >= max_rounds:
+            return x, h, gap, budget, done, False
+        # progress: the largest violation of a true row, or the square root of the largest
+        # gap once the rows hold (both in m; numpy's max and min with initial 0, then Python's
+        # max of the two: a NaN slack leaves the gap's term)
+        worst_gap, worst_row, nan_row = 0.0, 0.0, False
+        for c in range(clusters):
+            if done[c]:
+                continue
+            if np.isfinite(gap[c]):
+                worst_gap = dual.maximum(worst_gap, np.sqrt(gap[c]))
+            if low[c] != low[c]:
+                nan_row = True
+            elif -low[c] > worst_row:
+                worst_row = -low[c]
+        worst = worst_row if (not nan_row and worst_row > worst_gap) else worst_gap
+        if worst < 0.5 * value[0]:
+            value[0], count[1] = worst, 0
+        else:
+            count[1] += 1
+            if count[1] >= STALL:
+                return x, h, gap, budget, done, False
+        # Python's max and min (the first argument unless the second is larger or smaller)
+        total = pairwise.numpy_sum(lam)
+        total = 1e-300 if 1e-300 > total else total
+        skin = tol * tol / (16.0 * total)
+        skin = skin if skin < 1e-8 * tol else 1e-8 * tol
+        value[1] = skin if skin > floor else floor
+        tight = h + value[1]
+        dual.pgs(x, ri, rj, re, tight, lam, SWEEPS)
+        if count[2] and same_face(lam, settled):
+            return x, tight, gap, budget, done, True
+        dual.face_step(x, d, ri, rj, re, tight, lam, CG_ITERS, PASSES)
+        for k in range(lam.shape[0]):
+            settled[k] = lam[k] > 0.0
+        count[2] = 1
+        x = dual.apply_multipliers(d, ri, rj, re, lam)
+        count[0] += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def same_face(lam: np.ndarray, settled: np.ndarray) -> bool:  # pragma: no cover - compiled
+    """Whether the face lam > 0 (K,) is ``settled`` (K,) bool."""
+    for k in range(lam.shape[0]):
+        if (lam[k] > 0.0) != settled[k]:
+            return False
+    return True

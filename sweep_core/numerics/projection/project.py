@@ -222,33 +222,34 @@ def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
     rounds = opts.max_rounds if opts.method == "certified" else 0
     if cap is not None:
         rounds = min(rounds, cap)
-    label, clusters = dual.cluster_labels(n, ri, rj)
     held = None  # rows of the clusters that skip the rounds (None: none)
     if skip is not None and rounds > 0:
+        label, clusters = dual.cluster_labels(n, ri, rj)
         hit = np.zeros(clusters, dtype=bool)
         hit[label[skip & (label >= 0)]] = True
         held = hit[label[ri]]
         if not held.any():
             held = None
-    if held is None:  # every row to the rounds, as they are
+    if held is None:  # every row to the rounds, as they are (their clusters and floor too)
         res = certified.solve(d, ri, rj, re, h, lam0, tol=opts.tol, max_rounds=rounds)
         lam = res.lam.copy()
+        label, clusters, floor = res.label, res.clusters, res.floor
     else:
         free = ~held
         res = certified.solve(d, ri[free], rj[free], re[free], h[free], lam0[free],
                               tol=opts.tol, max_rounds=rounds)
         lam = np.zeros(len(ri))
         lam[free] = res.lam
+        floor = certified.rounding_floor(d, h)
     x = res.x
     by_backend = 0
     ok = True
     # the agents of the clusters not certified (and of the held ones)
-    agent_todo = ((res.label >= 0) & ~res.done[np.maximum(res.label, 0)] if res.clusters
-                  else np.zeros(n, dtype=bool))
+    agent_todo = ((res.label >= 0) & ~res.done[np.maximum(res.label, 0)]
+                  if not res.done.all() else np.zeros(n, dtype=bool))
     if held is not None:
         agent_todo |= np.bincount(np.concatenate([ri[held], rj[held][rj[held] >= 0]]),
                                   minlength=n)[:n] > 0
-    floor = certified.rounding_floor(d, h)
     if not agent_todo.any():
         gap = res.gap
     else:
