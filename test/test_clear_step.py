@@ -10,7 +10,7 @@ import pytest
 import sweep_core as sc
 from sweep_core.model.scene import load_scene
 from sweep_core.numerics import simulator
-from sweep_core.numerics.robots import clear_step
+from sweep_core.numerics.robots import clear_step, fleet, overlaps
 
 WALLS = [{"kind": "segment", "a": [-1.0, 0.0], "b": [9.0, 0.0]},
          {"kind": "segment", "a": [-1.0, 4.0], "b": [9.0, 4.0]},
@@ -90,15 +90,18 @@ def test_simple_steps_have_the_general_paths_bits(monkeypatch: pytest.MonkeyPatc
         scene, steps, dt, commands = two_robots(0.4 if "noisy" in case else 0.05), 120, 0.05, True
     taken = {"simple": 0, "general": 0}
     counted(monkeypatch, taken)
-    checked = []
+    checked, ends = [], []
     crossings = simulator.crossings
     monkeypatch.setattr(simulator, "crossings", lambda *a: checked.append(1) or crossings(*a))
+    checked_end = fleet.checked_end
+    monkeypatch.setattr(fleet, "checked_end", lambda *a: ends.append(checked_end(*a)) or ends[-1])
     fast, blocked = run(scene, steps, dt, commands)
     assert taken["simple"] > 10 and taken["general"] > 3, taken
     assert blocked > 0 or case == "crowdnav"  # robots stopped by the settle too
-    # a simple step checked the people's paths (none might cross a wall): the simulator does
-    # not check them again
-    assert len(checked) == taken["general"]
+    # a simple step, and a general one whose end check found the same, checked the people's
+    # paths (none might cross a wall): the simulator does not check them again
+    assert 0 < sum(paths for _, paths in ends) <= len(ends) == taken["general"]
+    assert len(checked) == sum(not paths for _, paths in ends)
     monkeypatch.setattr(clear_step, "applies", lambda *args: False)
     general, _ = run(scene, steps, dt, commands)
     assert fast == general
@@ -152,3 +155,45 @@ def test_it_applies_only_to_small_static_scenes() -> None:
     assert not clear_step.applies(geom, 65, True, False)
     moving = load_scene("moving_obstacle").geometry
     assert moving.is_moving and not clear_step.applies(moving, 10, True, False)
+
+
+def end_of(steps: int) -> tuple:
+    """crowdnav after ``steps`` steps: its geometry, the people's positions before the next
+    step and at its end (their prediction), radii, the robots' states and their poses."""
+    sim = sc.Simulator(load_scene("crowdnav"), dt=0.1, seed=3)
+    sim.step(steps)
+    states = list(sim.robots.states.values())
+    q = sim.positions.copy()
+    y = q + np.random.default_rng(steps).normal(0.0, 0.01, q.shape)
+    return (sim.scene.geometry, sim.t + sim.dt, q, y, sim.radii.copy(), states,
+            [st.pose for st in states])
+
+
+def outcome(call) -> tuple:
+    try:
+        return ("ok", call())
+    except sc.InfeasibleError as e:
+        return ("error", str(e))
+
+
+@pytest.mark.parametrize("steps", [0, 12, 40])
+def test_the_end_check_is_check_steps(steps: int) -> None:
+    """checked_end against check_step on crowdnav's states: the same people's gaps, paths
+    called clear only where the crossing check finds nothing; a person on the robot, a robot
+    through a wall and a NaN radius: the same error (or, NaN, the same answer)."""
+    geom, t1, q, y, r1, states, start = end_of(steps)
+    gaps, paths = clear_step.checked_end(geom, t1, q, y, r1, states, start, False)
+    want = overlaps.check_step(geom, states, start, y, r1, t1)
+    assert repr(gaps) == repr(want)
+    assert paths and not len(simulator.crossings(geom, q, y, r1, want)[0])
+    robot = states[0].pose
+    on_robot = y.copy()
+    on_robot[3] = [robot[0] + 0.1, robot[1]]
+    through = [(robot[0], -1.0, robot[2])]  # from beyond the wall below (y = 0)
+    nan = r1.copy()
+    nan[2] = np.nan
+    for yy, rr, ss in ((on_robot, r1, start), (y, r1, through), (y, nan, start)):
+        fast = outcome(lambda: clear_step.checked_end(geom, t1, q, yy, rr, states, ss, False))
+        slow = outcome(lambda: (overlaps.check_step(geom, states, ss, yy, rr, t1), False))
+        assert repr(fast) == repr(slow)
+    assert outcome(lambda: overlaps.check_step(geom, states, through, y, r1, t1))[0] == "error"

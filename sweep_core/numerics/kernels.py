@@ -206,6 +206,14 @@ def _exercise() -> None:
                                 np.empty(10), np.empty(4, np.intp), np.empty(4, np.intp),
                                 np.empty(8, np.intp), np.empty(8, np.intp),
                                 np.empty(8, np.bool_), np.empty(12))
+    # ... and the end of a general robot step
+    clear_step.clear_end(two, two, np.full(2, 0.2), np.array([[3.0, 0.0]]),
+                         np.array([[3.1, 0.0]]), np.full(1, 0.3), np.ones((1, 2)),
+                         np.full(1, -5.0), two + 5.0, two + 6.0, two + 9.0, np.ones(2),
+                         np.ones(2, np.bool_), 1 << 16, True, np.empty(8, np.intp),
+                         np.empty(8, np.intp), np.empty(8), np.empty(10), np.empty(4, np.intp),
+                         np.empty(4, np.intp), np.empty(8, np.intp), np.empty(8, np.intp),
+                         np.empty(8, np.bool_), np.empty(12))
     # the crossing test of a path that reaches a wall segment (no step of the jam does)
     wall_kernels.paths_meet_exactly(np.zeros((1, 2)), np.ones((1, 2)), np.array([[0.0, 1.0]]),
                                     np.array([[1.0, 0.0]]))

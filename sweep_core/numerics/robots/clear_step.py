@@ -38,7 +38,7 @@ from sweep_core.model.geometry import DENSE_SEGMENTS, Geometry
 from sweep_core.model.wall_kernels import crossing_pairs, single_gaps
 from sweep_core.numerics.projection.clear import MAX_AGENTS, MIN_CUT, clear_count
 from sweep_core.numerics.projection.project import NO_ROWS, Projection, largest_step
-from sweep_core.numerics.robots.overlaps import NAN, TOLERANCE, robot_gaps
+from sweep_core.numerics.robots.overlaps import NAN, TOLERANCE, check_step, robot_gaps
 
 #: the overlap tolerance of the settle's target check (``model.robots.overlap``'s tol), m
 SETTLE_TOLERANCE = 1e-9
@@ -114,6 +114,70 @@ def simple_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: 
     return (Projection(y, NO_ROWS, _NO_MULTIPLIER, _NO_MULTIPLIER, active, 0, 0, 0, 0.0, 0,
                        0, None, 0), y.copy(), small_summary(i, j, pg, near_a, near_k, out, walls),
             bool(out[10]))
+
+
+def checked_end(geom: Geometry, t1: float, q: np.ndarray, y: np.ndarray, r1: np.ndarray,
+                states: list[Any], start: list[tuple], has_map: bool
+                ) -> tuple[Gaps | None, bool]:
+    """The general robot step's check at its end (:func:`~sweep_core.numerics.robots.
+    overlaps.check_step`: raises InfeasibleError on an overlap or a robot through a wall) and
+    whether the people's paths from q (N, 2) to y (N, 2) are clear of the wall segments. Where
+    :func:`applies`, first in one compiled call (:func:`clear_end`) that answers only when
+    nothing overlaps and no robot's path might cross a segment: then the people's gaps are
+    ``check_step``'s (the same kernel and arguments); otherwise ``check_step`` itself runs and
+    the paths are left to the simulator's check (False). ``states``: the robots at the step's
+    end; ``start``: their poses before it."""
+    if (applies(geom, len(y), all(st.robot.prescribed for st in states), has_map)
+            and len(q) == len(y)):
+        q = np.ascontiguousarray(q, dtype=np.float64)
+        r1 = np.ascontiguousarray(r1, dtype=np.float64)
+        hn, hc, sa, sb, cc, cr = geom.packed
+        walls = not geom.is_empty
+        i, j, pg, vals, near_a, near_k, out = small_room(len(y), len(hc), len(sa), len(cr),
+                                                         walls)
+        room = len(near_a) + min(len(y) * len(sa), DENSE_PAIRS)
+        if clear_end(q, y, r1, np.array([p[:2] for p in start], dtype=np.float64),
+                     np.array([st.pose[:2] for st in states], dtype=np.float64),
+                     np.array([st.robot.radius for st in states], dtype=np.float64), hn, hc, sa,
+                     sb, cc, cr, geom.static_segments, DENSE_PAIRS, walls, i, j, pg, vals,
+                     near_a, near_k, np.empty(room, dtype=np.intp),
+                     np.empty(room, dtype=np.intp), np.empty(room, dtype=np.bool_), out):
+            return small_summary(i, j, pg, near_a, near_k, out, walls), bool(out[10])
+    return check_step(geom, states, start, y, r1, t1), False
+
+
+@numba.njit(cache=True, nogil=True)
+def clear_end(q: np.ndarray, y: np.ndarray, r1: np.ndarray, start: np.ndarray,
+              end: np.ndarray, radius: np.ndarray, hn: np.ndarray, hc: np.ndarray,
+              sa: np.ndarray, sb: np.ndarray, cc: np.ndarray, cr: np.ndarray,
+              static: np.ndarray, dense_pairs: int, walls: bool, i: np.ndarray, j: np.ndarray,
+              pg: np.ndarray, vals: np.ndarray, near_a: np.ndarray, near_k: np.ndarray,
+              out_i: np.ndarray, out_k: np.ndarray, unsure: np.ndarray,
+              out: np.ndarray) -> bool:  # pragma: no cover - compiled
+    """Whether a general step's end is clear: no robot (``end`` (R, 2), ``radius`` (R,), from
+    ``start`` (R, 2)) overlaps a person (y (N, 2), r1 (N,)), another robot, a wall or an
+    obstacle by more than TOLERANCE, nor is a value NaN (``robot_gaps``); no robot's centre
+    path might meet a wall segment (``crossing_pairs`` finds no candidate); the people's gaps
+    at y and their paths from q: :func:`_people_clear` (into its arrays and out[0:11]), with
+    r1's largest value as numpy's max (a NaN answers False: ``check_step`` then decides)."""
+    worst = np.empty(4)
+    robot_gaps(end, radius, y, r1, hn, hc, sa, sb, cc, cr, worst)
+    if worst[1] == NAN or (worst[1] >= 0 and not worst[0] >= -TOLERANCE):
+        return False
+    robots, ns = end.shape[0], sa.shape[0]
+    room = min(robots * ns, dense_pairs)
+    none = np.empty(0, dtype=np.intp)
+    if ns and crossing_pairs(start, end, radius, none, none, -1.0, sa, sb, static, dense_pairs,
+                             np.empty(room, dtype=np.intp), np.empty(room, dtype=np.intp),
+                             np.empty(room, dtype=np.bool_)) != 0:
+        return False
+    r_max = r1[0]
+    for a in range(1, r1.shape[0]):
+        r_max = r_max if (r_max >= r1[a] or r_max != r_max) else r1[a]
+    if r_max != r_max:
+        return False
+    return _people_clear(q, y, r1, r_max, dense_pairs, walls, hn, hc, sa, sb, cc, cr, static,
+                         i, j, pg, vals, near_a, near_k, out_i, out_k, unsure, out)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -48,10 +48,9 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise
 from sweep_core.numerics.projection import Projection, project
 from sweep_core.numerics.robots import kinematics
-from sweep_core.numerics.robots.clear_step import robot_step
+from sweep_core.numerics.robots.clear_step import checked_end, robot_step
 from sweep_core.numerics.robots.contacts import set_contacts
 from sweep_core.numerics.robots.control import observe
-from sweep_core.numerics.robots.overlaps import check_step
 from sweep_core.numerics.robots.planners import controllers_of
 from sweep_core.numerics.robots.reaction import avoidance
 from sweep_core.numerics.robots.refusals import geometry_problem, goal_refusal
@@ -358,11 +357,12 @@ class Fleet:
             states[k].twist = states[k].command
         set_contacts(states, proj, n, len(self.scene.geometry.circle_radius), h)
         ends = proj.y[:n].copy()
-        people = check_step(self.scene.geometry, states, [start[k] for k in range(len(states))],
-                            ends, r1, t1)
+        people, paths = checked_end(self.scene.geometry, t1, q, ends, r1, states,
+                                    [start[k] for k in range(len(states))],
+                                    self._blocked is not None)
         # the people's gaps at the step's end, for the simulator's own check (the same call)
         self.people_gaps = None if people is None else (t1, ends, r1, self.scene.geometry,
-                                                        people, False)
+                                                        people, paths)
         return ends
 
     def gaps_of(self, t1: float, geom: Geometry, y: np.ndarray, r1: np.ndarray) -> Gaps | None:
