@@ -27,7 +27,7 @@ constraints, polygons, moving obstacles or moving half-planes.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -36,6 +36,7 @@ from sweep_core.model.crossing import DENSE_PAIRS
 from sweep_core.model.gaps import Gaps, small_gaps, small_room, small_summary
 from sweep_core.model.geometry import DENSE_SEGMENTS, Geometry
 from sweep_core.model.wall_kernels import crossing_pairs, single_gaps
+from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clear import MAX_AGENTS, MIN_CUT, clear_count
 from sweep_core.numerics.projection.project import NO_ROWS, Projection, largest_step
 from sweep_core.numerics.robots.overlaps import NAN, TOLERANCE, check_step, robot_gaps
@@ -52,6 +53,49 @@ SETTLED = -2
 
 
 _NO_MULTIPLIER = np.empty(0)
+
+
+class _Room(NamedTuple):
+    """The compiled calls' trailing arguments for N people in a static geometry: its packed
+    arrays, the dense-pair cap, whether it has walls, and the gaps' and crossings' work
+    arrays (``small_room``'s, then out_i, out_k, unsure of room len(near_a) + min(N S,
+    DENSE_PAIRS))."""
+
+    hn: np.ndarray
+    hc: np.ndarray
+    sa: np.ndarray
+    sb: np.ndarray
+    cc: np.ndarray
+    cr: np.ndarray
+    static: np.ndarray
+    dense_pairs: int
+    walls: bool
+    i: np.ndarray
+    j: np.ndarray
+    pg: np.ndarray
+    vals: np.ndarray
+    near_a: np.ndarray
+    near_k: np.ndarray
+    out_i: np.ndarray
+    out_k: np.ndarray
+    unsure: np.ndarray
+    out: np.ndarray
+
+    def gaps(self) -> Gaps:
+        """The people's gaps the compiled call left in these arrays."""
+        return small_summary(self.i, self.j, self.pg, self.near_a, self.near_k, self.out,
+                             self.walls)
+
+
+def _room(geom: Geometry, people: int) -> _Room:
+    """:class:`_Room` for ``people`` people in ``geom`` (static)."""
+    hn, hc, sa, sb, cc, cr = geom.packed
+    walls = not geom.is_empty
+    i, j, pg, vals, near_a, near_k, out = small_room(people, len(hc), len(sa), len(cr), walls)
+    room = len(near_a) + min(people * len(sa), DENSE_PAIRS)
+    return _Room(hn, hc, sa, sb, cc, cr, geom.static_segments, DENSE_PAIRS, walls, i, j, pg,
+                 vals, near_a, near_k, np.empty(room, dtype=np.intp),
+                 np.empty(room, dtype=np.intp), np.empty(room, dtype=np.bool_), out)
 
 
 def applies(geom: Geometry, people: int, all_prescribed: bool, has_map: bool) -> bool:
@@ -99,21 +143,13 @@ def simple_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: 
     q = np.ascontiguousarray(q, dtype=np.float64)
     pred = np.ascontiguousarray(pred, dtype=np.float64)
     r1 = np.ascontiguousarray(r1, dtype=np.float64)
-    hn, hc, sa, sb, cc, cr = geom.packed
-    walls = not geom.is_empty
-    i, j, pg, vals, near_a, near_k, out = small_room(len(q), len(hc), len(sa), len(cr), walls)
-    room = len(near_a) + min(len(q) * len(sa), DENSE_PAIRS)
-    active = clear_robot_step(q, pred, r1, start, target, radius, moving, hn, hc, sa, sb,
-                              cc, cr, geom.static_segments, DENSE_PAIRS, walls, i, j, pg,
-                              vals, near_a, near_k, np.empty(room, dtype=np.intp),
-                              np.empty(room, dtype=np.intp), np.empty(room, dtype=np.bool_),
-                              out)
+    room = _room(geom, len(q))
+    active = clear_robot_step(q, pred, r1, start, target, radius, moving, *room)
     if active < 0:
         return active == SETTLED
     y = pred.copy()
     return (Projection(y, NO_ROWS, _NO_MULTIPLIER, _NO_MULTIPLIER, active, 0, 0, 0, 0.0, 0,
-                       0, None, 0), y.copy(), small_summary(i, j, pg, near_a, near_k, out, walls),
-            bool(out[10]))
+                       0, None, 0), y.copy(), room.gaps(), bool(room.out[10]))
 
 
 def checked_end(geom: Geometry, t1: float, q: np.ndarray, y: np.ndarray, r1: np.ndarray,
@@ -131,18 +167,11 @@ def checked_end(geom: Geometry, t1: float, q: np.ndarray, y: np.ndarray, r1: np.
             and len(q) == len(y)):
         q = np.ascontiguousarray(q, dtype=np.float64)
         r1 = np.ascontiguousarray(r1, dtype=np.float64)
-        hn, hc, sa, sb, cc, cr = geom.packed
-        walls = not geom.is_empty
-        i, j, pg, vals, near_a, near_k, out = small_room(len(y), len(hc), len(sa), len(cr),
-                                                         walls)
-        room = len(near_a) + min(len(y) * len(sa), DENSE_PAIRS)
+        room = _room(geom, len(y))
         if clear_end(q, y, r1, np.array([p[:2] for p in start], dtype=np.float64),
                      np.array([st.pose[:2] for st in states], dtype=np.float64),
-                     np.array([st.robot.radius for st in states], dtype=np.float64), hn, hc, sa,
-                     sb, cc, cr, geom.static_segments, DENSE_PAIRS, walls, i, j, pg, vals,
-                     near_a, near_k, np.empty(room, dtype=np.intp),
-                     np.empty(room, dtype=np.intp), np.empty(room, dtype=np.bool_), out):
-            return small_summary(i, j, pg, near_a, near_k, out, walls), bool(out[10])
+                     np.array([st.robot.radius for st in states], dtype=np.float64), *room):
+            return room.gaps(), bool(room.out[10])
     return check_step(geom, states, start, y, r1, t1), False
 
 
@@ -160,24 +189,14 @@ def clear_end(q: np.ndarray, y: np.ndarray, r1: np.ndarray, start: np.ndarray,
     path might meet a wall segment (``crossing_pairs`` finds no candidate); the people's gaps
     at y and their paths from q: :func:`_people_clear` (into its arrays and out[0:11]), with
     r1's largest value as numpy's max (a NaN answers False: ``check_step`` then decides)."""
-    worst = np.empty(4)
-    robot_gaps(end, radius, y, r1, hn, hc, sa, sb, cc, cr, worst)
-    if worst[1] == NAN or (worst[1] >= 0 and not worst[0] >= -TOLERANCE):
-        return False
-    robots, ns = end.shape[0], sa.shape[0]
-    room = min(robots * ns, dense_pairs)
-    none = np.empty(0, dtype=np.intp)
-    if ns and crossing_pairs(start, end, radius, none, none, -1.0, sa, sb, static, dense_pairs,
-                             np.empty(room, dtype=np.intp), np.empty(room, dtype=np.intp),
-                             np.empty(room, dtype=np.bool_)) != 0:
-        return False
     r_max = r1[0]
     for a in range(1, r1.shape[0]):
-        r_max = r_max if (r_max >= r1[a] or r_max != r_max) else r1[a]
+        r_max = dual.maximum(r_max, r1[a])
     if r_max != r_max:
         return False
-    return _people_clear(q, y, r1, r_max, dense_pairs, walls, hn, hc, sa, sb, cc, cr, static,
-                         i, j, pg, vals, near_a, near_k, out_i, out_k, unsure, out)
+    return _end_clear(q, y, r1, r_max, start, end, radius, hn, hc, sa, sb, cc, cr, static,
+                      dense_pairs, walls, i, j, pg, vals, near_a, near_k, out_i, out_k,
+                      unsure, out)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -250,21 +269,40 @@ def clear_robot_step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.
     active = clear_count(q, pred, r1, cut, hn, hc, sa, sb, circles, circle_r)
     if active < 0:
         return SETTLED
-    worst = np.empty(4)
-    robot_gaps(target, radius, pred, r1, hn, hc, sa, sb, cc, cr, worst)
-    if worst[1] == NAN or (worst[1] >= 0 and not worst[0] >= -TOLERANCE):
-        return SETTLED
-    room = min(robots * ns, dense_pairs)
-    none = np.empty(0, dtype=np.intp)
-    if ns and crossing_pairs(start, target, radius, none, none, -1.0, sa, sb, static,
-                             dense_pairs, np.empty(room, dtype=np.intp),
-                             np.empty(room, dtype=np.intp), np.empty(room, dtype=np.bool_)
-                             ) != 0:
-        return SETTLED
-    if not _people_clear(q, pred, r1, r_max, dense_pairs, walls, hn, hc, sa, sb, cc, cr, static,
-                         i, j, pg, vals, near_a, near_k, out_i, out_k, unsure, out):
+    if not _end_clear(q, pred, r1, r_max, start, target, radius, hn, hc, sa, sb, cc, cr,
+                      static, dense_pairs, walls, i, j, pg, vals, near_a, near_k, out_i, out_k,
+                      unsure, out):
         return SETTLED
     return active
+
+
+@numba.njit(cache=True, nogil=True)
+def _end_clear(q: np.ndarray, y: np.ndarray, r1: np.ndarray, r_max: float, start: np.ndarray,
+               end: np.ndarray, radius: np.ndarray, hn: np.ndarray, hc: np.ndarray,
+               sa: np.ndarray, sb: np.ndarray, cc: np.ndarray, cr: np.ndarray,
+               static: np.ndarray, dense_pairs: int, walls: bool, i: np.ndarray,
+               j: np.ndarray, pg: np.ndarray, vals: np.ndarray, near_a: np.ndarray,
+               near_k: np.ndarray, out_i: np.ndarray, out_k: np.ndarray, unsure: np.ndarray,
+               out: np.ndarray) -> bool:  # pragma: no cover - compiled
+    """The end of a step with the robots moved from ``start`` to ``end`` (R, 2), radii
+    ``radius`` (R,), and the people from q to y (N, 2), r1 (N,) at the end, r_max r1's
+    largest (finite): whether no robot's gap to a person, another robot, a wall or an
+    obstacle is below -TOLERANCE or NaN (``robot_gaps``), no robot's centre path might meet
+    a wall segment (``crossing_pairs`` finds no candidate) and the people are clear
+    (:func:`_people_clear`)."""
+    worst = np.empty(4)
+    robot_gaps(end, radius, y, r1, hn, hc, sa, sb, cc, cr, worst)
+    if worst[1] == NAN or (worst[1] >= 0 and not worst[0] >= -TOLERANCE):
+        return False
+    room = min(end.shape[0] * sa.shape[0], dense_pairs)
+    none = np.empty(0, dtype=np.intp)
+    if sa.shape[0] and crossing_pairs(start, end, radius, none, none, -1.0, sa, sb, static,
+                                      dense_pairs, np.empty(room, dtype=np.intp),
+                                      np.empty(room, dtype=np.intp),
+                                      np.empty(room, dtype=np.bool_)) != 0:
+        return False
+    return _people_clear(q, y, r1, r_max, dense_pairs, walls, hn, hc, sa, sb, cc, cr, static,
+                         i, j, pg, vals, near_a, near_k, out_i, out_k, unsure, out)
 
 
 @numba.njit(cache=True, nogil=True)
