@@ -146,8 +146,7 @@ def budgets(label: np.ndarray, clusters: int, total: np.ndarray, tol: float, flo
     agent (-1: none), total (clusters,) the sum of its multipliers (m)."""
     total = np.ascontiguousarray(total, dtype=np.float64)
     out = np.empty(clusters)
-    # the sum of the multipliers in numpy's (pairwise) order; the rest elementwise
-    shares(label, total, float(total.sum()), 0.5 * tol * tol, 4.0 * floor, out)
+    shares(label, total, pairwise.numpy_sum(total), 0.5 * tol * tol, 4.0 * floor, out)
     return out
 
 
@@ -198,9 +197,7 @@ def solve(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.n
     while factor:
         if not factored.face_step(x, d, ri, rj, re, tight, lam):
             dual.face_step(x, d, ri, rj, re, tight, lam, CG_ITERS, PASSES)
-        settled[:] = lam > 0.0
-        x = dual.apply_multipliers(d, ri, rj, re, lam)
-        count[0] += 1
+        x = after_face(d, ri, rj, re, lam, settled, count)
         x, tight, gap, budget, done, factor = rounds(d, ri, rj, re, h, lam, x, label, clusters,
                                                      tol, floor, max_rounds, count, value,
                                                      settled)
@@ -275,11 +272,21 @@ def rounds(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray, h: np.
         if count[2] and same_face(lam, settled):
             return x, tight, gap, budget, done, True
         dual.face_step(x, d, ri, rj, re, tight, lam, CG_ITERS, PASSES)
-        for k in range(lam.shape[0]):
-            settled[k] = lam[k] > 0.0
-        count[2] = 1
-        x = dual.apply_multipliers(d, ri, rj, re, lam)
-        count[0] += 1
+        x = after_face(d, ri, rj, re, lam, settled, count)
+
+
+@numba.njit(cache=True, nogil=True)
+def after_face(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray,
+               lam: np.ndarray, settled: np.ndarray,
+               count: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """A round's end after its face step (compiled or factored): ``settled`` (K,) becomes
+    the face lam > 0, the round is counted and a face marked settled in ``count``
+    (:func:`rounds`), and x = d + A^T lam (N, 2) m is returned."""
+    for k in range(lam.shape[0]):
+        settled[k] = lam[k] > 0.0
+    count[0] += 1
+    count[2] = 1
+    return dual.apply_multipliers(d, ri, rj, re, lam)
 
 
 @numba.njit(cache=True, nogil=True)
