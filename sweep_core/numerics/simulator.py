@@ -354,18 +354,18 @@ class Simulator:
             raise InfeasibleError(t1, bad.tolist(), "non-finite positions")
         min_gap = math.inf
         if self.check:
-            # the robots' check computed the people's gaps already (the same call)
-            g = None if self.robots is None else self.robots.gaps_of(t1, scene.geometry, y, r1)
-            if g is None:
-                g = gaps(scene.geometry, t1, y, r1)
+            # the robots' check computed the people's gaps already (the same call), and may
+            # have found their paths clear of the wall segments
+            kept = None if self.robots is None else self.robots.gaps_of(t1, scene.geometry, y,
+                                                                        r1)
+            g, clear = kept if kept is not None else (gaps(scene.geometry, t1, y, r1), False)
             if g.min_gap < -FEASIBILITY_TOLERANCE:
                 worst = g.worst_pair if g.min_pair <= g.min_single else g.worst_single
                 who = [] if worst is None else (
                     list(worst[:2]) if g.min_pair <= g.min_single else [worst[0]])
                 raise InfeasibleError(t1, who, f"true constraint violated by {-g.min_gap:.3g} m")
-            through, item = (_NO_PATH, _NO_PATH) if (
-                self.robots is not None and self.robots.paths_clear(t1, scene.geometry, y, r1)
-            ) else crossings(scene.geometry, self._q, y, r1, g)
+            through, item = ((_NO_PATH, _NO_PATH) if clear
+                             else crossings(scene.geometry, self._q, y, r1, g))
             if len(through):
                 raise InfeasibleError(t1, sorted(set(through.tolist())), "the centre of agent "
                                       f"{int(through[0])} went through "

@@ -112,6 +112,24 @@ def largest_step(q: np.ndarray, pred: np.ndarray, r: np.ndarray
     return square, r_max
 
 
+@numba.njit(cache=True, nogil=True)
+def row_summary(rp: np.ndarray, rs: np.ndarray) -> tuple[float, int, bool]:  # pragma: no cover
+    """Of the residuals rp (P,) and rs (M,) (m): the worst, Python's ``min`` of numpy's
+    ``rp.min(initial=inf)`` and ``rs.min(initial=inf)`` (each NaN from a NaN on; the second
+    only when it is below the first); the rows holding with equality (residual <=
+    ROW_TOLERANCE); and whether a row is broken as numpy's ``rp.min() < 0 or rs.min() < 0``
+    says it (a NaN in an array hides its negative values: its min is NaN)."""
+    low_p, low_s = np.inf, np.inf
+    active = 0
+    for k in range(rp.shape[0]):
+        low_p = low_p if (low_p <= rp[k] or low_p != low_p) else rp[k]
+        active += rp[k] <= ROW_TOLERANCE
+    for k in range(rs.shape[0]):
+        low_s = low_s if (low_s <= rs[k] or low_s != low_s) else rs[k]
+        active += rs[k] <= ROW_TOLERANCE
+    return (low_s if low_s < low_p else low_p), active, low_p < 0.0 or low_s < 0.0
+
+
 def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
             opts: SolverOptions, warm: Projection | None = None) -> Projection:
     """Project the prediction pred (N, 2) onto C~(t1, q); q (N, 2) at t_n, r1 (N,) at t1.
@@ -148,7 +166,7 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
         y = pred.copy()
         qp_size = by_backend = sweeps = fallback = 0
         bound = 0.0
-        if (len(rp) and rp.min() < 0) or (len(rs) and rs.min() < 0):
+        if row_summary(rp, rs)[2]:
             qp_size = len(rows.agents())
             start = (carry_multipliers(warm.rows, np.concatenate([warm.lam_pair,
                                                                   warm.lam_single]), rows, n)
@@ -160,12 +178,15 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
             fallback = int(np.count_nonzero(todo))
             lam_p, lam_s = lam[: len(rp)], lam[len(rp):]
             rp, rs = rows.residuals(y)
-            worst = min(rp.min(initial=np.inf), rs.min(initial=np.inf))
+            worst = row_summary(rp, rs)[0]
             if not ok or not np.isfinite(worst) or worst < -ROW_TOLERANCE:
                 why = "no feasible point" if not ok else "solver residual"
                 raise InfeasibleError(t1, _culprits(rows, rp, rs),
                                       f"{why}, worst row residual {worst:.3g} m")
-        moved = float(np.sqrt(np.einsum("ij,ij->i", y - q, y - q)).max())
+        # sqrt of the largest square: the bits of the largest root (first_cutoff)
+        moved = math.sqrt(largest_step(np.ascontiguousarray(q, dtype=np.float64),
+                                       np.ascontiguousarray(y, dtype=np.float64),
+                                       np.ascontiguousarray(r1, dtype=np.float64))[0])
         # an uncertified answer (bound inf) claims nothing about y*: only y must hold the
         # unbuilt rows (an infinite cutoff would build every pair of the crowd)
         margin = bound if np.isfinite(bound) else 0.0
@@ -177,7 +198,7 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
             break
     # a row is active when it holds with equality (to the solver tolerance); an interior-point
     # solver leaves tiny positive multipliers on slack rows, so multipliers are not counted
-    active = int(np.count_nonzero(rp <= ROW_TOLERANCE) + np.count_nonzero(rs <= ROW_TOLERANCE))
+    active = row_summary(rp, rs)[1]
     stuck = todo if todo.any() else None
     return Projection(y, rows, lam_p, lam_s, active, qp_size, solves, by_backend, bound,
                       sweeps, fallback, stuck, held_for + 1 if skip is not None else 0)
@@ -262,10 +283,11 @@ def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
         lam[picked] = lam_sub
         x, gap = _certified_point(d, ri, rj, re, h, lam, label, clusters, agents, xs, opts.tol,
                                   floor)
-    if ok and float(np.sqrt(2.0 * gap.sum())) > opts.tol:
+    bound = float(np.sqrt(2.0 * gap.sum()))
+    if ok and bound > opts.tol:
         x, lam, gap = _improve(rows, d, ri, rj, re, h, x, lam, gap, label, clusters, opts.tol,
                                floor, agent_todo)
-    bound = float(np.sqrt(2.0 * gap.sum()))
+        bound = float(np.sqrt(2.0 * gap.sum()))
     # y = p + A^T lam (+ r): agents in no row, or with no multiplier, keep their prediction
     # bit for bit
     y = pred + (x - d)

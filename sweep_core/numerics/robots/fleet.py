@@ -365,25 +365,21 @@ class Fleet:
                                                         people, paths)
         return ends
 
-    def gaps_of(self, t1: float, geom: Geometry, y: np.ndarray, r1: np.ndarray) -> Gaps | None:
+    def gaps_of(self, t1: float, geom: Geometry, y: np.ndarray, r1: np.ndarray
+                ) -> tuple[Gaps, bool] | None:
         """The people's gaps (:func:`~sweep_core.model.gaps.gaps`) at (t1, y) with radii r1
         and geometry ``geom``, when the last step's check computed them with those very
-        arguments (None otherwise). The time may differ by rounding (t + h here, (k + 1) h
-        there) where it decides nothing: no obstacle or half-plane moves (the check computes
-        no gaps with user constraints). ``y`` must be the very array the step returned."""
+        arguments, and whether that check found that no person's centre path from the step's
+        start to ``y`` might meet a wall segment (the crossing check then has nothing to do);
+        None otherwise. The time may differ by rounding (t + h here, (k + 1) h there) where it
+        decides nothing: no obstacle or half-plane moves (the check computes no gaps with user
+        constraints). ``y`` must be the very array the step returned."""
         kept = self.people_gaps
         if (kept is None or kept[3] is not geom or kept[1] is not y
                 or (kept[0] != t1 and (geom.is_moving or not geom.fixed_halfplanes))
                 or (kept[2] is not r1 and not np.array_equal(kept[2], r1))):
             return None
-        return kept[4]
-
-    def paths_clear(self, t1: float, geom: Geometry, y: np.ndarray, r1: np.ndarray) -> bool:
-        """Whether the last step, with the arguments :meth:`gaps_of` matches, found that no
-        person's centre path from the step's start to ``y`` might meet a wall segment (the
-        crossing check's own pass found no candidate): the check then has nothing to do."""
-        kept = self.people_gaps
-        return kept is not None and kept[5] and self.gaps_of(t1, geom, y, r1) is not None
+        return kept[4], kept[5]
 
     def after_step(self, t: float, people: np.ndarray, radii: np.ndarray) -> None:
         """Scans due at this step (the step index counts steps taken; step 0 is the start)."""
