@@ -153,3 +153,23 @@ def test_almost_solved_is_a_last_resort(monkeypatch):
     no_exact = sc.SolverOptions(exact_vars=0, dense_fallback=0, method="clusters")
     got = projection.project(scene.geometry, t1, q, pred, scene.radii(t1), no_exact)
     assert got.backend_agents == 25 and np.max(np.abs(got.y - want)) < 1e-12
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_row_summary_is_numpys(seed: int) -> None:
+    """The compiled summary of the residuals gives what numpy's reductions gave: Python's min
+    of the two minima (NaN-propagating, initial inf), the rows within ROW_TOLERANCE, and
+    ``rp.min() < 0 or rs.min() < 0`` (a NaN hiding the negatives of its array)."""
+    from sweep_core.numerics.projection.options import ROW_TOLERANCE
+    from sweep_core.numerics.projection.project import row_summary
+    rng = np.random.default_rng(seed)
+    for _ in range(200):
+        rp, rs = (rng.choice([-1e-3, -1e-12, 0.0, 1e-12, 2e-3, np.nan], rng.integers(0, 5))
+                  for _ in range(2))
+        rp, rs = rp + rng.normal(0, 1e-10, len(rp)) * rng.integers(0, 2), rs.copy()
+        worst, active, broken = row_summary(rp, rs)
+        want = min(rp.min(initial=np.inf), rs.min(initial=np.inf))
+        assert (np.isnan(worst) and np.isnan(want)) or worst == want
+        assert active == np.count_nonzero(rp <= ROW_TOLERANCE) + np.count_nonzero(
+            rs <= ROW_TOLERANCE)
+        assert broken == bool((len(rp) and rp.min() < 0) or (len(rs) and rs.min() < 0))
