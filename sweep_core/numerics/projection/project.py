@@ -253,6 +253,9 @@ def _solve(rows: Rows, q: np.ndarray, pred: np.ndarray, opts: SolverOptions,
             held = None
     if held is None:  # every row to the rounds, as they are (their clusters and floor too)
         res = certified.solve(d, ri, rj, re, h, lam0, tol=opts.tol, max_rounds=rounds)
+        if res.done.all():  # every cluster certified: no cluster solver, nothing to improve
+            return (pred + (res.x - d), res.lam, float(np.sqrt(2.0 * res.gap.sum())), 0,
+                    res.sweeps, np.zeros(n, dtype=bool), True)
         lam = res.lam.copy()
         label, clusters, floor = res.label, res.clusters, res.floor
     else:
