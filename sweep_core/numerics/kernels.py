@@ -172,6 +172,7 @@ def _exercise() -> None:
     v = np.ones(3)
     dual.dot(v, v)
     dual.maximum(1.0, 2.0)  # inlined where the kernels call it; its own entry cached too
+    dual.minimum(1.0, 2.0)  # (the same)
     # the certified rounds' helpers (called from compiled code; their own entries cached too)
     pairwise.numpy_sum(np.ones(300))
     pairwise.block_sum(v, 0, 3)

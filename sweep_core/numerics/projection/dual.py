@@ -42,6 +42,13 @@ def maximum(a: float, b: float) -> float:  # pragma: no cover - compiled
     return a if (a >= b or a != a) else b
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def minimum(a: float, b: float) -> float:  # pragma: no cover - compiled
+    """numpy's ``minimum`` of two numbers: the smaller, a on a tie, NaN when either is (a
+    running min m = minimum(m, v) is numpy's ``min``, NaN from the first NaN on)."""
+    return a if (a <= b or a != a) else b
+
+
 @numba.njit(cache=True, nogil=True)
 def apply_multipliers(d: np.ndarray, ri: np.ndarray, rj: np.ndarray, re: np.ndarray,
                       lam: np.ndarray) -> np.ndarray:

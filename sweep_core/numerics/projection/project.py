@@ -122,10 +122,10 @@ def row_summary(rp: np.ndarray, rs: np.ndarray) -> tuple[float, int, bool]:  # p
     low_p, low_s = np.inf, np.inf
     active = 0
     for k in range(rp.shape[0]):
-        low_p = low_p if (low_p <= rp[k] or low_p != low_p) else rp[k]
+        low_p = dual.minimum(low_p, rp[k])
         active += rp[k] <= ROW_TOLERANCE
     for k in range(rs.shape[0]):
-        low_s = low_s if (low_s <= rs[k] or low_s != low_s) else rs[k]
+        low_s = dual.minimum(low_s, rs[k])
         active += rs[k] <= ROW_TOLERANCE
     return (low_s if low_s < low_p else low_p), active, low_p < 0.0 or low_s < 0.0
 
@@ -162,11 +162,12 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
     while True:
         rows = built if built is not None else linearise(geom, t1, q, r1, cut)
         rp, rs = rows.residuals(pred)
+        summary = row_summary(rp, rs)  # (worst, active rows, a row broken) of rp, rs
         lam_p, lam_s = np.zeros(len(rp)), np.zeros(len(rs))
         y = pred.copy()
         qp_size = by_backend = sweeps = fallback = 0
         bound = 0.0
-        if row_summary(rp, rs)[2]:
+        if summary[2]:
             qp_size = len(rows.agents())
             start = (carry_multipliers(warm.rows, np.concatenate([warm.lam_pair,
                                                                   warm.lam_single]), rows, n)
@@ -178,7 +179,8 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
             fallback = int(np.count_nonzero(todo))
             lam_p, lam_s = lam[: len(rp)], lam[len(rp):]
             rp, rs = rows.residuals(y)
-            worst = row_summary(rp, rs)[0]
+            summary = row_summary(rp, rs)
+            worst = summary[0]
             if not ok or not np.isfinite(worst) or worst < -ROW_TOLERANCE:
                 why = "no feasible point" if not ok else "solver residual"
                 raise InfeasibleError(t1, _culprits(rows, rp, rs),
@@ -198,7 +200,7 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
             break
     # a row is active when it holds with equality (to the solver tolerance); an interior-point
     # solver leaves tiny positive multipliers on slack rows, so multipliers are not counted
-    active = row_summary(rp, rs)[1]
+    active = summary[1]
     stuck = todo if todo.any() else None
     return Projection(y, rows, lam_p, lam_s, active, qp_size, solves, by_backend, bound,
                       sweeps, fallback, stuck, held_for + 1 if skip is not None else 0)
