@@ -10,6 +10,7 @@ import pytest
 
 from sweep_core import Scene, Simulator
 from sweep_core.errors import SceneError
+from sweep_core.numerics.robots import window
 from sweep_core.numerics.robots.control import Observation
 from sweep_core.numerics.robots.planners import controller_for
 from sweep_core.numerics.robots.window import STEP, candidates, hazards
@@ -67,6 +68,27 @@ def test_the_avoid_reaction_the_command_induces_clears_the_forecast():
     without = _hazard([[1.0, 0.0]], people, spread=0.1)[0]
     with_avoid = _hazard([[1.0, 0.0]], people, avoid=(1.5, 1.0, 0.6), spread=0.1)[0]
     assert with_avoid < 0.5 * without
+
+
+def test_skipping_people_out_of_reach_changes_no_hazard(monkeypatch):
+    # the compiled forecast skips people too far to come within FAR spreads; the same
+    # forecast in Python with the skip disabled (an infinite slack) integrates every one
+    rng = np.random.default_rng(5)
+    u = candidates(0.4, 1.0)
+    people = rng.uniform(-14.0, 14.0, (40, 2))
+    v = rng.normal(0.0, 0.8, (40, 2))
+    v[:5] = -1.5 * people[:5] / np.hypot(*people[:5].T)[:, None]  # rushing at the robot
+    args = (np.zeros(2), 0.3, people, np.full(40, 0.25), v, 1.5, 1.0, 0.6, 0.3, 0.1, 0.05,
+            2.0, STEP, 1.0)
+    fast, full = np.empty(len(u)), np.empty(len(u))
+    hazards(u, *args, fast)
+    monkeypatch.setattr(window, "FAR_SLACK", math.inf)
+    hazards.py_func(u, *args, full)
+    assert np.all(full > 0)
+    np.testing.assert_allclose(fast, full, rtol=1e-12, atol=0)
+    # a far person rushing in is not skipped: alone, they still weigh
+    assert _hazard([[1.0, 0.0]], [[7.0, 0.0]], v_people=[[-2.5, 0.0]])[0] > 0.1
+    assert _hazard([[1.0, 0.0]], [[7.0, 0.0]])[0] == 0.0
 
 
 def test_candidates_span_the_half_plane_round_the_goal_heading():

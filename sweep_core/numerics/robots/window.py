@@ -54,6 +54,8 @@ SPEEDS = np.array([0.25, 0.5, 0.75, 1.0])
 STEP = 0.1
 #: a person farther than FAR forecast spreads counts no hazard (e^(-FAR^2 / 2) < 1e-17)
 FAR = 9.0
+#: m: a bound on the forecast's rounding in the far-person test of :func:`hazards`
+FAR_SLACK = 1e-6
 
 
 def candidates(heading: float, max_speed: float) -> np.ndarray:
@@ -76,15 +78,27 @@ def hazards(u: np.ndarray, robot_xy: np.ndarray, radius: float, people: np.ndarr
     horizon s and strength m/s (strength 0: none); spread m/sqrt(s), margin m, passive the
     weight of a contact without advance, horizon and step s, max_speed m/s."""
     n = int(horizon / step + 0.5)
+    # the forecast's last time and spread (the largest of every step's: both grow with t)
+    t_n = n * step
+    far_n = FAR * spread * math.sqrt(t_n)
     for k in range(u.shape[0]):
         ux, uy = u[k, 0], u[k, 1]
         total = 0.0
         wx, wy = avoid_time * ux, avoid_time * uy
         length2 = wx * wx + wy * wy
+        speed_u = math.hypot(ux, uy)
         for j in range(people.shape[0]):
             # j's mean relative to the robot, integrated over the forecast steps
             rx, ry = people[j, 0] - robot_xy[0], people[j, 1] - robot_xy[1]
             reach = radius + radii[j] + margin
+            # a person too far to come within FAR spreads at any forecast step counts no
+            # hazard (0 at every step, as below): per step the relative mean moves by at most
+            # (|v_j| + strength + |u|) step, the avoid velocity being at most the strength;
+            # FAR_SLACK m covers the rounding of the integration (NaN is never skipped)
+            closing = (math.hypot(v_people[j, 0], v_people[j, 1]) + abs(avoid_strength)
+                       + speed_u) * t_n
+            if math.hypot(rx, ry) - reach - closing - FAR_SLACK > max(far_n, 0.0):
+                continue
             worst = 0.0
             for i in range(1, n + 1):
                 ax, ay = 0.0, 0.0
