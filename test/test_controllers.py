@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -182,6 +183,32 @@ def test_bench_social_runs_a_tiny_configuration(tmp_path, capsys):
     summary = list(csv.DictReader((out / "summary.csv").open()))
     assert [r["controller"] for r in summary] == ["pursuit", "orca"]
     assert (out / "social.png").stat().st_size > 0
+
+
+def test_bench_social_runs_a_scene_file_as_its_bundled_twin(tmp_path, capsys):
+    from sweep_core.model.gallery import resolve_scene_path
+    mine = tmp_path / "my_corridor.yaml"
+    mine.write_text(resolve_scene_path("crowdnav").read_text())
+    rows = {}
+    for scene in ("crowdnav", str(mine)):
+        out = tmp_path / Path(scene).stem
+        assert main(["bench", "social", "--seeds", "1", "--scenes", scene, "--controllers",
+                     "orca", "--t-end", "0.5", "--workers", "1", "--out", str(out)]) == 0
+        (rows[scene],) = csv.DictReader((out / "runs.csv").open())
+    assert str(mine) in capsys.readouterr().out
+    assert rows[str(mine)].pop("scene") == str(mine)
+    assert rows["crowdnav"].pop("scene") == "crowdnav"
+    for r in rows.values():
+        r.pop("wall_s")
+    assert rows[str(mine)] == rows["crowdnav"]
+
+
+def test_bench_social_refuses_a_scene_file_without_a_robot(tmp_path, capsys):
+    (tmp_path / "empty.yaml").write_text("agents: {positions: [[1, 1]], radius: 0.25}\n")
+    assert main(["bench", "social", "--scenes", str(tmp_path / "empty.yaml"), "--out",
+                 str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--scenes" in err[0] and "has no robot" in err[0]
 
 
 @pytest.mark.parametrize("args, option", [

@@ -1,7 +1,7 @@
-"""``sweep bench social``: the bundled controllers over seeds on the bundled robot scenes, and
-the social-navigation table (docs/social_bench.md defines every column).
+"""``sweep bench social``: the bundled controllers over seeds on the bundled robot scenes (or
+scene files), and the social-navigation table (docs/social_bench.md defines every column).
 
-Each run (:mod:`sweep_core.bench.social_runs`) is one seeded simulation of a bundled scene with
+Each run (:mod:`sweep_core.bench.social_runs`) is one seeded simulation of a scene with
 its robot's controller replaced, stopped at the goal or the time limit; runs go to a pool of
 ``--workers`` processes. Per (scene, controller) the table gives: success (goal reached with no
 robot-on-person contact) and success without any contact, shares of runs; contact events per
@@ -109,10 +109,11 @@ def _check(args: argparse.Namespace) -> list[Run]:
         limits.check_run_size(1, dt, t_end, 1)
     bundled = {s.name for s in bundled_scenes()}
     for name in args.scenes:
-        if name not in bundled:
-            raise SceneError("--scenes", f"{show(name)} is not a bundled scene",
-                             f"use bundled robot scenes, e.g. --scenes {' '.join(SCENES)}")
-        if not load_scene(name).robots:
+        if name not in bundled and not _is_file(name):
+            raise SceneError("--scenes", f"{show(name)} is neither a bundled scene nor a "
+                             "scene file", f"use bundled robot scenes (e.g. --scenes "
+                             f"{' '.join(SCENES)}) or the paths of scene YAML files")
+        if not load_scene(name).robots:  # a file's own errors name its fields
             raise SceneError("--scenes", f"{show(name)} has no robot",
                              f"use scenes with a robot, e.g. --scenes {' '.join(SCENES)}")
     for c in args.controllers:
@@ -121,6 +122,14 @@ def _check(args: argparse.Namespace) -> list[Run]:
                              f"use some of {' '.join(BENCH_CONTROLLERS)}")
     return [Run(s, c, seed, dt, t_end) for s in args.scenes for c in args.controllers
             for seed in range(args.seed, args.seed + seeds)]
+
+
+def _is_file(name: str) -> bool:
+    """``name`` is the path of a file (a name the file system refuses is not)."""
+    try:
+        return Path(name).is_file()
+    except OSError:  # ENAMETOOLONG
+        return False
 
 
 def run(args: argparse.Namespace) -> int:
@@ -168,7 +177,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "(default 10)")
     p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     p.add_argument("--scenes", nargs="+", default=list(SCENES),
-                   help=f"bundled robot scenes (default {' '.join(SCENES)})")
+                   help=f"bundled robot scenes or scene files (default {' '.join(SCENES)})")
     p.add_argument("--controllers", nargs="+", default=list(DEFAULT_CONTROLLERS),
                    help=f"controllers, some of {' '.join(BENCH_CONTROLLERS)} (default "
                         f"{' '.join(DEFAULT_CONTROLLERS)})")

@@ -1,4 +1,4 @@
-"""One run of ``sweep bench social`` (a worker's task): a bundled robot scene with every
+"""One run of ``sweep bench social`` (a worker's task): a robot scene with every
 robot's controller replaced, simulated in process from a seed until the first robot's goal is
 reached or the time limit, its episode turned into the social-navigation metrics of
 :func:`sweep_core.analysis.social.episode_metrics` and the contacts split by cause
@@ -35,8 +35,9 @@ RUN_COLUMNS = ("scene", "controller", "seed", "reached", "success", "success_no_
 
 @dataclass(frozen=True)
 class Run:
-    """One run: bundled ``scene`` name, ``controller`` name, ``seed``, step ``dt`` (s) and
-    time limit ``t_end`` (s; None: the scene's horizon, else 30 s)."""
+    """One run: ``scene`` (a bundled scene's name or a scene file's path), ``controller`` name,
+    ``seed``, step ``dt`` (s) and time limit ``t_end`` (s; None: the scene's horizon, else
+    30 s)."""
 
     scene: str
     controller: str
