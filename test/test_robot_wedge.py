@@ -213,3 +213,59 @@ def test_a_new_scene_that_cuts_or_encloses_a_robot_is_refused_and_the_run_goes_o
         sim.set_scene(Scene.from_dict(replace_map(base, _map_spec(ring))))
     sim.step(3)
     assert sim.n_steps == 3
+
+
+CORRIDOR = [{"kind": "segment", "a": [-2.0, 0.0], "b": [14.0, 0.0]},
+            {"kind": "segment", "a": [-2.0, 6.0], "b": [14.0, 6.0]}]
+
+
+@pytest.mark.parametrize("controller", ["pursuit", "orca", "social_force", "window"])
+def test_a_failed_step_leaves_the_bundled_planners_as_before_it(controller):
+    """Robot b's Python controller returns NaN once: that step fails after robot a's planner
+    has already updated its tracks and choices; undone, a's run is the run that never
+    failed."""
+    scene = Scene.from_dict({
+        "agents": {"positions": [[4.0, 3.2], [6.0, 2.5], [8.0, 3.5]], "radius": 0.25},
+        "drift": {"kind": "goal", "goal": [-1.0, 3.0], "speed": 1.0}, "noise": {"sigma": 0.05},
+        "walls": CORRIDOR,
+        "robots": [{"name": "a", "radius": 0.3, "pose": [1.0, 3.0, 0.0], "goal": [11.0, 3.0],
+                    "controller": controller},
+                   {"name": "b", "radius": 0.3, "pose": [1.0, 5.0, 0.0]}]})
+
+    def run(fail_at: int) -> Simulator:
+        sim, calls = Simulator(scene, dt=0.01, seed=0), []
+
+        def b(obs):
+            calls.append(obs.t)
+            return (math.nan, 0.0, 0.0) if len(calls) == fail_at else (0.0, 0.0, 0.0)
+
+        sim.robots.controllers["b"] = b
+        while sim.n_steps < 150:
+            try:
+                sim.step()
+            except SceneError:
+                assert len(calls) == fail_at
+        return sim
+
+    once, never = run(40), run(-1)
+    assert once.robots.state("a").pose == never.robots.state("a").pose
+    assert np.array_equal(once.positions, never.positions)
+
+
+@pytest.mark.parametrize("controller", ["pursuit", "orca"])
+def test_planners_plan_round_the_walls_of_a_new_scene(controller):
+    """A wall across most of the corridor, given by set_scene on the way: the robot's planner
+    takes the gap (its goal field is the new scene's), as in a run begun in the new scene."""
+    spec = {"agents": {"positions": [[13.0, 5.5]], "radius": 0.25}, "walls": CORRIDOR,
+            "robots": [{"name": "bot", "radius": 0.3, "pose": [1.0, 3.0, 0.0],
+                        "goal": [11.0, 3.0], "controller": controller}]}
+    walled = {**spec, "walls": CORRIDOR + [{"kind": "segment", "a": [5.0, 0.0],
+                                            "b": [5.0, 4.5]}]}
+    sim = Simulator(Scene.from_dict(spec), dt=0.02, seed=0)
+    sim.step(25)
+    sim.set_scene(Scene.from_dict(walled))
+    fresh = Simulator(Scene.from_dict(walled), dt=0.02, seed=0)
+    for s in (sim, fresh):
+        s.step(1250)
+        st = s.robots.state("bot")
+        assert st.goal_reached and st.blocked == 0

@@ -226,12 +226,14 @@ class Simulator:
             raise SceneError("scene", f"has {scene.n_agents} agents (radii or radius law "
                              f"differing), the simulator {old.n_agents}",
                              "keep the agents and their radii; build a new Simulator for others")
+        fields: dict = {}
         if self.robots is not None:
             problem = self.robots.check_geometry(scene, self.t)
             if problem:
                 raise SceneError("scene", f"at t = {self.t:g} s {problem}",
                                  "keep the robots' current disks clear of the new walls and "
                                  "their goals reachable, or place the robots elsewhere first")
+            fields = self.robots.fields_for(scene)  # the planners' new global plans
         live = scene if self._pop is None else self._pop.view(scene, self._q)
         bad = violating_agents(live, self.t, self._q)
         if bad:
@@ -261,8 +263,8 @@ class Simulator:
         self.scene = scene
         self.scheme.scene = live
         self.scheme.reset()
-        if self.robots is not None:  # the robots see the new walls too
-            self.robots.scene = scene
+        if self.robots is not None:  # the robots see the new walls too, and plan round them
+            self.robots.use_scene(scene, fields)
         r = live.radii(self.t)
         self._min_gap = gaps(scene.geometry, self.t, self._q, r).min_gap if len(r) else math.inf
 

@@ -136,6 +136,10 @@ class Pursuit:
         self.stop_margin = stop_margin
         self.cone = cone
 
+    def rescene(self, scene: Scene, field: Any) -> None:
+        """Pursue the goal by ``scene``'s goal ``field`` (new walls, obstacles or map)."""
+        self.field = field
+
     def __call__(self, obs: Observation) -> tuple[float, float, float]:
         x, y, yaw = obs.pose
         if obs.goal is not None and math.hypot(obs.goal[0] - x, obs.goal[1] - y) <= \

@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -50,7 +51,7 @@ from sweep_core.numerics.projection import Projection, project
 from sweep_core.numerics.robots import kinematics
 from sweep_core.numerics.robots.clear_step import checked_end, robot_step
 from sweep_core.numerics.robots.contacts import set_contacts
-from sweep_core.numerics.robots.control import observe
+from sweep_core.numerics.robots.control import goal_field, observe
 from sweep_core.numerics.robots.planners import controllers_of
 from sweep_core.numerics.robots.reaction import avoidance
 from sweep_core.numerics.robots.refusals import geometry_problem, goal_refusal
@@ -140,14 +141,37 @@ class Fleet:
             = None
 
     def snapshot(self) -> tuple:
-        """What a step changes (the robots' states, the step count), for :meth:`restore`."""
-        return ({name: st.copy() for name, st in self.states.items()}, self.step_index)
+        """What a step changes (the robots' states, the step count, the bundled planners'
+        tracks and last choices), for :meth:`restore`."""
+        planners = [(c, c.state()) for c in self.controllers.values() if hasattr(c, "state")]
+        return ({name: st.copy() for name, st in self.states.items()}, self.step_index,
+                planners)
 
     def restore(self, saved: tuple) -> None:
         """The fleet as :meth:`snapshot` saw it (a failed step is undone)."""
-        states, self.step_index = saved
+        states, self.step_index, planners = saved
         for name, st in states.items():
             self.states[name].__dict__.update(st.copy().__dict__)
+        for c, state in planners:
+            c.set_state(state)
+
+    def fields_for(self, scene: Scene) -> dict[str, Any]:
+        """The goal fields round ``scene``'s walls, obstacles and map of the robots whose
+        bundled controllers plan by one (for :meth:`use_scene`); SceneError when a goal
+        cannot be planned for (nothing changed)."""
+        try:
+            return {name: goal_field(scene, self.states[name].robot)
+                    for name, c in self.controllers.items() if hasattr(c, "rescene")}
+        except SceneError as err:
+            raise goal_refusal(scene, err) from err
+
+    def use_scene(self, scene: Scene, fields: dict[str, Any]) -> None:
+        """The robots move in ``scene`` from now on; their bundled controllers plan round its
+        walls by ``fields`` (:meth:`fields_for`), keeping their tracks of the people."""
+        for name, f in fields.items():
+            planner: Any = self.controllers[name]  # a bundled one (fields_for)
+            planner.rescene(scene, f)
+        self.scene = scene
 
     def check_geometry(self, scene: Scene, t: float) -> str:
         """What a robot's current disk would overlap in ``scene``'s walls, obstacles and map

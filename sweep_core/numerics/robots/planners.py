@@ -24,6 +24,7 @@ last command, so the fleet applies it unchanged.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pyrvo
@@ -150,6 +151,24 @@ class Planner:
         self.params = robot.params
         self.field = goal_field(scene, robot)
         self.tracker = Tracker()
+
+    def rescene(self, scene: Scene, field: Any) -> None:
+        """Plan in ``scene`` (new walls, obstacles or map) by its goal ``field``
+        (:func:`.control.goal_field` of the scene and this robot)."""
+        self.scene, self.field = scene, field
+
+    def state(self) -> tuple[dict, dict]:
+        """What a call changes (its attributes, the tracker's), for :meth:`set_state`: every
+        change is an assignment, never a write into an array held."""
+        return dict(self.__dict__), dict(self.tracker.__dict__)
+
+    def set_state(self, saved: tuple[dict, dict]) -> None:
+        """The planner as :meth:`state` saw it (a failed step is undone)."""
+        mine, tracker = saved
+        self.__dict__.clear()
+        self.__dict__.update(mine)
+        self.tracker.__dict__.clear()
+        self.tracker.__dict__.update(tracker)
 
     def preferred(self, obs: Observation) -> np.ndarray | None:
         """(2,) the field's velocity at the robot (m/s), None inside the goal radius."""

@@ -35,6 +35,7 @@ and the robot's kinematic limits.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numba
 import numpy as np
@@ -133,15 +134,23 @@ def hazards(u: np.ndarray, robot_xy: np.ndarray, radius: float, people: np.ndarr
         out[k] = total
 
 
+def _avoid(scene: Scene) -> tuple[float, float, float]:
+    """The scene's avoid reaction (radius m, horizon s, strength m/s); strength 0 without."""
+    r = scene.reaction
+    return (r.radius, r.horizon, r.strength) if r.kind == "avoid" else (1.0, 0.0, 0.0)
+
+
 class Window(Planner):
     """The sampling planner of the module docstring."""
 
     def __init__(self, scene: Scene, robot: Robot) -> None:
         super().__init__(scene, robot)
-        r = scene.reaction
-        self.avoid = (r.radius, r.horizon, r.strength) if r.kind == "avoid" else \
-            (1.0, 0.0, 0.0)
+        self.avoid = _avoid(scene)
         self.last = np.zeros(2)
+
+    def rescene(self, scene: Scene, field: Any) -> None:
+        super().rescene(scene, field)
+        self.avoid = _avoid(scene)
 
     def __call__(self, obs: Observation) -> tuple[float, float, float]:
         pref = self.preferred(obs)
