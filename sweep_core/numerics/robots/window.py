@@ -82,6 +82,9 @@ def hazards(u: np.ndarray, robot_xy: np.ndarray, radius: float, people: np.ndarr
     # the forecast's last time and spread (the largest of every step's: both grow with t)
     t_n = n * step
     far_n = FAR * spread * math.sqrt(t_n)
+    sigs = np.empty(n + 1)  # the spread at each forecast time t_i = i step
+    for i in range(1, n + 1):
+        sigs[i] = spread * math.sqrt(i * step)
     for k in range(u.shape[0]):
         ux, uy = u[k, 0], u[k, 1]
         total = 0.0
@@ -118,17 +121,16 @@ def hazards(u: np.ndarray, robot_xy: np.ndarray, radius: float, people: np.ndarr
                             ax, ay = -gain * wy / ln, gain * wx / ln
                 rx += (v_people[j, 0] + ax - ux) * step
                 ry += (v_people[j, 1] + ay - uy) * step
-                t = i * step
                 dist = math.hypot(rx, ry)
-                toward = max((ux * rx + uy * ry) / max(dist, 1e-12) / max_speed, 0.0)
                 gap = dist - reach
-                sig = spread * math.sqrt(t)
+                sig = sigs[i]
+                if gap > 0.0 and not (sig > 0.0 and gap < FAR * sig):
+                    continue  # beyond FAR spreads the hazard is below 1e-17 of a contact's: 0
+                toward = max((ux * rx + uy * ry) / max(dist, 1e-12) / max_speed, 0.0)
                 if gap <= 0.0:
                     h = toward + passive
-                elif sig > 0.0 and gap < FAR * sig:
+                else:
                     h = exp(-gap * gap / (2.0 * sig * sig)) * (toward + passive)
-                else:  # beyond FAR spreads the hazard is below 1e-17 of a contact's: 0
-                    h = 0.0
                 worst = max(worst, h)
             total += worst
         out[k] = total
