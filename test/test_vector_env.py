@@ -281,3 +281,50 @@ def test_workers_end_when_their_parent_is_killed(tmp_path) -> None:
     for p in left:
         os.kill(p, signal.SIGKILL)
     assert not left, f"workers {left} outlived their killed parent"
+
+
+def masked_rollout(envs: gymnasium.vector.VectorEnv) -> list:
+    """Two steps, a reset of environment 1 alone (seeded, then unseeded), steps through the
+    others' truncation and autoreset."""
+    out = rollout(envs, 5, 2)
+    out += list(envs.reset(seed=7, options={"reset_mask": np.array([False, True, False])}))
+    for step in range(3):
+        out += list(envs.step(actions(envs.num_envs, step)))
+    out += list(envs.reset(options={"reset_mask": np.array([True, False, True])}))
+    for step in range(2):
+        out += list(envs.step(actions(envs.num_envs, step)))
+    return out
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_reset_mask_resets_only_the_marked_environments_as_sync_does(workers: int) -> None:
+    """Against Gymnasium's SyncVectorEnv: the observations (the unmarked rows kept), the
+    infos (and their ``_`` masks: the reset ones only) and the following steps (t_s of the
+    unmarked ones going on, autoresets) bit for bit with a seeded masked reset."""
+    vec = gymnasium.make_vec("sweep/CrowdNav-v0", num_envs=3, workers=workers,
+                             vectorization_mode="vector_entry_point", **KW)
+    sync = gymnasium.make_vec("sweep/CrowdNav-v0", num_envs=3, vectorization_mode="sync",
+                              **KW)
+    ours, theirs = masked_rollout(vec), masked_rollout(sync)
+    obs, info = ours[12], ours[13]
+    assert info["_t_s"].tolist() == [False, True, False]
+    np.testing.assert_array_equal(obs["odom"][[0, 2]], ours[7]["odom"][[0, 2]])
+    assert same(ours, theirs)  # the unseeded reset draws from each environment's generator
+    np.testing.assert_allclose(ours[18]["t_s"], [0.3, 0.1, 0.3], rtol=1e-12)
+    assert ours[30]["_t_s"].tolist() == [True, False, True]
+    np.testing.assert_array_equal(ours[29]["odom"][1], ours[24]["odom"][1])
+    vec.close()
+    sync.close()
+
+
+@pytest.mark.parametrize(("mask", "words"), [
+    ([True, False, True], ["[true, false, true] (a list)"]), (np.array([1, 0, 1]), ["dtype int64"]),
+    (np.array([True, False]), ["shape (2,)"]), (np.zeros(3, dtype=bool), ["all False"])])
+def test_bad_reset_masks_are_refused(envs: CrowdNavVectorEnv, mask: object,
+                                     words: list[str]) -> None:
+    with pytest.raises(SceneError) as err:
+        envs.reset(options={"reset_mask": mask})
+    text = str(err.value)
+    assert "\n" not in text and text.startswith('options["reset_mask"]')
+    for word in words:
+        assert word in text, text

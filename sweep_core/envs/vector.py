@@ -8,6 +8,8 @@ seeds environment i with s + i (Gymnasium's convention for vector environments),
 ``seed[i]`` for a list of K seeds. Autoreset is Gymnasium's next-step mode
 (``metadata["autoreset_mode"]``): the step after environment i's episode ended resets it (its
 action ignored) and returns its first observation, reward 0 and not done.
+``reset(options={"reset_mask": mask})`` resets only the environments ``mask`` marks, as
+Gymnasium's SyncVectorEnv does (:meth:`CrowdNavVectorEnv.reset`).
 
 With ``workers`` W > 1 the K environments are split into W contiguous shares, each stepped
 by its own process (:mod:`sweep_core.envs.workers`), so that W cores step the batch at once;
@@ -136,25 +138,64 @@ class CrowdNavVectorEnv(VectorEnv):
         self.action_space = batch_space(first.action_space, k)
         self.width = int(first.action_space.shape[0])
         self._done = np.zeros(k, dtype=np.bool_)
+        #: the latest stacked observation (a masked reset keeps the unmarked rows)
+        self._obs: dict[str, np.ndarray] | None = None
 
     # -- gymnasium ----------------------------------------------------------------------
 
     def reset(self, *, seed: int | list[int | None] | None = None,
               options: dict[str, Any] | None = None
               ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        """Resets every environment: seed None (each draws its own), an int s (environment i
-        gets s + i) or a list of K seeds (ints or None)."""
+        """Resets the environments: seed None (each draws its own), an int s (environment i
+        gets s + i) or a list of K seeds (ints or None). ``options["reset_mask"]``, a bool
+        array (K,) with at least one True, resets only the environments it marks (as
+        Gymnasium's SyncVectorEnv does): the others keep their episode and their current
+        observation, and the infos hold the reset ones only."""
         seeds = self._seeds(seed)
+        mask = self._mask(options)
+        if mask is not None:
+            options = {k: v for k, v in options.items() if k != "reset_mask"}  # type: ignore
         super().reset(seed=seeds[0])
+        marked = [True] * self.num_envs if mask is None else mask.tolist()
         if self.workers is not None:
-            results = self.workers.reset(seeds, options)
+            results = self.workers.reset(seeds, options, marked)
         else:
-            results = [env.reset(seed=s, options=options) for env, s in zip(self.envs, seeds)]
+            results = [env.reset(seed=s, options=options) if m else None
+                       for env, s, m in zip(self.envs, seeds, marked)]
         infos: dict[str, Any] = {}
-        for i, (_, info) in enumerate(results):
-            infos = self._add_info(infos, info, i)
-        self._done[:] = False
-        return self._stack([o for o, _ in results]), infos
+        for i, result in enumerate(results):
+            if result is not None:
+                infos = self._add_info(infos, result[1], i)
+        if mask is None:
+            self._done[:] = False
+            self._obs = self._stack([r[0] for r in results])
+        else:
+            self._done[mask] = False
+            rows = np.flatnonzero(mask)
+            self._obs = {key: value.copy() for key, value in self._obs.items()}
+            for key, value in self._obs.items():
+                value[rows] = np.stack([results[i][0][key] for i in rows])
+        return {key: value.copy() for key, value in self._obs.items()}, infos
+
+    def _mask(self, options: dict[str, Any] | None) -> np.ndarray | None:
+        """``options["reset_mask"]`` checked (the reset docstring), None without one."""
+        if not options or "reset_mask" not in options:
+            return None
+        mask, k = options["reset_mask"], self.num_envs
+        fix = f"give a numpy bool array of shape ({k},), e.g. np.array([True] + [False] * {k - 1})"
+        if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (k,):
+            got = (f"dtype {mask.dtype} and shape {mask.shape}" if isinstance(mask, np.ndarray)
+                   else f"{show(mask)} (a {type(mask).__name__})")
+            raise SceneError('options["reset_mask"]', f"must be a numpy bool array of shape "
+                             f"({k},), one entry per environment, got {got}", fix)
+        if not mask.any():
+            raise SceneError('options["reset_mask"]', "marks no environment (all False)",
+                             "mark at least one environment True, or do not reset")
+        if self._obs is None:
+            raise SceneError('options["reset_mask"]', "resets some environments, but the "
+                             "others have no observation yet", "call reset() without a "
+                             "reset_mask first")
+        return mask
 
     def step(self, actions: Any) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray,
                                           np.ndarray, dict[str, Any]]:
@@ -170,7 +211,9 @@ class CrowdNavVectorEnv(VectorEnv):
             rewards[i], terminated[i], truncated[i] = reward, term, trunc
             infos = self._add_info(infos, info, i)
         self._done = terminated | truncated
-        return self._stack([r[0] for r in results]), rewards, terminated, truncated, infos
+        self._obs = self._stack([r[0] for r in results])
+        obs = {key: value.copy() for key, value in self._obs.items()}
+        return obs, rewards, terminated, truncated, infos
 
     def close_extras(self, **kwargs: Any) -> None:
         if getattr(self, "workers", None) is not None:

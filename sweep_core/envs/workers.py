@@ -58,7 +58,7 @@ def step_all(envs: list[Any], done: np.ndarray, actions: np.ndarray) -> list[tup
 def _serve(conn: Connection, scene: Any, count: int, kwargs: dict[str, Any],
            inherited: list[Connection]) -> None:
     """A worker's loop: builds ``count`` environments, then answers the parent's requests
-    ("reset", seeds, options), ("step", done, actions) and ("close",) until "close" or the
+    ("reset", seeds, options, marked), ("step", done, actions) and ("close",) until "close" or the
     parent is gone. A failure is sent back, not raised. ``inherited``: the parent's ends of
     the pipes, which a forked worker holds copies of and closes, so that a parent that dies
     ends every worker (its pipe reads end of file)."""
@@ -86,8 +86,9 @@ def _serve(conn: Connection, scene: Any, count: int, kwargs: dict[str, Any],
             return
         try:
             if msg[0] == "reset":
-                seeds, options = msg[1], msg[2]
-                answer = [env.reset(seed=s, options=options) for env, s in zip(envs, seeds)]
+                seeds, options, marked = msg[1], msg[2], msg[3]
+                answer = [env.reset(seed=s, options=options) if m else None
+                          for env, s, m in zip(envs, seeds, marked)]
             else:
                 answer = step_all(envs, msg[1], msg[2])
             conn.send(("ok", answer))
@@ -137,10 +138,13 @@ class Workers:
             self.close()
             raise
 
-    def reset(self, seeds: list[int | None], options: dict[str, Any] | None) -> list[tuple]:
-        """(obs, info) of each environment, reset with its seed."""
+    def reset(self, seeds: list[int | None], options: dict[str, Any] | None,
+              marked: list[bool]) -> list[tuple | None]:
+        """(obs, info) of each environment ``marked``, reset with its seed; None for the
+        others (left as they are)."""
         for w, share in enumerate(self.shares):
-            self._send(w, ("reset", [seeds[i] for i in share], options))
+            self._send(w, ("reset", [seeds[i] for i in share], options,
+                           [marked[i] for i in share]))
         return self._gather()
 
     def step(self, done: np.ndarray, actions: np.ndarray) -> list[tuple]:
