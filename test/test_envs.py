@@ -151,3 +151,24 @@ def test_an_action_outside_the_box_drives_as_the_box_clipped_one():
             break
     assert same(out_a, out_b)
     assert any(st[4]["clipped"] for st in out_a[1:])  # the engine's own limits took part too
+
+
+def test_the_distance_to_go_keeps_growing_off_the_goal_fields_grid():
+    """Driving straight away from the goal, out of the goal field's grid: each step's reward
+    stays the progress, about -speed * dt, and the distance to go grows with the distance
+    from the grid's edge."""
+    env = CrowdNavEnv(max_steps=400)
+    env.reset(seed=0)
+    left = float(env.field.x[0])
+    off = []
+    for _ in range(80):
+        _, reward, terminated, truncated, info = env.step([-1.0, 0.0])
+        assert not (terminated or truncated)
+        x = env.rows[-1][1]
+        if x < left - 0.2 and info["clearance_m"] > 0.2:
+            off.append((reward, x, env.togo))
+    assert len(off) >= 20
+    for (reward, x, togo), (_, x0, togo0) in zip(off[1:], off):
+        assert reward == pytest.approx(-(x0 - x), abs=1e-9)
+        assert reward == pytest.approx(-0.1, abs=1e-3)
+        assert togo - togo0 == pytest.approx(x0 - x, abs=1e-9)

@@ -18,11 +18,12 @@ Spaces (float64):
   scan's ranges (m), clipped to [0, range_max]: nothing within range reads range_max), ``goal``
   (the goal in base_link, m).
 
-Reward per step: the progress along the geodesic distance to the goal (m, round the walls), plus
-``success_reward`` on reaching the goal, minus ``contact_penalty`` for a step ending in contact
-with someone, minus ``discomfort_penalty * dt * (0.2 - clearance)`` when closer than 0.2 m (the
-CrowdNav reward's shape). The episode terminates when the robot is within its ``goal_radius`` of
-the goal, and is truncated after ``max_steps`` steps.
+Reward per step: the progress along the geodesic distance to the goal (m, round the walls; off
+the goal field's grid, its distance at the grid's nearest point plus the straight line from
+there), plus ``success_reward`` on reaching the goal, minus ``contact_penalty`` for a step
+ending in contact with someone, minus ``discomfort_penalty * dt * (0.2 - clearance)`` when
+closer than 0.2 m (the CrowdNav reward's shape). The episode terminates when the robot is
+within its ``goal_radius`` of the goal, and is truncated after ``max_steps`` steps.
 
 ``info``: ``t_s``, ``clearance_m`` (to the nearest person), ``ttc_s``, ``contacts``,
 ``clipped``, ``blocked``; at the end of an episode also ``metrics``, the social-navigation
@@ -199,8 +200,19 @@ class CrowdNavEnv(gymnasium.Env):
         self.rows.append((self.steps * self.dt, x, y, yaw, vx, vy, near, ttc, len(ids),
                           total, most))
         self.touched.append(ids)
-        togo = float(self.field.travel_distance(np.array([[x, y]]))[0])
-        return near, len(ids), togo
+        return near, len(ids), self._togo(x, y)
+
+    def _togo(self, x: float, y: float) -> float:
+        """The distance to go (m) from (x, y): the goal field's geodesic distance on its grid;
+        off the grid, its value at the grid's nearest point plus the straight distance from
+        there (continuous at the grid's edge, growing as the robot goes further away)."""
+        gx, gy = self.field.x, self.field.y
+        cx = min(max(x, float(gx[0])), float(gx[-1]))
+        cy = min(max(y, float(gy[0])), float(gy[-1]))
+        togo = float(self.field.travel_distance(np.array([[cx, cy]]))[0])
+        if cx != x or cy != y:
+            togo += math.hypot(x - cx, y - cy)
+        return togo
 
     def metrics(self) -> dict[str, Any]:
         """The social-navigation metrics of the episode so far (docs/social_metrics.md)."""
