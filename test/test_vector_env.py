@@ -328,3 +328,26 @@ def test_bad_reset_masks_are_refused(envs: CrowdNavVectorEnv, mask: object,
     assert "\n" not in text and text.startswith('options["reset_mask"]')
     for word in words:
         assert word in text, text
+
+
+def test_copying_or_pickling_workers_is_refused_and_leaves_them_working() -> None:
+    """deepcopy, copy and pickle of a vector environment with workers: one line, and the
+    original then steps as before (as its in-process twin) and closes cleanly; without
+    workers a deep copy is an independent twin."""
+    import copy
+    import pickle
+    split = vector.make(num_envs=2, workers=2, **KW)
+    mine = vector.make(num_envs=2, **KW)
+    assert same(split.reset(seed=3), mine.reset(seed=3))
+    for how in (copy.deepcopy, copy.copy, pickle.dumps):
+        with pytest.raises(SceneError) as err:
+            how(split)
+        text = str(err.value)
+        assert "\n" not in text and text.startswith("workers:") and "workers=2" in text
+    for step in range(3):
+        assert same(split.step(actions(2, step)), mine.step(actions(2, step)))
+    split.close()
+    twin = copy.deepcopy(mine)
+    assert same(twin.step(actions(2, 3)), mine.step(actions(2, 3)))
+    mine.close()
+    twin.close()

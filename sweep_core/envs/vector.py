@@ -215,6 +215,16 @@ class CrowdNavVectorEnv(VectorEnv):
         obs = {key: value.copy() for key, value in self._obs.items()}
         return obs, rewards, terminated, truncated, infos
 
+    def __reduce_ex__(self, protocol: Any) -> Any:
+        """Pickled and copied as any object, but with workers refused (before any pipe is
+        touched, so this one keeps working): their processes cannot be copied."""
+        if getattr(self, "workers", None) is not None:
+            w = len(self.workers.shares)
+            raise SceneError("workers", f"a vector environment with workers={w} cannot be "
+                             "copied or pickled (its worker processes cannot)",
+                             "make a new one with the same arguments, or use workers=1")
+        return super().__reduce_ex__(protocol)
+
     def close_extras(self, **kwargs: Any) -> None:
         if getattr(self, "workers", None) is not None:
             self.workers.close()
