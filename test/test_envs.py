@@ -172,3 +172,26 @@ def test_the_distance_to_go_keeps_growing_off_the_goal_fields_grid():
         assert reward == pytest.approx(-(x0 - x), abs=1e-9)
         assert reward == pytest.approx(-0.1, abs=1e-3)
         assert togo - togo0 == pytest.approx(x0 - x, abs=1e-9)
+
+
+@pytest.mark.parametrize(("seed", "words"), [
+    (-1, ["seed", "integer >= 0", "-1"]), (np.int64(-1), ["seed", "-1"]),
+    (1.5, ["seed", "1.5"]), ("3", ["seed", "'3'"]), (True, ["seed", "true"])])
+def test_bad_seeds_are_refused_in_one_line(seed, words):
+    single = CrowdNavEnv(small_scene(), dt=0.1, max_steps=4)
+    vec = gymnasium.make_vec("sweep/CrowdNav-v0", num_envs=2,
+                             vectorization_mode="vector_entry_point", scene=small_scene(),
+                             dt=0.1, max_steps=4)
+    for env in (single, vec):
+        with pytest.raises(SceneError) as err:
+            env.reset(seed=seed)
+        text = str(err.value)
+        assert "\n" not in text and text.startswith("seed:"), text
+        for word in words:
+            assert word in text, text
+    vec.close()
+
+
+def test_a_numpy_integer_seed_is_the_int_seed():
+    env = CrowdNavEnv(small_scene(), dt=0.1, max_steps=4)
+    assert same(episode(env, np.int64(3), 3), episode(env, 3, 3))

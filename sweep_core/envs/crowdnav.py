@@ -226,6 +226,8 @@ class CrowdNavEnv(gymnasium.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        if seed is not None:
+            seed = checks.integer(seed, "seed", fix="give seed as an integer >= 0, or None")
         super().reset(seed=seed)
         engine_seed = int(self.np_random.integers(0, 2**31 - 1))
         self.sim = self._simulator(engine_seed)

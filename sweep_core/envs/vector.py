@@ -238,7 +238,9 @@ class CrowdNavVectorEnv(VectorEnv):
         if seed is None:
             return [None] * k
         if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            return [int(seed) + i for i in range(k)]
+            s = checks.integer(seed, "seed", fix="give seed as an integer >= 0 (environment i "
+                               "gets seed + i), a list of seeds or None")
+            return [s + i for i in range(k)]
         if isinstance(seed, (list, tuple, np.ndarray)):
             if len(seed) != k:
                 raise SceneError("seed", f"has {len(seed)} seeds for {k} environments: "
