@@ -195,3 +195,34 @@ def test_bad_seeds_are_refused_in_one_line(seed, words):
 def test_a_numpy_integer_seed_is_the_int_seed():
     env = CrowdNavEnv(small_scene(), dt=0.1, max_steps=4)
     assert same(episode(env, np.int64(3), 3), episode(env, 3, 3))
+
+
+def make_vec(**kwargs):
+    return gymnasium.make_vec("sweep/CrowdNav-v0", vectorization_mode="vector_entry_point",
+                              scene=small_scene(), dt=0.1, max_steps=4, **kwargs)
+
+
+@pytest.mark.parametrize(("build", "words"), [
+    (lambda: gymnasium.make("sweep/CrowdNav-v0", render_mode="rgb_array"),
+     ["render_mode:", "'rgb_array'", "sweep render"]),
+    (lambda: make_vec(num_envs=2, render_mode="human"), ["render_mode:", "'human'"]),
+    (lambda: CrowdNavEnv(small_scene()).render(), ["render:", "draws nothing", "sweep run"]),
+    (lambda: make_vec(num_envs=2).render(), ["render:", "draw nothing"]),
+    (lambda: CrowdNavEnv(small_scene(), holonomic=True),
+     ["holonomic:", "not an argument", "max_steps", "render_mode"]),
+    (lambda: CrowdNavEnv(small_scene(), workers=2), ["workers:", "gymnasium.make_vec"]),
+    (lambda: make_vec(num_envs=2, foo=1), ["foo:", "num_envs, workers, scene"])])
+def test_render_modes_and_unknown_arguments_are_refused_in_one_line(build, words):
+    with pytest.raises(SceneError) as err:
+        build()
+    text = str(err.value)
+    assert "\n" not in text
+    for word in words:
+        assert word in text, text
+
+
+def test_render_mode_none_is_accepted():
+    assert gymnasium.make("sweep/CrowdNav-v0", render_mode=None).render_mode is None
+    envs = make_vec(num_envs=2, render_mode=None)
+    assert envs.render_mode is None
+    envs.close()

@@ -56,6 +56,32 @@ from sweep_core.numerics.simulator import Simulator
 DEFAULT_SCENE = Path(str(resources.files("sweep_core") / "scenes" / "crowdnav.yaml"))
 
 
+#: the arguments of :class:`CrowdNavEnv` (an unknown one is refused naming them)
+ARGUMENTS = ("scene", "robot", "dt", "max_steps", "scheme", "success_reward",
+             "contact_penalty", "discomfort_penalty", "render_mode")
+#: what a refused render mode or render() call says to do instead
+NO_RENDER = ("leave render_mode unset (None); to watch the scene, record a run with `sweep run "
+             "SCENE --out run.mcap` and animate it with `sweep render run.mcap` "
+             "(docs/render.md)")
+
+
+def check_render_mode(render_mode: Any) -> None:
+    """Refuses a render mode other than None: the environment draws nothing."""
+    if render_mode is not None:
+        raise SceneError("render_mode", f"{show(render_mode)} is not available: the "
+                         "environment draws nothing (its only render mode is None)", NO_RENDER)
+
+
+def refuse_unknown(unknown: dict[str, Any], accepted: tuple[str, ...]) -> None:
+    """Refuses the first of ``unknown`` keyword arguments, listing the ``accepted`` ones."""
+    if unknown:
+        name = next(iter(unknown))
+        where = (" (workers and num_envs are the vector environment's: gymnasium.make_vec)"
+                 if name in ("workers", "num_envs") and "workers" not in accepted else "")
+        raise SceneError(name, f"is not an argument of sweep/CrowdNav-v0{where}",
+                         f"give only {', '.join(accepted)}")
+
+
 def _scene(scene: Scene | dict | str | Path | None) -> Scene:
     if isinstance(scene, Scene):
         return scene
@@ -75,6 +101,7 @@ class CrowdNavEnv(gymnasium.Env):
         max_steps: steps before the episode is truncated.
         scheme: the engine's scheme.
         success_reward, contact_penalty, discomfort_penalty: the reward's terms.
+        render_mode: None only: the environment draws nothing (:func:`check_render_mode`).
     """
 
     metadata: dict[str, Any] = {"render_modes": []}
@@ -82,7 +109,11 @@ class CrowdNavEnv(gymnasium.Env):
     def __init__(self, scene: Scene | dict | str | Path | None = None, robot: str | None = None,
                  dt: float = 0.1, max_steps: int = 500, scheme: str = "projected_euler",
                  success_reward: float = 1.0, contact_penalty: float = 0.25,
-                 discomfort_penalty: float = 0.5) -> None:
+                 discomfort_penalty: float = 0.5, render_mode: str | None = None,
+                 **unknown: Any) -> None:
+        refuse_unknown(unknown, ARGUMENTS)
+        check_render_mode(render_mode)
+        self.render_mode = None
         self.scene = _scene(scene)
         robots = self.scene.spec.get("robots") or []
         if not robots:
@@ -271,6 +302,11 @@ class CrowdNavEnv(gymnasium.Env):
         if reached or truncated:
             info["metrics"] = self.metrics()
         return self._observe(), float(reward), bool(reached), bool(truncated), info
+
+    def render(self) -> None:
+        """Refused in one line: the environment draws nothing (:data:`NO_RENDER`)."""
+        raise SceneError("render", "the environment draws nothing (its only render mode is "
+                         "None)", NO_RENDER)
 
     def _info(self, near: float, contacts: int) -> dict[str, Any]:
         st, row = self._state(), self.rows[-1]

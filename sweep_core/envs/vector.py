@@ -32,7 +32,14 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from sweep_core import checks
-from sweep_core.envs.crowdnav import DEFAULT_SCENE, CrowdNavEnv
+from sweep_core.envs.crowdnav import (
+    ARGUMENTS,
+    DEFAULT_SCENE,
+    NO_RENDER,
+    CrowdNavEnv,
+    check_render_mode,
+    refuse_unknown,
+)
 from sweep_core.envs.workers import Workers, step_all
 from sweep_core.errors import SceneError, show
 from sweep_core.model.scene import Scene, load_scene
@@ -106,6 +113,10 @@ class CrowdNavVectorEnv(VectorEnv):
     metadata: dict[str, Any] = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs: int = 1, workers: int = 1, **kwargs: Any) -> None:
+        check_render_mode(kwargs.pop("render_mode", None))
+        self.render_mode = None
+        refuse_unknown({k: v for k, v in kwargs.items() if k not in ARGUMENTS},
+                       ("num_envs", "workers", *ARGUMENTS))
         k = checks.integer(num_envs, "num_envs", low=1, fix="e.g. num_envs=32")
         if k > MAX_ENVS:
             raise SceneError("num_envs", f"{k} is more than the limit {MAX_ENVS}",
@@ -224,6 +235,11 @@ class CrowdNavVectorEnv(VectorEnv):
                              "copied or pickled (its worker processes cannot)",
                              "make a new one with the same arguments, or use workers=1")
         return super().__reduce_ex__(protocol)
+
+    def render(self) -> None:
+        """Refused in one line: the environments draw nothing (:data:`NO_RENDER`)."""
+        raise SceneError("render", "the environments draw nothing (their only render mode "
+                         "is None)", NO_RENDER)
 
     def close_extras(self, **kwargs: Any) -> None:
         if getattr(self, "workers", None) is not None:
