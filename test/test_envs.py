@@ -226,3 +226,12 @@ def test_render_mode_none_is_accepted():
     envs = make_vec(num_envs=2, render_mode=None)
     assert envs.render_mode is None
     envs.close()
+
+
+def test_an_episode_too_long_for_the_memory_is_refused_naming_max_steps():
+    with pytest.raises(SceneError) as err:
+        CrowdNavEnv(small_scene(), max_steps=10 ** 18)
+    text = str(err.value)
+    assert "\n" not in text and text.startswith("max_steps: 1000000000000000000 steps"), text
+    most = int(text.split("(fix: max_steps=")[1].split(" ")[0])
+    assert CrowdNavEnv(small_scene(), max_steps=most).max_steps == most

@@ -351,3 +351,24 @@ def test_copying_or_pickling_workers_is_refused_and_leaves_them_working() -> Non
     assert same(twin.step(actions(2, 3)), mine.step(actions(2, 3)))
     mine.close()
     twin.close()
+
+
+@pytest.mark.parametrize("num_envs", [1, 2])
+def test_an_episode_too_long_for_the_memory_is_refused_naming_max_steps(
+        monkeypatch: pytest.MonkeyPatch, num_envs: int) -> None:
+    """The episode's history is what does not fit: max_steps is named, and its suggested
+    largest value is accepted."""
+    from sweep_core.envs import crowdnav
+    monkeypatch.setattr(vector, "available_memory", lambda: 10 ** 8)  # 100 MB
+    monkeypatch.setattr(crowdnav, "available_memory", lambda: 10 ** 12)  # one env's check
+    kw = {**KW, "max_steps": 10 ** 6}
+    with pytest.raises(SceneError) as err:
+        vector.make(num_envs=num_envs, **kw)
+    text = str(err.value)
+    assert "\n" not in text and text.startswith("max_steps: 1000000 steps"), text
+    fix = text.split("(fix: max_steps=")[1]
+    most = int(fix.split(" ")[0])
+    assert 1 <= most < 10 ** 6 and fix.endswith(" or fewer)")
+    envs = vector.make(num_envs=num_envs, **{**KW, "max_steps": most})
+    assert envs.memory_estimate <= 0.5 * 10 ** 8
+    envs.close()

@@ -34,6 +34,7 @@ holds the people's velocities in float32).
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import replace
 from importlib import resources
 from pathlib import Path
@@ -54,6 +55,27 @@ from sweep_core.numerics.simulator import Simulator
 
 #: the bundled scene of ``gymnasium.make("sweep/CrowdNav-v0")`` without a scene
 DEFAULT_SCENE = Path(str(resources.files("sweep_core") / "scenes" / "crowdnav.yaml"))
+
+
+#: share of the available memory an environment's episodes (or a vector environment's K)
+#: may take
+MEMORY_SHARE = 0.5
+#: bytes an episode's history (its rows and contacts) keeps per step, rounded up (about
+#: 1.6 kB measured on the bundled scene)
+HISTORY_BYTES = 2048
+
+
+def available_memory() -> int:
+    """Bytes of memory available to a new allocation (MemAvailable of /proc/meminfo, else the
+    physical memory)."""
+    try:
+        with Path("/proc/meminfo").open() as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
 
 
 #: the arguments of :class:`CrowdNavEnv` (an unknown one is refused naming them)
@@ -139,6 +161,13 @@ class CrowdNavEnv(gymnasium.Env):
                              f"give {field}.scan (range_max, angle_min, angle_max, increment)")
         self.dt = limits.check_dt(dt, "dt")  # the range of sweep run and sweep_node
         self.max_steps = checks.integer(max_steps, "max_steps", low=1, fix="e.g. max_steps=500")
+        have = available_memory()
+        if self.max_steps * HISTORY_BYTES > MEMORY_SHARE * have:
+            most = int(MEMORY_SHARE * have // HISTORY_BYTES)
+            raise SceneError("max_steps", f"{self.max_steps} steps is too long an episode: its "
+                             f"history would need about {self.max_steps * HISTORY_BYTES / 1e9:.2g}"
+                             f" GB, more than half the {have / 1e9:.2g} GB available",
+                             f"max_steps={most} or fewer")
         self.scheme = scheme
         # a NaN or infinite term would make every reward NaN or infinite, silently
         self.rewards = tuple(checks.number(v, k, fix=f"set {k} to a finite number, e.g. {d}")

@@ -22,9 +22,7 @@ those that have it; ``metrics`` at the end of an episode).
 """
 from __future__ import annotations
 
-import os
 import tracemalloc
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -35,8 +33,10 @@ from sweep_core import checks
 from sweep_core.envs.crowdnav import (
     ARGUMENTS,
     DEFAULT_SCENE,
+    MEMORY_SHARE,
     NO_RENDER,
     CrowdNavEnv,
+    available_memory,
     check_render_mode,
     refuse_unknown,
 )
@@ -46,16 +46,16 @@ from sweep_core.model.scene import Scene, load_scene
 
 #: most environments of one vector environment, whatever the memory
 MAX_ENVS = 100_000
-#: share of the available memory the K environments may take
-MEMORY_SHARE = 0.5
 
 
 #: steps of the traced environment over which its memory's growth per step is measured
 GROWTH_STEPS = 16
 
 
-def _memory_of(k: int, build: Any) -> int:
-    """Bytes K environments take at the end of their longest episode (``max_steps``): one
+def _memory_of(build: Any) -> tuple[float, float, int]:
+    """(bytes one environment keeps, bytes its history grows by per step, scratch bytes), from
+    which :func:`_memory_need` gives what K environments take at the end of their longest
+    episode (``max_steps``): one
     more environment (after a first has paid the one-time costs) built, reset and stepped
     with its Python and numpy allocations traced; what it keeps after one step, plus what
     its episode's history grows by per step (measured over :data:`GROWTH_STEPS` steps) times
@@ -79,24 +79,42 @@ def _memory_of(k: int, build: Any) -> int:
             if any(env.step(action)[2:4]):  # its episode ended
                 break
         grown = max(tracemalloc.get_traced_memory()[0] - kept, 0)
-        per_env = kept - before + grown / max(steps, 1) * env.max_steps
-        return int(k * max(per_env, 1) + max(peak - kept, 0))
+        return float(kept - before), grown / max(steps, 1), max(peak - kept, 0)
     finally:
         if not tracing:
             tracemalloc.stop()
 
 
-def available_memory() -> int:
-    """Bytes of memory available to a new allocation (MemAvailable of /proc/meminfo, else the
-    physical memory)."""
-    try:
-        with Path("/proc/meminfo").open() as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+def _memory_need(k: int, max_steps: int, measured: tuple[float, float, int]) -> int:
+    """Bytes K environments take at the end of an episode of ``max_steps`` steps, from
+    :func:`_memory_of`'s measure."""
+    kept, per_step, scratch = measured
+    return int(k * max(kept + per_step * max_steps, 1) + scratch)
+
+
+def _memory_refusal(k: int, max_steps: int, measured: tuple[float, float, int],
+                    have: int) -> SceneError:
+    """The one-line refusal of K environments of ``max_steps`` steps needing more than
+    MEMORY_SHARE of ``have`` bytes: naming num_envs when fewer environments fit, else
+    max_steps (with its largest value that fits) when a shorter episode does."""
+    kept, per_step, scratch = measured
+    need = _memory_need(k, max_steps, measured)
+    budget = MEMORY_SHARE * have
+    one = (need - scratch) / k
+    envs = int((budget - scratch) // one) if budget > scratch else 0
+    steps = (int(((budget - scratch) / k - kept) // per_step)
+             if per_step > 0 and budget > scratch + k * kept else 0)
+    steps = min(int(0.9 * steps), max_steps - 1)  # a margin for the next measure's noise
+    size = (f"{need / 1e9:.2g} GB ({one / 1e6:.2g} MB each, at max_steps={max_steps}), more "
+            f"than half the {have / 1e9:.2g} GB available")
+    if envs < 1 and steps >= 1:
+        return SceneError("max_steps", f"{max_steps} steps is too long an episode: at its "
+                          f"end the {k} environment{'s' if k > 1 else ''} need about {size}",
+                          f"max_steps={steps} or fewer")
+    fix = f"num_envs={max(1, envs)} or fewer"
+    if steps >= 1:
+        fix += f", or max_steps={steps} or fewer"
+    return SceneError("num_envs", f"{k} environments need about {size}", fix)
 
 
 class CrowdNavVectorEnv(VectorEnv):
@@ -131,14 +149,11 @@ class CrowdNavVectorEnv(VectorEnv):
         first = CrowdNavEnv(scene=scene, **kwargs)  # pays the one-time costs (imports, kernels)
         first.reset(seed=0)
         first.step(np.zeros(first.action_space.shape))
-        self.memory_estimate = _memory_of(k, lambda: CrowdNavEnv(scene=scene, **kwargs))
-        need, have = self.memory_estimate, available_memory()
-        if need > MEMORY_SHARE * have:
-            one = need / k
-            most = max(1, int(MEMORY_SHARE * have // one))
-            raise SceneError("num_envs", f"{k} environments need about {need / 1e9:.2g} GB "
-                             f"({one / 1e6:.2g} MB each), more than half the "
-                             f"{have / 1e9:.2g} GB available", f"num_envs={most} or fewer")
+        measured = _memory_of(lambda: CrowdNavEnv(scene=scene, **kwargs))
+        self.memory_estimate = _memory_need(k, first.max_steps, measured)
+        have = available_memory()
+        if self.memory_estimate > MEMORY_SHARE * have:
+            raise _memory_refusal(k, first.max_steps, measured, have)
         # built afresh: the measured one's generator was seeded (reset(seed=None) draws anew)
         self.workers = Workers(k, w, scene, kwargs) if w > 1 else None
         self.envs = [] if w > 1 else [CrowdNavEnv(scene=scene, **kwargs) for _ in range(k)]
