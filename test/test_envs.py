@@ -235,3 +235,13 @@ def test_an_episode_too_long_for_the_memory_is_refused_naming_max_steps():
     assert "\n" not in text and text.startswith("max_steps: 1000000000000000000 steps"), text
     most = int(text.split("(fix: max_steps=")[1].split(" ")[0])
     assert CrowdNavEnv(small_scene(), max_steps=most).max_steps == most
+
+
+def test_a_step_before_the_first_reset_is_refused_in_one_line():
+    env = CrowdNavEnv(small_scene(), dt=0.1, max_steps=4)
+    with pytest.raises(SceneError) as err:
+        env.step([0.5, 0.0])
+    text = str(err.value)
+    assert "\n" not in text and text.startswith("step:") and "call reset() first" in text
+    env.reset(seed=0)
+    assert env.step([0.5, 0.0])[4]["t_s"] == pytest.approx(0.1)

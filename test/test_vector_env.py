@@ -372,3 +372,17 @@ def test_an_episode_too_long_for_the_memory_is_refused_naming_max_steps(
     envs = vector.make(num_envs=num_envs, **{**KW, "max_steps": most})
     assert envs.memory_estimate <= 0.5 * 10 ** 8
     envs.close()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_closed_vector_environment_refuses_steps_and_resets_alike(workers: int) -> None:
+    envs = vector.make(num_envs=2, workers=workers, **KW)
+    envs.reset(seed=0)
+    envs.close()
+    for call in (lambda: envs.step(actions(2, 0)), lambda: envs.reset(seed=0)):
+        with pytest.raises(SceneError) as err:
+            call()
+        text = str(err.value)
+        assert "\n" not in text and "the vector environment is closed" in text
+        assert "make a new one" in text
+    envs.close()  # a second close is harmless

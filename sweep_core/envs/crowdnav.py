@@ -205,6 +205,7 @@ class CrowdNavEnv(gymnasium.Env):
         self.rows: list[tuple] = []
         self.touched: list[np.ndarray] = []
         self.steps, self.togo = 0, self.geodesic
+        self.started = False  # reset() called: step() refuses to run before it
 
     # -- the engine ---------------------------------------------------------------------
 
@@ -293,10 +294,14 @@ class CrowdNavEnv(gymnasium.Env):
         self.sim = self._simulator(engine_seed)
         self.rows, self.touched, self.steps = [], [], 0
         near, contacts, self.togo = self._record()
+        self.started = True
         return self._observe(), self._info(near, contacts)
 
     def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool,
                                          dict[str, Any]]:
+        if not self.started:
+            raise SceneError("step", "called before the first reset(): there is no episode "
+                             "yet", "call reset() first")
         if action is None:
             raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, got None",
                              "give an element of env.action_space")

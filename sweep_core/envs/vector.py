@@ -177,6 +177,7 @@ class CrowdNavVectorEnv(VectorEnv):
         array (K,) with at least one True, resets only the environments it marks (as
         Gymnasium's SyncVectorEnv does): the others keep their episode and their current
         observation, and the infos hold the reset ones only."""
+        self._open("reset")
         seeds = self._seeds(seed)
         mask = self._mask(options)
         if mask is not None:
@@ -225,6 +226,7 @@ class CrowdNavVectorEnv(VectorEnv):
 
     def step(self, actions: Any) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray,
                                           np.ndarray, dict[str, Any]]:
+        self._open("step")
         a = self._actions(actions)
         # next-step autoreset: an environment whose episode ended starts its next one
         results = (self.workers.step(self._done, a) if self.workers is not None
@@ -282,6 +284,11 @@ class CrowdNavVectorEnv(VectorEnv):
                     for i, s in enumerate(seed)]
         raise SceneError("seed", f"must be an integer, a list of {k} seeds or None, got "
                          f"{show(seed)}", f"e.g. seed=0 or seed=[0, 1, ...] ({k} seeds)")
+
+    def _open(self, call: str) -> None:
+        """Refuses ``call`` after close(), with workers or without."""
+        if self.closed:
+            raise SceneError(call, "the vector environment is closed", "make a new one")
 
     def _actions(self, actions: Any) -> np.ndarray:
         want = (self.num_envs, self.width)
