@@ -357,8 +357,11 @@ def test_copying_or_pickling_workers_is_refused_and_leaves_them_working() -> Non
 def test_an_episode_too_long_for_the_memory_is_refused_naming_max_steps(
         monkeypatch: pytest.MonkeyPatch, num_envs: int) -> None:
     """The episode's history is what does not fit: max_steps is named, and its suggested
-    largest value is accepted."""
+    largest value is accepted. The measure of an environment's memory is pinned (2 MB kept,
+    700 B per step, 1 MB of scratch): tracemalloc's measure varies from one process state
+    to another, the arithmetic on it does not."""
     from sweep_core.envs import crowdnav
+    monkeypatch.setattr(vector, "_memory_of", lambda build: (build(), (2e6, 700.0, 10 ** 6))[1])
     monkeypatch.setattr(vector, "available_memory", lambda: 10 ** 8)  # 100 MB
     monkeypatch.setattr(crowdnav, "available_memory", lambda: 10 ** 12)  # one env's check
     kw = {**KW, "max_steps": 10 ** 6}

@@ -14,8 +14,9 @@ import numpy as np
 
 from sweep_core.io import cdr
 from sweep_core.model.scene import Scene
-from sweep_core.numerics.robots.fleet import Fleet, RobotState
+from sweep_core.numerics.robots.fleet import Fleet
 from sweep_core.numerics.robots.scan import Scan
+from sweep_core.numerics.robots.state import RobotState
 
 #: float32 fields of ``/NAME/contacts``, in order
 CONTACT_FIELDS = ("id", "x", "y", "impulse_x", "impulse_y")

@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -44,7 +43,7 @@ from sweep_core.model import elementary
 from sweep_core.model.gaps import Gaps
 from sweep_core.model.geometry import Geometry
 from sweep_core.model.maps import map_from_spec
-from sweep_core.model.robots import Robot, overlap
+from sweep_core.model.robots import overlap
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise
 from sweep_core.numerics.projection import Projection, project
@@ -55,49 +54,10 @@ from sweep_core.numerics.robots.control import goal_field, observe
 from sweep_core.numerics.robots.planners import controllers_of
 from sweep_core.numerics.robots.reaction import avoidance
 from sweep_core.numerics.robots.refusals import geometry_problem, goal_refusal
-from sweep_core.numerics.robots.scan import Scan, scan
+from sweep_core.numerics.robots.scan import scan
+from sweep_core.numerics.robots.state import Command, RobotState
 from sweep_core.numerics.robots.weighted import project_weighted
 from sweep_core.numerics.schemes import Scheme, StepResult
-
-Command = tuple[float, float, float]
-
-
-@dataclass
-class RobotState:
-    """One robot now: ``pose`` (x, y, yaw) m, rad; ``twist`` (vx, vy, omega) in its own frame
-    over the last step (the applied command, plus the push of the crowd for a robot of finite
-    weight: its reaction / h turned into the robot's frame); ``command`` the command applied in
-    the last step (after clipping); ``held`` the command held for the next steps; ``clipped``
-    commands changed by clipping so far; ``blocked`` steps its prescribed motion was refused so
-    far; ``stopped`` the last step was one; ``contact_ids`` (K,) people touching it in the last
-    step, ``contact_xy`` (K, 2) m their positions, ``contact_impulse`` (K, 2) m/s (module
-    docstring); ``scan`` the latest scan or None."""
-
-    robot: Robot
-    pose: tuple[float, float, float]
-    twist: Command = (0.0, 0.0, 0.0)
-    command: Command = (0.0, 0.0, 0.0)
-    held: Command = (0.0, 0.0, 0.0)
-    raw: bool = False
-    clipped: int = 0
-    blocked: int = 0
-    stopped: bool = False
-    contact_ids: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
-    contact_xy: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
-    contact_impulse: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))
-    scan: Scan | None = None
-
-    def copy(self) -> RobotState:
-        """A shallow copy (what ``dataclasses.replace(self)`` gives, without its checks)."""
-        new = object.__new__(RobotState)
-        new.__dict__.update(self.__dict__)
-        return new
-
-    @property
-    def goal_reached(self) -> bool:
-        g = self.robot.goal
-        return g is not None and math.hypot(self.pose[0] - g[0],
-                                            self.pose[1] - g[1]) <= self.robot.goal_radius
 
 
 class Fleet:
