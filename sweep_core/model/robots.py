@@ -45,19 +45,20 @@ MAX_BEAMS = 20_000
 #: yaw + omega h / 2, within pi + 500 rad, where one ulp is 1.1e-13 rad; a fast wheeled robot
 #: turns at about 10 rad/s. At 1e308 rad/s the yaw overflowed and the arc's sine failed.
 MAX_ANGULAR_SPEED = 1e3
-#: smallest time step (s) a run takes (io/limits.py DT_MIN, which model may not import)
-_DT_MIN = 1e-5
 #: largest accelerations (m/s^2, rad/s^2): a change of the speed bound within the smallest
-#: time step; any larger limit clips nothing more
-MAX_ACCELERATION = checks.MAX_SPEED / _DT_MIN
-MAX_ANGULAR_ACCELERATION = MAX_ANGULAR_SPEED / _DT_MIN
+#: time step, 1e-5 s (io/limits.py DT_MIN, which model may not import): MAX_SPEED / 1e-5 and
+#: MAX_ANGULAR_SPEED / 1e-5; any larger limit clips nothing more. Written out (a quotient may
+#: round below the documented value and refuse it).
+MAX_ACCELERATION = 1e9
+MAX_ANGULAR_ACCELERATION = 1e8
 #: finite weights of a robot in the projection's metric: its column of the rows is scaled by
 #: 1 / sqrt(w), so w in [1e-6, 1e6] keeps those scales within 1e3 of the people's 1 (at
 #: w = 1e-16 the scale 1e8 made a feasible push fail); beyond, inf (prescribed) or 1 serve
 WEIGHT_RANGE = (1e-6, 1e6)
 #: scan rates (Hz): LaserScan's float32 scan_time 1 / rate and the steps between scans
 #: round(1 / (rate dt)) stay representable; above 1 / DT_MIN a scan is taken every step anyway
-SCAN_RATE_RANGE = (1e-3, 1.0 / _DT_MIN)
+#: (written out, so that the documented 100000 Hz is the bound to the last bit)
+SCAN_RATE_RANGE = (1e-3, 1e5)
 _KEYS = {"name", "radius", "pose", "kinematics", "weight", "goal", "goal_radius", "controller",
          "scan", "enabled"}
 _KIN_KEYS = {"type", "max_speed", "max_angular_speed", "max_acceleration",
@@ -160,6 +161,16 @@ def _bounded(value: float, field: str, high: float, unit: str, why: str) -> floa
     return value
 
 
+def _rounded_up(x: float, digits: int = 4) -> str:
+    """``x`` > 0 written with ``digits`` significant digits, rounded up: the text's value is
+    never below x (a bound that a user can copy and that is then accepted)."""
+    text = f"{x:.{digits}g}"
+    if float(text) < x:
+        exponent = math.floor(math.log10(x)) - digits + 1
+        text = f"{float(text) + 10.0 ** exponent:.{digits}g}"
+    return text
+
+
 def _scan(value: Any, field: str) -> ScanSpec:
     d = checks.mapping(value, field, allowed=_SCAN_KEYS)
     r0 = checks.length(d.get("range_min", 0.05), f"{field}.range_min", nonnegative=True)
@@ -174,12 +185,12 @@ def _scan(value: Any, field: str) -> ScanSpec:
                          "interval of at most one turn within [-2 pi, 2 pi]",
                          f"give {field}.angle_min <= angle_max, at most 2 pi apart")
     inc = checks.number(d.get("increment", math.pi / 180), f"{field}.increment", positive=True)
-    least = (a1 - a0) / (MAX_BEAMS - 1)
+    least = _rounded_up((a1 - a0) / (MAX_BEAMS - 1))
     if (a1 - a0) / inc > MAX_BEAMS or inc > 2 * math.pi:
-        raise SceneError(f"{field}.increment", f"{show(inc)} rad is outside [{least:.3g}, "
+        raise SceneError(f"{field}.increment", f"{show(inc)} rad is outside [{least}, "
                          f"2 pi] rad: more than {MAX_BEAMS} beams over [{show(a0)}, {show(a1)}] "
                          "rad, or more than a turn between beams",
-                         f"set {field}.increment to at least {least:.3g} rad and at most 2 pi")
+                         f"set {field}.increment to at least {least} rad and at most 2 pi")
     rate = checks.number(d.get("rate", 10.0), f"{field}.rate", positive=True)
     lo, hi = SCAN_RATE_RANGE
     if not lo <= rate <= hi:
@@ -194,8 +205,7 @@ def _scan(value: Any, field: str) -> ScanSpec:
     spec = ScanSpec(r0, r1, a0, a1, inc, rate, noise)
     if spec.beams > MAX_BEAMS:
         raise SceneError(f"{field}.increment", f"{show(inc)} rad gives {spec.beams} beams, more "
-                         f"than {MAX_BEAMS}", f"set {field}.increment to at least "
-                         f"{(a1 - a0) / (MAX_BEAMS - 1):.3g} rad")
+                         f"than {MAX_BEAMS}", f"set {field}.increment to at least {least} rad")
     return spec
 
 
