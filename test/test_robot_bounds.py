@@ -49,3 +49,31 @@ def test_refused_increment_prints_a_least_increment_that_is_accepted() -> None:
     assert least, text
     scene = Scene.from_dict(_with({**full, "scan.increment": float(least.group(1))}))
     assert scene.robots[0].scan is not None and scene.robots[0].scan.beams <= 20_000
+
+
+@pytest.mark.parametrize("horizon", [1e155, 1e300, 100.5])
+def test_too_long_reaction_horizon_is_refused(horizon: float) -> None:
+    data = copy.deepcopy(small_scene())
+    data["crowd_reaction"] = {"kind": "avoid", "horizon": horizon}
+    with pytest.raises(SceneError) as err:
+        Scene.from_dict(data)
+    text = str(err.value)
+    assert err.value.field == "crowd_reaction.horizon" and "\n" not in text, text
+    assert "at most 100 s" in text, text
+
+
+@pytest.mark.parametrize("key, value", [("horizon", 100.0), ("radius", 1e4),
+                                        ("strength", 1e4)])
+def test_reaction_bounds_are_accepted(key: str, value: float) -> None:
+    data = copy.deepcopy(small_scene())
+    data["crowd_reaction"] = {"kind": "avoid", key: value}
+    Scene.from_dict(data)
+
+
+@pytest.mark.parametrize("key, value", [("radius", 1e300), ("strength", 1e300)])
+def test_reaction_radius_and_strength_are_bounded(key: str, value: float) -> None:
+    data = copy.deepcopy(small_scene())
+    data["crowd_reaction"] = {"kind": "avoid", key: value}
+    with pytest.raises(SceneError) as err:
+        Scene.from_dict(data)
+    assert err.value.field == f"crowd_reaction.{key}", str(err.value)

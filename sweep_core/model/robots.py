@@ -59,6 +59,11 @@ WEIGHT_RANGE = (1e-6, 1e6)
 #: round(1 / (rate dt)) stay representable; above 1 / DT_MIN a scan is taken every step anyway
 #: (written out, so that the documented 100000 Hz is the bound to the last bit)
 SCAN_RATE_RANGE = (1e-3, 1e5)
+#: largest ``crowd_reaction.horizon`` (s): a robot at the largest speed (checks.MAX_SPEED,
+#: 1e4 m/s) reaches at most the agents' position bound (checks.POSITION_BOUND, 1e6 m) along
+#: the segment of its horizon; people anticipate a few seconds. Beyond 1.3e154 s the
+#: segment's squared length overflowed and the reaction acted as horizon 0.
+MAX_REACTION_HORIZON = 100.0
 _KEYS = {"name", "radius", "pose", "kinematics", "weight", "goal", "goal_radius", "controller",
          "scan", "enabled"}
 _KIN_KEYS = {"type", "max_speed", "max_angular_speed", "max_acceleration",
@@ -367,7 +372,10 @@ def reaction_from_spec(value: Any) -> tuple[CrowdReaction, dict]:
     reaction = CrowdReaction(
         kind,
         checks.length(d.get("radius", 2.0), "crowd_reaction.radius", positive=True),
-        checks.number(d.get("horizon", 1.0), "crowd_reaction.horizon", nonnegative=True),
+        _bounded(checks.number(d.get("horizon", 1.0), "crowd_reaction.horizon",
+                               nonnegative=True), "crowd_reaction.horizon",
+                 MAX_REACTION_HORIZON, "s", "over it a robot at the largest speed, 1e4 m/s, "
+                 "would pass the position bound 1e6 m; people anticipate a few seconds"),
         checks.speed(d.get("strength", 0.8), "crowd_reaction.strength"))  # m/s
     return reaction, {"kind": kind, "radius": reaction.radius, "horizon": reaction.horizon,
                       "strength": reaction.strength}
