@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import copy
 import re
+from pathlib import Path
 
 import pytest
 from robot_scenes import small_scene
 
 from sweep_core import Scene
+from sweep_core.cli import main
 from sweep_core.errors import SceneError
+from sweep_core.model.yaml_files import dump_yaml
 
 
 def _with(change: dict) -> dict:
@@ -77,3 +80,35 @@ def test_reaction_radius_and_strength_are_bounded(key: str, value: float) -> Non
     with pytest.raises(SceneError) as err:
         Scene.from_dict(data)
     assert err.value.field == f"crowd_reaction.{key}", str(err.value)
+
+
+def _tiny_robot_scene(radius: float, controller: str = "orca") -> dict:
+    """A corridor 6 m wide and a goal-driven robot of the radius."""
+    return {
+        "name": "tiny_robot",
+        "agents": {"positions": [[5.0, 1.0]], "radius": 0.25},
+        "drift": {"kind": "goal", "goal": [-1.0, 1.5], "speed": 0.8},
+        "walls": [{"kind": "segment", "a": [-2.0, 0.0], "b": [14.0, 0.0]},
+                  {"kind": "segment", "a": [-2.0, 6.0], "b": [14.0, 6.0]}],
+        "robots": [{"name": "bot", "radius": radius, "pose": [0.5, 3.0, 0.0],
+                    "kinematics": {"type": "diff_drive", "max_speed": 0.5},
+                    "goal": [11.0, 3.0], "controller": controller}],
+    }
+
+
+def test_too_small_robot_for_its_controller_names_the_radius(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(dump_yaml(_tiny_robot_scene(0.01)))
+    args = ["run", str(scene), "--t-end", "0.05", "--dt", "0.01", "--quiet",
+            "--out", str(tmp_path / "out.mcap"), "--overwrite"]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("sweep: error: robots[0].radius: 0.01 m") and "\n" not in err, err
+    assert "goal." not in err and "(fix: " in err, err
+    least = re.search(r"radius to at least ([0-9.e+-]+) m", err)
+    assert least, err
+    scene.write_text(dump_yaml(_tiny_robot_scene(float(least.group(1)))))
+    assert main(args) == 0, capsys.readouterr().err
+    scene.write_text(dump_yaml(_tiny_robot_scene(0.01, "none")))
+    assert main(args) == 0, capsys.readouterr().err

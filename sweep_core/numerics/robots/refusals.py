@@ -3,6 +3,7 @@
 (``geometry_problem``, for ``Simulator.set_scene`` and the node's maps)."""
 from __future__ import annotations
 
+import math
 import re
 from typing import Any
 
@@ -15,6 +16,9 @@ from sweep_core.model.robots import overlap
 from sweep_core.model.scene import Scene
 
 _GOAL_FIELD = re.compile(r"robots\[(\d+)\]\.goal(\.[a-z_]+)?")
+#: the clearance the goal field keeps from walls beyond the robot's radius (m): its
+#: wall_buffer is radius + _MARGIN (control.goal_field)
+_MARGIN = 0.1
 
 
 def goal_refusal(scene: Scene, err: SceneError) -> SceneError:
@@ -30,13 +34,20 @@ def goal_refusal(scene: Scene, err: SceneError) -> SceneError:
     names = [r.get("name") for r in scene.spec.get("robots") or []]
     k = names.index(robot.name) if robot.name in names else int(m.group(1))
     field = f"robots[{k}]"
-    problem = re.sub(r"\bagents? \d+", f"robot {robot.name}", err.problem)
-    problem = problem.replace("wall_buffer", "the clearance")
     key = m.group(2) or ""
-    if key == ".cell":
-        fix = (f"keep the scene's walls closer together, or set {field}.controller: none and "
-               "command the robot yourself")
-    elif key == ".wall_buffer":
+    if key == ".cell":  # radius + _MARGIN below the grid's least wall_buffer
+        least = buffer_cells(NEIGHBOURS) * CELL - _MARGIN
+        fix_radius = math.ceil(least * 1e4) / 1e4
+        return SceneError(f"{field}.radius", f"{show(robot.radius)} m is too small for robot "
+                          f"{robot.name}'s controller {robot.controller}: its plan keeps the "
+                          f"radius + {_MARGIN:g} m from walls on a {CELL:g} m grid, which needs "
+                          f"at least {least + _MARGIN:.4g} m so that no grid step crosses a thin "
+                          "wall unseen",
+                          f"set {field}.radius to at least {fix_radius:g} m, or set "
+                          f"{field}.controller: none and command the robot yourself")
+    problem = re.sub(r"\bagents? \d+", f"robot {robot.name}", err.problem)
+    problem = re.sub(r"(\brobots\[\d+\]\.goal\.)?wall_buffer", "the clearance", problem)
+    if key == ".wall_buffer":
         fix = (f"give robot {robot.name} more room, or a smaller {field}.radius")
     else:
         fix = (f"move {field}.goal into free space that robot {robot.name} can reach from "
