@@ -102,20 +102,35 @@ def _check(args: argparse.Namespace) -> list[Run]:
         raise SceneError("--seeds", f"{seeds} is more than the limit {MAX_SEEDS}",
                          f"--seeds {MAX_SEEDS} or fewer")
     options.count(args.workers, "--workers", example="2")
+    options.count(args.seed, "--seed", low=0, example="0")
     dt = limits.check_dt(args.dt, "--dt")
     t_end = None
     if args.t_end is not None:
         t_end = options.seconds(args.t_end, "--t-end", "30")
         limits.check_run_size(1, dt, t_end, 1)
+    for option, names in (("--scenes", args.scenes), ("--controllers", args.controllers)):
+        twice = next((n for k, n in enumerate(names) if n in names[:k]), None)
+        if twice is not None:
+            raise SceneError(option, f"names {show(twice)} twice: its runs would be made and "
+                             "counted twice", f"name each {option[2:-1]} once")
     bundled = {s.name for s in bundled_scenes()}
     for name in args.scenes:
         if name not in bundled and not _is_file(name):
             raise SceneError("--scenes", f"{show(name)} is neither a bundled scene nor a "
                              "scene file", f"use bundled robot scenes (e.g. --scenes "
                              f"{' '.join(SCENES)}) or the paths of scene YAML files")
-        if not load_scene(name).robots:  # a file's own errors name its fields
+        scene = load_scene(name)  # a file's own errors name its fields
+        if not scene.robots:
             raise SceneError("--scenes", f"{show(name)} has no robot",
                              f"use scenes with a robot, e.g. --scenes {' '.join(SCENES)}")
+        # every robot gets the benchmarked controller, which drives it to its goal
+        aimless = next((k for k, r in enumerate(scene.spec.get("robots") or [])
+                        if r.get("goal") is None), None)
+        if aimless is not None:
+            raise SceneError("--scenes", f"robots[{aimless}] of {show(name)} has no goal, and "
+                             "the benchmarked controllers drive every robot to its goal",
+                             f"give robots[{aimless}] of {show(name)} a goal, or use scenes "
+                             f"whose robots have goals, e.g. --scenes {' '.join(SCENES)}")
     for c in args.controllers:
         if c not in BENCH_CONTROLLERS:
             raise SceneError("--controllers", f"unknown controller {show(c)}",

@@ -105,6 +105,7 @@ def _run(args: argparse.Namespace) -> int:
     solver = SolverOptions.from_values(args.eps_abs, args.max_iter, exact_vars=args.exact_vars,
                                        tol=args.tol, max_rounds=args.max_rounds,
                                        method=args.method, backend=args.backend)
+    checks.integer(args.seed, "--seed", fix="e.g. --seed 0")
     sim = Simulator(scene, dt=dt, seed=args.seed, scheme=args.scheme, solver=solver)
     scene.check_horizon(t_end)
     checks.number(args.marker_rate, "--marker-rate", positive=True)

@@ -108,17 +108,21 @@ def check_run_size(n_agents: int, dt: float, t_end: float, record_every: int = 1
     if force:
         return size
     if steps > MAX_STEPS:
+        shorter = f"a shorter --t-end (<= {MAX_STEPS * dt:g} s)"
+        if t_end / MAX_STEPS <= DT_MAX:
+            fix = f"a larger --dt (>= {t_end / MAX_STEPS:g} s), {shorter}, or --force"
+        else:  # no time step takes it within the limit
+            fix = (f"{shorter}; at most {MAX_STEPS * DT_MAX:g} s, at the largest --dt "
+                   f"{DT_MAX:g} s")
         raise SceneError("--t-end/--dt", f"{t_end:g} s at dt = {dt:g} s is {steps:g} steps, "
-                         f"more than the limit {MAX_STEPS:g}",
-                         f"a larger --dt (>= {t_end / MAX_STEPS:g} s), a shorter --t-end "
-                         f"(<= {MAX_STEPS * dt:g} s), or --force")
+                         f"more than the limit {MAX_STEPS:g}", fix)
     if path_dt is not None:
         fine = int(round(t_end / path_dt))
         if fine > MAX_STEPS:
             raise SceneError("--path-dt", f"{path_dt:g} s over {t_end:g} s draws {fine:g} fine "
                              f"increments, more than the limit {MAX_STEPS:g}",
-                             f"a larger --path-dt (>= {t_end / MAX_STEPS:g} s), a shorter "
-                             "--t-end, or --force")
+                             f"a larger --path-dt (>= {t_end / MAX_STEPS:g} s, at most --dt), "
+                             "a shorter --t-end, or --force")
     if size.recording_bytes > MAX_RECORDING_BYTES:
         room = MAX_RECORDING_BYTES * frames // size.recording_bytes - 1  # frames after 0
         fix = "fewer agents or --force"

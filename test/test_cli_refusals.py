@@ -1,0 +1,61 @@
+"""Options of `sweep run` and `sweep bench social` refused in one line naming the option,
+before any run starts, with a fix that can be followed."""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+from robot_scenes import small_scene
+
+from sweep_core.cli import main
+from sweep_core.model.yaml_files import dump_yaml
+
+
+def _refused(capsys: pytest.CaptureFixture[str], args: list[str]) -> str:
+    rc = main(args)
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert rc == 2 and err.startswith("sweep: error: ") and "\n" not in err, err
+    assert "runs on" not in captured.out, captured.out
+    return err
+
+
+@pytest.mark.parametrize("extra, option, words", [
+    (["--scenes", "crowdnav", "crowdnav"], "--scenes", ["'crowdnav' twice", "once"]),
+    (["--controllers", "orca", "orca"], "--controllers", ["'orca' twice", "once"]),
+    (["--seed", "-5"], "--seed", [">= 0", "-5", "--seed 0"]),
+])
+def test_bench_social_options_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                      extra: list[str], option: str, words: list[str]) -> None:
+    err = _refused(capsys, ["bench", "social", "--seeds", "2", "--t-end", "0.3",
+                            "--out", str(tmp_path / "out"), *extra])
+    assert err.startswith(f"sweep: error: {option}: "), err
+    for word in words:
+        assert word in err, err
+
+
+def test_bench_social_refuses_a_scene_whose_robot_has_no_goal(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    data = copy.deepcopy(small_scene())
+    del data["robots"][0]["goal"]
+    scene = tmp_path / "nogoal.yaml"
+    scene.write_text(dump_yaml(data))
+    err = _refused(capsys, ["bench", "social", "--scenes", str(scene), "--seeds", "1",
+                            "--t-end", "0.1", "--out", str(tmp_path / "out")])
+    assert err.startswith("sweep: error: --scenes: robots[0] of "), err
+    assert "no goal" in err and "controller: none" not in err, err
+
+
+def test_sweep_run_refuses_a_negative_seed(capsys: pytest.CaptureFixture[str],
+                                           tmp_path: Path) -> None:
+    err = _refused(capsys, ["run", "robot_crowd", "--t-end", "0.1", "--seed", "-5",
+                            "--out", str(tmp_path / "r.mcap")])
+    assert err.startswith("sweep: error: --seed: ") and "--seed 0" in err, err
+
+
+def test_sweep_run_too_long_suggests_a_t_end_that_fits(capsys: pytest.CaptureFixture[str],
+                                                        tmp_path: Path) -> None:
+    err = _refused(capsys, ["run", "robot_crowd", "--t-end", "1e300",
+                            "--out", str(tmp_path / "r.mcap")])
+    assert "--t-end" in err and "larger --dt" not in err and "1e+06 s" in err, err
