@@ -59,3 +59,17 @@ def test_sweep_run_too_long_suggests_a_t_end_that_fits(capsys: pytest.CaptureFix
     err = _refused(capsys, ["run", "robot_crowd", "--t-end", "1e300",
                             "--out", str(tmp_path / "r.mcap")])
     assert "--t-end" in err and "larger --dt" not in err and "1e+06 s" in err, err
+
+
+@pytest.mark.parametrize("rate", ["1e-300", "1e-9", "-1"])
+def test_live_rate_refused_before_serving(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                          rate: str) -> None:
+    out = tmp_path / "r.mcap"
+    err = _refused(capsys, ["run", "crowdnav", "--t-end", "0.05", "--out", str(out), "--quiet",
+                            "--live", "0", "--live-rate", rate])
+    assert err.startswith("sweep: error: --live-rate: ") and "0.001" in err, err
+    assert not out.exists()
+    assert main(["run", "crowdnav", "--t-end", "0.05", "--out", str(out), "--quiet"]) == 0
+    capsys.readouterr()
+    err = _refused(capsys, ["replay", str(out), "--quiet", "--live", "0", "--live-rate", rate])
+    assert err.startswith("sweep: error: --live-rate: ") and "0.001" in err, err

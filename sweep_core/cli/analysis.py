@@ -133,7 +133,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "port), then check it")
     p.add_argument("--live-rate", type=float, default=1.0, metavar="FACTOR",
                    help="with --live: the recording's time runs at FACTOR x real time "
-                        "(default 1; 0: as fast as it is read)")
+                        "(default 1; 0: as fast as it is read; else >= 0.001)")
     p.set_defaults(func=_replay)
 
     p = sub.add_parser("compare", help=summary("compare"),

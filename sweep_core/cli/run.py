@@ -109,7 +109,8 @@ def _run(args: argparse.Namespace) -> int:
     sim = Simulator(scene, dt=dt, seed=args.seed, scheme=args.scheme, solver=solver)
     scene.check_horizon(t_end)
     checks.number(args.marker_rate, "--marker-rate", positive=True)
-    checks.number(args.live_rate, "--live-rate", nonnegative=True)
+    from sweep_core.io.live import check_rate
+    check_rate(args.live_rate)
     if args.path_dt:
         paths.substeps(dt, args.path_dt)  # refused before the recording is created
     sources = scene.flows.sources if scene.flows is not None else ()
@@ -184,12 +185,12 @@ def start_live(args: argparse.Namespace) -> LiveView | None:
     """The live view of ``--live`` (None without), its address said in one line."""
     if args.live is None:
         return None
-    from sweep_core.io.live import LiveError, LiveView
+    from sweep_core.io.live import LiveError, LiveView, check_rate
     port = checks.integer(args.live, "--live", fix="a port in [0, 65535], 0 for any free one")
     if port > 65535:
         raise LiveError(f"--live: got {port}, a port is at most 65535 (fix: e.g. --live 8765, "
                         "or 0 for any free port)")
-    live = LiveView(port, checks.number(args.live_rate, "--live-rate", nonnegative=True))
+    live = LiveView(port, check_rate(args.live_rate))
     rate = live.rate
     print(f"sweep: live view on ws://127.0.0.1:{live.port} (Foxglove: Open connection, "
           f"Foxglove WebSocket), {'as fast as it runs' if rate == 0 else f'{rate:g} x real time'}",
@@ -332,6 +333,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                              "127.0.0.1:PORT (default 8765; 0: any free port) while recording")
     parser.add_argument("--live-rate", type=float, default=1.0, metavar="FACTOR",
                         help="with --live: simulated time runs at FACTOR x real time "
-                             "(default 1; 0: as fast as the run goes)")
+                             "(default 1; 0: as fast as the run goes; else >= 0.001)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=_run)

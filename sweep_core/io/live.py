@@ -21,15 +21,30 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from sweep_core.errors import SweepError
+from sweep_core import checks
+from sweep_core.errors import SceneError, SweepError, show
 from sweep_core.io.cdr import SCHEMAS
 
 DEFAULT_PORT = 8765
 SUBPROTOCOL = "foxglove.sdk.v1"
+#: slowest pace (x real time) of a live view: a simulated second then takes 1000 s (about 17
+#: minutes); slower, a view barely moves (at 1e-300 a wait of 1e300 s was asked of the clock)
+MIN_RATE = 1e-3
 
 
 class LiveError(SweepError):
     """The live view cannot start (the port is in use, foxglove-sdk is missing)."""
+
+
+def check_rate(value: object, field: str = "--live-rate") -> float:
+    """A live view's pace: 0 (as fast as it goes) or a finite factor >= MIN_RATE."""
+    rate = checks.number(value, field, nonnegative=True,
+                         fix=f"set {field} to 0 (as fast as it goes) or at least {MIN_RATE:g}")
+    if 0 < rate < MIN_RATE:
+        raise SceneError(field, f"{show(rate)} x real time is below {MIN_RATE:g}, where a "
+                         f"simulated second takes {1 / MIN_RATE:g} s of real time",
+                         f"set {field} to at least {MIN_RATE:g}, or 0 for as fast as it goes")
+    return rate
 
 
 def _say(line: str) -> None:
