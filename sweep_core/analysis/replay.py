@@ -99,6 +99,9 @@ class ReplayResult:
     skipped_messages: int = 0
     #: one line per skipped chunk or message and per gap
     problems: list[str] = field(default_factory=list)
+    #: why the comparison stopped before the end (robots' commands lost with an unreadable
+    #: chunk: the steps after them cannot be replayed), or None
+    stopped: str | None = None
 
     def to_dict(self) -> dict:
         d = dict(self.__dict__)
@@ -157,7 +160,10 @@ class _Replayer:
         self.noise_sigma = self.meta.parameters.get("noise_sigma", -1.0)
         self.map_index: int | None = None  # the recorded map in effect (None: the scene's)
         self.maps_applied = 0
-        self.robot_commands = recorded_commands(meta)  # robots' /NAME/cmd_vel, if any
+        lost: list[int] = []
+        self.robot_commands = recorded_commands(meta, lost)  # robots' /NAME/cmd_vel, if any
+        #: log time (ns) from which an unreadable chunk may have held robots' commands
+        self.commands_lost_from: int | None = lost[0] if lost else None
         drive_by_recording(self.sim)
         self._start(0)
 
@@ -264,6 +270,7 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
     notes = version_notes(meta) + platform_notes(meta)
     compared, last_step, last_t = 0, 0, 0.0
     div: Divergence | None = None
+    stopped: str | None = None
     bar = progress_bar(meta.frames or None, "frame", progress)
     with bar:
         for fr in reader:
@@ -271,6 +278,12 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
             seg = meta.segment_of(fr.log_ns)
             step = meta.step_of(fr.stamp_ns)
             t = step * meta.dt
+            lost = rep.commands_lost_from
+            if div is None and lost is not None and fr.log_ns >= lost:
+                stopped = (f"the robots' commands recorded after step {last_step} (t = "
+                           f"{last_t:.6g} s) were lost with an unreadable chunk, so the later "
+                           "steps cannot be replayed")
+                break
             finder.add(fr, seg, step)
             try:
                 rep.advance_to(seg, step)
@@ -315,13 +328,14 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
         notes.append(f"{rep.retries} infeasible step attempts were retried, as the node does "
                      "when resumed")
     return ReplayResult(
-        path=meta.path, identical=div is None, frames_compared=compared,
+        path=meta.path, identical=div is None and stopped is None, frames_compared=compared,
         steps_simulated=rep.simulated, last_step=last_step, last_t_s=last_t,
         segments=len(meta.resets) + 1, commands_applied=rep.applied,
         truncated=bool(reader.truncated), read_until=reader.error if reader.truncated else None,
         divergence=div, notes=notes, maps_applied=rep.maps_applied,
         missing_messages=finder.missing, gaps=(finder.to_dict() or {}).get("gaps", []),
-        skipped_messages=reader.bad, problems=reader.problems + finder.lines(meta.path))
+        skipped_messages=reader.bad, problems=reader.problems + finder.lines(meta.path),
+        stopped=stopped)
 
 
 def format_replay(res: ReplayResult) -> str:
@@ -336,7 +350,9 @@ def format_replay(res: ReplayResult) -> str:
                  + (f", {res.maps_applied} map(s)" if res.maps_applied else ""))
     d = res.divergence
     unread = res.missing_messages + res.skipped_messages
-    if d is None and unread:
+    if res.stopped is not None:
+        lines.append(f"result             NOT COMPARED to the end: {res.stopped}")
+    elif d is None and unread:
         lines.append(f"result             IDENTICAL on the {res.frames_compared} frames read; "
                      f"{unread} recorded states were not compared ({res.missing_messages} "
                      f"missing from the file, {res.skipped_messages} unreadable)")

@@ -22,29 +22,35 @@ Commands = dict[tuple[int, int], dict[str, tuple[float, float, float]]]
 Odometry = dict[tuple[int, int], dict[str, tuple[float, float, float, float]]]
 
 
-def _robot_messages(meta: RunMeta, kind: str, decode: Callable[[bytes], Any]
+def _robot_messages(meta: RunMeta, kind: str, decode: Callable[[bytes], Any],
+                    lost: list[int] | None = None
                     ) -> Iterator[tuple[tuple[int, int], str, Any]]:
     """((segment, step), robot name, decoded message) of every recorded ``/NAME/<kind>`` in
     file order (none for a scene without robots); a message that cannot be decoded is a
-    RecordingError naming where it is."""
+    RecordingError naming where it is. ``lost`` gets the log time (ns) from which a skipped
+    chunk may have held such messages, if one was skipped."""
     scene = meta.scene
     if scene is None or not scene.robots:
         return
     topics = {topic(r.name, kind): r.name for r in scene.robots}
-    for msg in read_recording(meta.path, topics):
+    reader = read_recording(meta.path, topics)
+    for msg in reader:
         try:
             decoded = decode(msg.data)
         except ValueError as err:
             raise RecordingError(f"{meta.path}: {msg.where()}: {err}") from None
         key = (meta.segment_of(msg.log_time_ns), meta.step_of(decoded.stamp_ns))
         yield key, topics[msg.topic], decoded
+    if lost is not None and reader.lost_from_ns is not None:
+        lost.append(reader.lost_from_ns)
 
 
-def recorded_commands(meta: RunMeta) -> Commands:
+def recorded_commands(meta: RunMeta, lost: list[int] | None = None) -> Commands:
     """(segment, step) -> {robot name: (vx, vy, omega)} of every recorded ``/NAME/cmd_vel``;
-    empty for a scene without robots."""
+    empty for a scene without robots. ``lost`` gets the log time (ns) from which an
+    unreadable chunk may have held commands, if one was skipped."""
     out: Commands = {}
-    for key, name, twist in _robot_messages(meta, "cmd_vel", cdr.decode_twist_stamped):
+    for key, name, twist in _robot_messages(meta, "cmd_vel", cdr.decode_twist_stamped, lost):
         out.setdefault(key, {})[name] = (
             float(twist.linear[0]), float(twist.linear[1]), float(twist.angular[2]))
     return out

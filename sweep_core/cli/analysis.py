@@ -65,6 +65,10 @@ def _replay(args: argparse.Namespace) -> int:
     print(report.dumps(res.to_dict()) if args.json else replay.format_replay(res))
     if res.truncated:
         print(hint(args.recording), file=sys.stderr)
+    if res.stopped is not None:
+        print(f"sweep: error: {res.path}: {res.stopped} (fix: replay an undamaged copy of the "
+              "recording)", file=sys.stderr)
+        return 2
     return 0 if res.identical else 1
 
 

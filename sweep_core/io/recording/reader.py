@@ -63,7 +63,9 @@ class RecordingReader:
     After the iteration ends, ``truncated`` tells whether the file was cut short (``None``
     before), ``error`` says where reading stopped, ``problems`` lists the chunks that could
     not be read and were skipped (one line each: where, the time span and why), and
-    ``metadata`` holds the metadata records seen (all of them for a complete file).
+    ``metadata`` holds the metadata records seen (all of them for a complete file) and
+    ``lost_from_ns`` the earliest log time (ns) from which a skipped chunk may have held
+    messages (None: no chunk skipped).
     """
 
     def __init__(self, path: str | os.PathLike[str], topics: Iterable[str] | None = None) -> None:
@@ -75,6 +77,7 @@ class RecordingReader:
         self.error: str | None = None
         self.problems: list[str] = []
         self.metadata: dict[str, dict[str, str]] = {}
+        self.lost_from_ns: int | None = None
         self._counts: dict[str, int] = {}
         self._it = self._generate()
 
@@ -106,17 +109,24 @@ class RecordingReader:
         return RecordedMessage(topic, channel[1], m.log_time, m.publish_time, m.data,
                                m.sequence, index, offset, inner, channel[2])
 
+    def _lost(self, log_ns: int) -> None:
+        if self.lost_from_ns is None or log_ns < self.lost_from_ns:
+            self.lost_from_ns = log_ns
+
     def _chunk(self, chunk: Chunk, offset: int, schemas: dict[int, str],
                channels: dict[int, tuple[str, str, str]]) -> Iterator[RecordedMessage]:
+        seen = None  # log time of the chunk's last message read
         try:
             for inner, r in chunk_records(chunk):
                 if isinstance(r, Message):
+                    seen = r.log_time
                     ch = channels.get(r.channel_id)
                     if ch is not None and (msg := self._message(r, ch, offset, inner)):
                         yield msg
                 else:
                     _declare(r, schemas, channels)
         except ChunkError as err:
+            self._lost(chunk.message_start_time if seen is None else seen)
             span = chunk_span(chunk)
             self.problems.append(f"the chunk at byte {offset}{f' ({span})' if span else ''} "
                                  f"{err}; its messages from there on are skipped")
@@ -141,6 +151,7 @@ class RecordingReader:
                             chunk = read_chunk_at(self._file, ci.chunk_start_offset,
                                                   ci.chunk_length)
                         except ChunkError as err:
+                            self._lost(ci.message_start_time)
                             span = chunk_span(None, ci.message_start_time, ci.message_end_time)
                             self.problems.append(f"{err} ({span}); its messages are skipped")
                             continue
