@@ -1,4 +1,5 @@
 """Small scenes with a robot shared by the robot tests (environment, metrics)."""
+import copy
 
 
 def small_scene(sigma: float = 0.1, holonomic: bool = False) -> dict:
@@ -19,3 +20,16 @@ def small_scene(sigma: float = 0.1, holonomic: bool = False) -> dict:
             "scan": {"range_min": 0.05, "range_max": 5.0, "angle_min": -1.0, "angle_max": 1.0,
                      "increment": 0.25, "rate": 10.0, "noise_std": 0.01}}],
     }
+
+
+def with_robot(change: dict) -> dict:
+    """small_scene() with ``change`` ({dotted key under robots[0]: value}) applied."""
+    data = copy.deepcopy(small_scene())
+    robot = data["robots"][0]
+    for key, value in change.items():
+        *path, last = key.split(".")
+        node = robot
+        for part in path:
+            node = node.setdefault(part, {})
+        node[last] = value
+    return data

@@ -4,34 +4,19 @@
 whose robots' odometry was tampered with (replay must not call it identical)."""
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 
 import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
-from robot_scenes import small_scene
+from robot_scenes import small_scene, with_robot
 
 from sweep_core import Scene
 from sweep_core.cli import main
 from sweep_core.errors import SceneError
 from sweep_core.io import cdr
 from sweep_core.model.yaml_files import dump_yaml
-
-
-def _with(change: dict) -> dict:
-    """small_scene() with ``change`` ({dotted key under robots[0]: value}) applied."""
-    data = copy.deepcopy(small_scene())
-    robot = data["robots"][0]
-    for key, value in change.items():
-        *path, last = key.split(".")
-        node = robot
-        for part in path:
-            node = node.setdefault(part, {})
-        node[last] = value
-    return data
-
 
 #: (change under robots[0], the field named, words of the message); each raised a traceback,
 #: loaded silently, or failed only later in a step on the old code
@@ -58,7 +43,7 @@ CASES = [
 @pytest.mark.parametrize("change, field, words", CASES)
 def test_robot_extremes_refused_at_load(change: dict, field: str, words: list[str]) -> None:
     with pytest.raises(SceneError) as err:
-        Scene.from_dict(_with(change))
+        Scene.from_dict(with_robot(change))
     text = str(err.value)
     assert err.value.field == field and "\n" not in text and "(fix: " in text, text
     for word in words:
@@ -70,7 +55,7 @@ def test_robot_extremes_refused_by_sweep_run(capsys: pytest.CaptureFixture[str],
                                              tmp_path: Path, change: dict, field: str,
                                              words: list[str]) -> None:
     scene = tmp_path / "scene.yaml"
-    scene.write_text(dump_yaml(_with(change)))
+    scene.write_text(dump_yaml(with_robot(change)))
     out = tmp_path / "out.mcap"
     rc = main(["run", str(scene), "--t-end", "0.2", "--dt", "0.05", "--out", str(out),
                "--quiet"])
@@ -98,7 +83,7 @@ def test_env_action_space_is_bounded_and_none_is_refused_by_name() -> None:
 def test_env_with_its_robot_disabled_is_one_line_scene_error() -> None:
     envs = pytest.importorskip("sweep_core.envs")
     with pytest.raises(SceneError) as err:
-        envs.CrowdNavEnv(_with({"enabled": False}))
+        envs.CrowdNavEnv(with_robot({"enabled": False}))
     assert err.value.field == "robots[0].enabled" and "\n" not in str(err.value)
 
 

@@ -7,26 +7,12 @@ import re
 from pathlib import Path
 
 import pytest
-from robot_scenes import small_scene
+from robot_scenes import small_scene, with_robot
 
 from sweep_core import Scene
 from sweep_core.cli import main
 from sweep_core.errors import SceneError
 from sweep_core.model.yaml_files import dump_yaml
-
-
-def _with(change: dict) -> dict:
-    """small_scene() with ``change`` ({dotted key under robots[0]: value}) applied."""
-    data = copy.deepcopy(small_scene())
-    robot = data["robots"][0]
-    for key, value in change.items():
-        *path, last = key.split(".")
-        node = robot
-        for part in path:
-            node = node.setdefault(part, {})
-        node[last] = value
-    return data
-
 
 #: the bounds docs/robots.md gives, each at exactly its value
 DOCUMENTED = [
@@ -39,18 +25,18 @@ DOCUMENTED = [
 
 @pytest.mark.parametrize("change", DOCUMENTED)
 def test_documented_bounds_are_accepted(change: dict) -> None:
-    Scene.from_dict(_with(change))
+    Scene.from_dict(with_robot(change))
 
 
 def test_refused_increment_prints_a_least_increment_that_is_accepted() -> None:
     full = {"scan.angle_min": -3.14159265, "scan.angle_max": 3.14159265}
     with pytest.raises(SceneError) as err:
-        Scene.from_dict(_with({**full, "scan.increment": 0.000314159}))
+        Scene.from_dict(with_robot({**full, "scan.increment": 0.000314159}))
     text = str(err.value)
     assert err.value.field == "robots[0].scan.increment" and "\n" not in text, text
     least = re.search(r"at least ([0-9.e+-]+) rad", text)
     assert least, text
-    scene = Scene.from_dict(_with({**full, "scan.increment": float(least.group(1))}))
+    scene = Scene.from_dict(with_robot({**full, "scan.increment": float(least.group(1))}))
     assert scene.robots[0].scan is not None and scene.robots[0].scan.beams <= 20_000
 
 
