@@ -40,7 +40,7 @@ from sweep_core.envs.crowdnav import (
     check_render_mode,
     refuse_unknown,
 )
-from sweep_core.envs.workers import Workers, step_all
+from sweep_core.envs.workers import Workers, reset_all, step_all
 from sweep_core.errors import SceneError, show
 from sweep_core.model.scene import Scene, load_scene
 
@@ -187,8 +187,7 @@ class CrowdNavVectorEnv(VectorEnv):
         if self.workers is not None:
             results = self.workers.reset(seeds, options, marked)
         else:
-            results = [env.reset(seed=s, options=options) if m else None
-                       for env, s, m in zip(self.envs, seeds, marked)]
+            results = reset_all(self.envs, seeds, options, marked)
         infos: dict[str, Any] = {}
         for i, result in enumerate(results):
             if result is not None:
@@ -199,7 +198,7 @@ class CrowdNavVectorEnv(VectorEnv):
         else:
             self._done[mask] = False
             rows = np.flatnonzero(mask)
-            self._obs = {key: value.copy() for key, value in self._obs.items()}
+            # written in place: the arrays kept are never handed out (copies are returned)
             for key, value in self._obs.items():
                 value[rows] = np.stack([results[i][0][key] for i in rows])
         return {key: value.copy() for key, value in self._obs.items()}, infos

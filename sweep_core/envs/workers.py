@@ -55,6 +55,14 @@ def step_all(envs: list[Any], done: np.ndarray, actions: np.ndarray) -> list[tup
     return out
 
 
+def reset_all(envs: list[Any], seeds: list[int | None], options: dict[str, Any] | None,
+              marked: list[bool]) -> list[tuple | None]:
+    """(obs, info) of each environment ``marked``, reset with its seed; None for the others
+    (left as they are)."""
+    return [env.reset(seed=s, options=options) if m else None
+            for env, s, m in zip(envs, seeds, marked)]
+
+
 def _serve(conn: Connection, scene: Any, count: int, kwargs: dict[str, Any],
            inherited: list[Connection]) -> None:
     """A worker's loop: builds ``count`` environments, then answers the parent's requests
@@ -86,9 +94,7 @@ def _serve(conn: Connection, scene: Any, count: int, kwargs: dict[str, Any],
             return
         try:
             if msg[0] == "reset":
-                seeds, options, marked = msg[1], msg[2], msg[3]
-                answer = [env.reset(seed=s, options=options) if m else None
-                          for env, s, m in zip(envs, seeds, marked)]
+                answer = reset_all(envs, msg[1], msg[2], msg[3])
             else:
                 answer = step_all(envs, msg[1], msg[2])
             conn.send(("ok", answer))
@@ -140,8 +146,7 @@ class Workers:
 
     def reset(self, seeds: list[int | None], options: dict[str, Any] | None,
               marked: list[bool]) -> list[tuple | None]:
-        """(obs, info) of each environment ``marked``, reset with its seed; None for the
-        others (left as they are)."""
+        """:func:`reset_all` over the K environments, each share in its worker."""
         for w, share in enumerate(self.shares):
             self._send(w, ("reset", [seeds[i] for i in share], options,
                            [marked[i] for i in share]))
