@@ -389,3 +389,30 @@ def test_a_closed_vector_environment_refuses_steps_and_resets_alike(workers: int
         assert "\n" not in text and "the vector environment is closed" in text
         assert "make a new one" in text
     envs.close()  # a second close is harmless
+
+
+def combined_by_add_info(env: CrowdNavVectorEnv, infos: list[dict]) -> dict:
+    out: dict = {}
+    for i, info in enumerate(infos):
+        out = env._add_info(out, info, i)
+    return out
+
+
+def test_infos_combine_as_gymnasiums_add_info() -> None:
+    env = CrowdNavVectorEnv(num_envs=3, **KW)
+    try:
+        plain = [{"t_s": 0.1 * i, "clearance_m": [np.inf, 0.25, np.nan][i], "contacts": i,
+                  "done": i == 1} for i in range(3)]
+        ended = [dict(plain[0]), {**plain[1], "metrics": {"success": True, "time_s": 1.5}},
+                 dict(plain[2])]
+        mixed = [dict(plain[0]), {**plain[1], "contacts": 2.0}, dict(plain[2])]  # int, float
+        fewer = [dict(plain[0]), {"t_s": 0.2}, dict(plain[2])]
+        reordered = [dict(plain[0]), dict(reversed(list(plain[1].items()))), dict(plain[2])]
+        numpy_scalar = [dict(plain[0]), {**plain[1], "t_s": np.float32(0.5)}, dict(plain[2])]
+        for infos in (plain, ended, mixed, fewer, reordered, numpy_scalar):
+            ours, theirs = env._combine(infos), combined_by_add_info(env, infos)
+            assert list(ours) == list(theirs)
+            assert same(ours, theirs)
+            assert all(ours[k].dtype == theirs[k].dtype for k in ours if hasattr(ours[k], "dtype"))
+    finally:
+        env.close()

@@ -44,6 +44,9 @@ from sweep_core.envs.workers import Workers, reset_all, step_all
 from sweep_core.errors import SceneError, show
 from sweep_core.model.scene import Scene, load_scene
 
+#: the info values combined in one pass per key (:meth:`CrowdNavVectorEnv._combine`)
+_SCALARS = (int, float, bool)
+
 #: most environments of one vector environment, whatever the memory
 MAX_ENVS = 100_000
 
@@ -188,16 +191,16 @@ class CrowdNavVectorEnv(VectorEnv):
             results = self.workers.reset(seeds, options, marked)
         else:
             results = reset_all(self.envs, seeds, options, marked)
-        infos: dict[str, Any] = {}
-        for i, result in enumerate(results):
-            if result is not None:
-                infos = self._add_info(infos, result[1], i)
         if mask is None:
+            infos = self._combine([r[1] for r in results])
             self._done[:] = False
             self._obs = self._stack([r[0] for r in results])
         else:
-            self._done[mask] = False
+            infos = {}
             rows = np.flatnonzero(mask)
+            for i in rows:
+                infos = self._add_info(infos, results[i][1], int(i))
+            self._done[mask] = False
             # written in place: the arrays kept are never handed out (copies are returned)
             for key, value in self._obs.items():
                 value[rows] = np.stack([results[i][0][key] for i in rows])
@@ -233,10 +236,9 @@ class CrowdNavVectorEnv(VectorEnv):
         rewards = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=np.bool_)
         truncated = np.zeros(self.num_envs, dtype=np.bool_)
-        infos: dict[str, Any] = {}
-        for i, (_, reward, term, trunc, info) in enumerate(results):
+        for i, (_, reward, term, trunc, _) in enumerate(results):
             rewards[i], terminated[i], truncated[i] = reward, term, trunc
-            infos = self._add_info(infos, info, i)
+        infos = self._combine([r[4] for r in results])
         self._done = terminated | truncated
         self._obs = self._stack([r[0] for r in results])
         obs = {key: value.copy() for key, value in self._obs.items()}
@@ -306,6 +308,32 @@ class CrowdNavVectorEnv(VectorEnv):
                              f"{show(a[i])}", f"give environment {i} an element of "
                              "env.single_action_space")
         return a
+
+    def _combine(self, infos: list[dict[str, Any]]) -> dict[str, Any]:
+        """The K environments' infos (one each, in order) combined as Gymnasium's
+        ``_add_info`` combines them, environment by environment: each key an array over the
+        environments of its first value's type, ``_key`` the mask of those that have it. When
+        every environment gives the same keys, each a Python int, float or bool of one type
+        across the environments (every step but an episode's end, whose ``metrics`` is a
+        dict), each key's array is built in one pass, with the same dtype, values and order
+        of keys."""
+        keys = list(infos[0])
+        if all(list(info) == keys for info in infos):
+            combined: dict[str, Any] = {}
+            for key in keys:
+                values = [info[key] for info in infos]
+                kinds = set(map(type, values))
+                kind = type(values[0])
+                if len(kinds) > 1 or kind not in _SCALARS:
+                    break
+                combined[key] = np.array(values, dtype=kind)
+                combined[f"_{key}"] = np.ones(self.num_envs, dtype=np.bool_)
+            else:
+                return combined
+        combined = {}
+        for i, info in enumerate(infos):
+            combined = self._add_info(combined, info, i)
+        return combined
 
     def _stack(self, obs: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
         return {key: np.stack([o[key] for o in obs]) for key in obs[0]}
