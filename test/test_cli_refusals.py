@@ -73,3 +73,33 @@ def test_live_rate_refused_before_serving(capsys: pytest.CaptureFixture[str], tm
     capsys.readouterr()
     err = _refused(capsys, ["replay", str(out), "--quiet", "--live", "0", "--live-rate", rate])
     assert err.startswith("sweep: error: --live-rate: ") and "0.001" in err, err
+
+
+def test_bench_social_refuses_more_workers_than_the_machine_holds(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    from sweep_core.bench import social
+
+    def no_pool(max_workers: int) -> None:  # the pool would fork them all at once
+        raise AssertionError(f"a pool of {max_workers} processes was started")
+
+    monkeypatch.setattr(social, "ProcessPoolExecutor", no_pool)
+    err = _refused(capsys, ["bench", "social", "--seeds", "1", "--t-end", "0.1",
+                            "--workers", "100000", "--out", str(tmp_path / "out")])
+    assert err.startswith("sweep: error: --workers: 100000 is more than "), err
+    assert "per core" in err and not (tmp_path / "out").exists()
+
+
+def test_bench_social_starts_no_more_processes_than_runs(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    from sweep_core.bench import social
+
+    def no_pool(max_workers: int) -> None:
+        raise AssertionError(f"a pool of {max_workers} processes was started")
+
+    monkeypatch.setattr(social, "ProcessPoolExecutor", no_pool)
+    assert main(["bench", "social", "--seeds", "1", "--scenes", "crowdnav", "--controllers",
+                 "pursuit", "--t-end", "0.05", "--workers", "8",
+                 "--out", str(tmp_path / "out")]) == 0
+    assert "1 runs on 1 processes" in capsys.readouterr().out

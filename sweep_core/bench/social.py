@@ -27,6 +27,7 @@ from sweep_core.analysis.drawing import pyplot, save_figure
 from sweep_core.bench import options
 from sweep_core.bench.social_runs import RUN_COLUMNS, Run, simulate
 from sweep_core.bench.tables import write_csv
+from sweep_core.ensemble.cluster import WORKER_BYTES, WORKERS_PER_CORE, default_workers
 from sweep_core.errors import SceneError, show
 from sweep_core.io import limits
 from sweep_core.io.outputs import check_folder
@@ -101,7 +102,13 @@ def _check(args: argparse.Namespace) -> list[Run]:
     if seeds > MAX_SEEDS:
         raise SceneError("--seeds", f"{seeds} is more than the limit {MAX_SEEDS}",
                          f"--seeds {MAX_SEEDS} or fewer")
-    options.count(args.workers, "--workers", example="2")
+    workers = options.count(args.workers, "--workers", example="2")
+    most = max(8, WORKERS_PER_CORE * default_workers())
+    if workers > most:  # the pool forks all its processes at once
+        raise SceneError("--workers", f"{workers} is more than {most} processes, "
+                         f"{WORKERS_PER_CORE} per core of the {default_workers()} this process "
+                         f"may use (each about {WORKER_BYTES / 1e6:.0f} MB)",
+                         f"--workers {default_workers()}")
     options.count(args.seed, "--seed", low=0, example="0")
     dt = limits.check_dt(args.dt, "--dt")
     t_end = None
@@ -151,7 +158,8 @@ def run(args: argparse.Namespace) -> int:
     runs = _check(args)
     out = check_folder(args.out, "--out")
     start = time.perf_counter()
-    print(f"{len(runs)} runs on {args.workers} processes", flush=True)
+    workers = min(args.workers, len(runs))  # no process without a run
+    print(f"{len(runs)} runs on {workers} processes", flush=True)
     rows: list[dict[str, Any]] = []
 
     def said(row: dict[str, Any]) -> None:
@@ -162,11 +170,11 @@ def run(args: argparse.Namespace) -> int:
               f", contacts {row['robot_contacts']} robot-on-person, {row['person_contacts']} "
               f"person-on-robot ({row['wall_s']:.0f} s)", flush=True)
 
-    if args.workers == 1:
+    if workers == 1:
         for r in runs:
             said(simulate(r))
     else:
-        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
             for fut in as_completed([pool.submit(simulate, r) for r in runs]):
                 said(fut.result())
     order = {(r.scene, r.controller, r.seed): k for k, r in enumerate(runs)}
@@ -179,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
     cells = [[f"{r[c]:.3g}" if isinstance(r[c], float) else str(r[c]) for c in SUMMARY]
              for r in summary]
     print(text_table(SUMMARY, cells, "<<" + ">" * (len(SUMMARY) - 2)))
-    print(f"wall time {wall:.1f} s for {len(runs)} runs ({args.workers} processes); "
+    print(f"wall time {wall:.1f} s for {len(runs)} runs ({workers} processes); "
           f"written: {out / 'runs.csv'}, {out / 'summary.csv'}, {out / 'social.png'}")
     return 0
 
@@ -199,6 +207,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dt", type=float, default=0.01, help="time step, s (default 0.01)")
     p.add_argument("--t-end", type=float, default=None,
                    help="time limit of a run, s (default: the scene's horizon, else 30)")
-    p.add_argument("--workers", type=int, default=2, help="processes (default 2)")
+    p.add_argument("--workers", type=int, default=2, help="processes (default 2; at most 4 per core, and no "
+                   "more than the runs)")
     p.add_argument("--out", default="bench_social", help="folder of the CSVs and the figure")
     p.set_defaults(func=run)
