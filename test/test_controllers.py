@@ -245,3 +245,18 @@ def test_the_analysis_figure_draws_the_robot(tmp_path):
     assert any(ln.get_marker() == "*" for ln in robot_lines)  # its goal
     assert len(ax.collections) >= 2  # the heading arrows beside the people's tracks
     plt.close(fig)
+
+
+def test_bench_social_says_a_goal_reached_at_the_start_was_reached(tmp_path, capsys):
+    from robot_scenes import with_robot
+
+    from sweep_core.model.yaml_files import dump_yaml
+    scene = tmp_path / "at_goal.yaml"
+    scene.write_text(dump_yaml(with_robot({"goal": [0.5, 1.5]})))
+    assert main(["bench", "social", "--seeds", "1", "--scenes", str(scene), "--controllers",
+                 "pursuit", "--t-end", "0.1", "--workers", "1",
+                 "--out", str(tmp_path / "o")]) == 0
+    (row,) = csv.DictReader((tmp_path / "o" / "runs.csv").open())
+    assert row["reached"] == "True" and float(row["time_to_goal_s"]) == 0.0
+    printed = capsys.readouterr().out
+    assert "goal at 0.00 s" in printed and "goal not reached" not in printed, printed

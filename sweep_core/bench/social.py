@@ -166,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
         rows.append(row)
         t = row["time_to_goal_s"]
         print(f"[{len(rows)}/{len(runs)}] {row['scene']} {row['controller']} seed "
-              f"{row['seed']}: {'goal at ' + format(t, '.2f') + ' s' if t else 'goal not reached'}"
+              f"{row['seed']}: {'goal not reached' if t is None else f'goal at {t:.2f} s'}"
               f", contacts {row['robot_contacts']} robot-on-person, {row['person_contacts']} "
               f"person-on-robot ({row['wall_s']:.0f} s)", flush=True)
 
