@@ -103,3 +103,20 @@ def test_bench_social_starts_no_more_processes_than_runs(
                  "pursuit", "--t-end", "0.05", "--workers", "8",
                  "--out", str(tmp_path / "out")]) == 0
     assert "1 runs on 1 processes" in capsys.readouterr().out
+
+
+def test_bench_social_refuses_an_empty_out_naming_it(capsys: pytest.CaptureFixture[str],
+                                                      tmp_path: Path) -> None:
+    err = _refused(capsys, ["bench", "social", "--seeds", "1", "--t-end", "0.1",
+                            "--out", ""])
+    assert err.startswith("sweep: error: '': is an empty path"), err
+    assert "(fix: --out OTHERDIR, a folder's path)" in err, err
+
+
+def test_bench_social_out_refusal_names_another_folder(capsys: pytest.CaptureFixture[str],
+                                                       tmp_path: Path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    err = _refused(capsys, ["bench", "social", "--seeds", "1", "--t-end", "0.1",
+                            "--out", str(blocker / "sub")])
+    assert "cannot be made as a folder" in err and err.endswith("(fix: --out OTHERDIR)"), err

@@ -156,7 +156,7 @@ def _is_file(name: str) -> bool:
 
 def run(args: argparse.Namespace) -> int:
     runs = _check(args)
-    out = check_folder(args.out, "--out")
+    out = check_folder(args.out, "--out OTHERDIR")
     start = time.perf_counter()
     workers = min(args.workers, len(runs))  # no process without a run
     print(f"{len(runs)} runs on {workers} processes", flush=True)

@@ -92,6 +92,9 @@ def check_folder(path: str | os.PathLike[str], other: str = "--out OTHERDIR") ->
         OutputError: naming the path, what it is and the fix.
     """
     p = os.fspath(path)
+    if not p:  # os.makedirs('') says only "No such file or directory"
+        raise OutputError("''", "is an empty path, which names no folder",
+                          f"{other}, a folder's path")
     refuse_package(p, other)
     if os.path.lexists(p) and not os.path.isdir(p):
         raise OutputError(p, f"exists and is {kind_of(os.lstat(p).st_mode)}, not a folder",
