@@ -120,3 +120,11 @@ def test_bench_social_out_refusal_names_another_folder(capsys: pytest.CaptureFix
     err = _refused(capsys, ["bench", "social", "--seeds", "1", "--t-end", "0.1",
                             "--out", str(blocker / "sub")])
     assert "cannot be made as a folder" in err and err.endswith("(fix: --out OTHERDIR)"), err
+
+
+def test_bench_social_refuses_a_t_end_shorter_than_a_step(capsys: pytest.CaptureFixture[str],
+                                                          tmp_path: Path) -> None:
+    err = _refused(capsys, ["bench", "social", "--seeds", "1", "--t-end", "0.001",
+                            "--dt", "0.01", "--out", str(tmp_path / "out")])
+    assert err.startswith("sweep: error: --t-end: 0.001 s at dt = 0.01 s is no step"), err
+    assert "(fix: --t-end 0.01 or more)" in err and not (tmp_path / "out").exists(), err
