@@ -291,3 +291,18 @@ def test_nearest_is_the_minimum_of_clearance_and_time_to_collision_bit_for_bit()
                 float(ttc.min()) if len(ttc) else math.nan)
         got = nearest(pos, vel, 0.3, people, radii, v)
         assert np.array(got).tobytes() == np.array(want).tobytes()
+
+
+@pytest.mark.parametrize("option, value, unit, example", [
+    ("--goal-radius", "0", "metres", "0.5"), ("--time-limit", "nan", "seconds", "30")])
+def test_cli_refuses_a_bad_goal_radius_or_time_limit_with_a_fix(
+        tmp_path, capsys, option: str, value: str, unit: str, example: str) -> None:
+    from sweep_core.cli import main
+
+    path = tmp_path / "pass.mcap"
+    write_recording(path, push=False)
+    assert main(["analyze", str(path), "--quiet", "--no-plots", option, value]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith(f"sweep: error: {option}: must be a positive "
+                                              f"number of {unit}, got "), err
+    assert f"(fix: e.g. {option} {example}, or leave it out" in err, err

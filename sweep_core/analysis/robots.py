@@ -169,9 +169,11 @@ def read_robot_topics(meta: RunMeta, names: list[str], problems: list[str]
 def for_run(meta: RunMeta, goal_radius: float | None = None,
             time_limit: float | None = None) -> SocialMetrics | None:
     """The collector of a recording's robots, None when its scene has none."""
-    for name, v in (("--goal-radius", goal_radius), ("--time-limit", time_limit)):
+    for name, v, unit, example in (("--goal-radius", goal_radius, "metres", "0.5"),
+                                   ("--time-limit", time_limit, "seconds", "30")):
         if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
                               or not (v > 0 and math.isfinite(v))):
-            raise SweepError(f"{name}: must be a positive number, got {v!r}")
+            raise SweepError(f"{name}: must be a positive number of {unit}, got {v!r} (fix: "
+                             f"e.g. {name} {example}, or leave it out for the scene's)")
     specs = robot_specs(meta.scene, goal_radius, time_limit)
     return SocialMetrics(meta, specs) if specs else None
