@@ -114,19 +114,22 @@ def speed(value: Any, field: str, *, positive: bool = False, fix: str = "") -> f
 
 
 def within_bound(arr: np.ndarray, field: str, what: str = "coordinate",
-                 bound: float = COORDINATE_BOUND) -> np.ndarray:
+                 bound: float = COORDINATE_BOUND, magnitude: bool = False) -> np.ndarray:
     """``arr`` (finite floats) unchanged, or SceneError naming the first entry whose
     magnitude exceeds ``bound`` (:data:`COORDINATE_BOUND`, or :data:`POSITION_BOUND` for
-    agents' positions)."""
+    agents' positions). ``magnitude``: the values are sizes (radii, ranges), which no shift
+    of the scene's origin changes, and the fix says so."""
     if arr.size and float(np.max(np.abs(arr))) > bound:
         bad = tuple(int(b) for b in np.argwhere(np.abs(arr) > bound)[0])
         where = f"[{', '.join(str(b) for b in bad)}]" if bad else ""
         holds = ("distances to walls hold to 1e-11 m" if bound == COORDINATE_BOUND
                  else "positions hold to 2.2e-10 m")
+        plural = what[:-2] + "i" if what.endswith("us") else what + "s"
         raise SceneError(f"{field}{where}", f"{what} {show(arr[bad])} m is beyond the bound "
                          f"{bound:g} m within which float64 {holds}",
-                         f"use {what[:-2] + 'i' if what.endswith('us') else what + 's'} "
-                         f"within +-{bound:g} m (shift the scene's origin near its centre)")
+                         f"set {field}{where} to at most {bound:g} m" if magnitude else
+                         f"use {plural} within +-{bound:g} m (shift the scene's origin near "
+                         "its centre)")
     return arr
 
 
@@ -145,7 +148,7 @@ def length(value: Any, field: str, *, positive: bool = False, nonnegative: bool 
     """A finite length or coordinate (m), as :func:`number`, of magnitude at most
     COORDINATE_BOUND; ``what`` names it in the message."""
     x = number(value, field, positive=positive, nonnegative=nonnegative)
-    within_bound(np.array(x), field, what)
+    within_bound(np.array(x), field, what, magnitude=positive or nonnegative)
     return x
 
 

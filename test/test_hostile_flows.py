@@ -11,6 +11,7 @@ from __future__ import annotations
 import copy
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -113,9 +114,20 @@ def test_a_drift_speed_beyond_the_bound_is_refused(edit, field):
 
 
 def test_a_radius_beyond_the_bound_is_named_in_the_plural_correctly():
-    """Before: 'use radiuss within +-10000 m' (a robot's radius of 1e5 m)."""
+    """Before: 'use radiuss within +-10000 m' (a wall offset of 1e5 m)."""
+    with pytest.raises(SceneError, match="use offsets within"):
+        checks.length(1e5, "walls[0].offset", what="offset")
     with pytest.raises(SceneError, match="use radii within"):
-        checks.length(1e5, "robots[0].radius", positive=True, what="radius")
+        checks.within_bound(np.array([1e5]), "obstacles[0].radius", "radius")
+
+
+@pytest.mark.parametrize("field, what", [("robots[0].goal_radius", "length"),
+                                         ("robots[0].radius", "radius")])
+def test_a_size_beyond_the_bound_is_not_told_to_shift_the_origin(field: str, what: str):
+    """A radius or range of 1e5 m: no shift of the origin changes a size; the fix names the
+    field and its largest value."""
+    with pytest.raises(SceneError, match=rf"\(fix: set {re.escape(field)} to at most 10000 m\)$"):
+        checks.length(1e5, field, positive=True, what=what)
 
 
 @pytest.mark.parametrize("key, value", [("repulsion", 1e160), ("repulsion", 1e300),
