@@ -197,6 +197,20 @@ def test_a_numpy_integer_seed_is_the_int_seed():
     assert same(episode(env, np.int64(3), 3), episode(env, 3, 3))
 
 
+def test_a_zero_dimensional_array_seed_is_the_int_seed():
+    """np.array(3) is the seed 3, for the single environment and the vector one (whose seed
+    list may hold such arrays too)."""
+    env = CrowdNavEnv(small_scene(), dt=0.1, max_steps=4)
+    assert same(episode(env, np.array(3), 3), episode(env, 3, 3))
+    vec = make_vec(num_envs=2)
+    ours, theirs = vec.reset(seed=np.array(3))[0], vec.reset(seed=3)[0]
+    assert all(same(ours[k], theirs[k]) for k in ours)
+    ours = vec.reset(seed=[np.array(5), np.array(4)])[0]
+    theirs = vec.reset(seed=[5, 4])[0]
+    assert all(same(ours[k], theirs[k]) for k in ours)
+    vec.close()
+
+
 def make_vec(**kwargs):
     return gymnasium.make_vec("sweep/CrowdNav-v0", vectorization_mode="vector_entry_point",
                               scene=small_scene(), dt=0.1, max_steps=4, **kwargs)

@@ -104,6 +104,12 @@ def refuse_unknown(unknown: dict[str, Any], accepted: tuple[str, ...]) -> None:
                          f"give only {', '.join(accepted)}")
 
 
+def seed_value(seed: Any) -> Any:
+    """A 0-d numpy array as the scalar it holds (``np.array(3)`` is the seed 3, as numpy's
+    generators read it), anything else as it is (then checked as a seed)."""
+    return seed.item() if isinstance(seed, np.ndarray) and seed.ndim == 0 else seed
+
+
 def _scene(scene: Scene | dict | str | Path | None) -> Scene:
     if isinstance(scene, Scene):
         return scene
@@ -288,7 +294,8 @@ class CrowdNavEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         if seed is not None:
-            seed = checks.integer(seed, "seed", fix="give seed as an integer >= 0, or None")
+            seed = checks.integer(seed_value(seed), "seed",
+                                  fix="give seed as an integer >= 0, or None")
         super().reset(seed=seed)
         engine_seed = int(self.np_random.integers(0, 2**31 - 1))
         self.sim = self._simulator(engine_seed)

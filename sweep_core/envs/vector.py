@@ -39,6 +39,7 @@ from sweep_core.envs.crowdnav import (
     available_memory,
     check_render_mode,
     refuse_unknown,
+    seed_value,
 )
 from sweep_core.envs.workers import Workers, reset_all, step_all
 from sweep_core.errors import SceneError, show
@@ -268,7 +269,7 @@ class CrowdNavVectorEnv(VectorEnv):
     # -- checks and batching ------------------------------------------------------------
 
     def _seeds(self, seed: Any) -> list[int | None]:
-        k = self.num_envs
+        k, seed = self.num_envs, seed_value(seed)
         if seed is None:
             return [None] * k
         if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
@@ -280,8 +281,9 @@ class CrowdNavVectorEnv(VectorEnv):
                 raise SceneError("seed", f"has {len(seed)} seeds for {k} environments: "
                                  f"{show(seed)}", f"give one seed per environment (a list of "
                                  f"{k}) or a single integer")
-            return [None if s is None else checks.integer(s, f"seed[{i}]", fix=f"give "
-                                                          f"seed[{i}] as an integer >= 0")
+            return [None if s is None else checks.integer(seed_value(s), f"seed[{i}]",
+                                                          fix=f"give seed[{i}] as an "
+                                                          "integer >= 0")
                     for i, s in enumerate(seed)]
         raise SceneError("seed", f"must be an integer, a list of {k} seeds or None, got "
                          f"{show(seed)}", f"e.g. seed=0 or seed=[0, 1, ...] ({k} seeds)")
