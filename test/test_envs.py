@@ -259,3 +259,15 @@ def test_a_step_before_the_first_reset_is_refused_in_one_line():
     assert "\n" not in text and text.startswith("step:") and "call reset() first" in text
     env.reset(seed=0)
     assert env.step([0.5, 0.0])[4]["t_s"] == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("action", [np.array([0.5 + 0.5j, 0.0]), np.array([0.5, 0.0], complex)])
+def test_a_complex_action_is_refused_not_cut_to_its_real_part(action):
+    """numpy casts complex to float by dropping the imaginary part (a warning only): refused
+    in one line instead, as a Python complex is."""
+    env = CrowdNavEnv(small_scene(), dt=0.1, max_steps=4)
+    env.reset(seed=0)
+    with pytest.raises(SceneError) as err:
+        env.step(action)
+    text = str(err.value)
+    assert "\n" not in text and text.startswith("action:") and "complex" in text, text

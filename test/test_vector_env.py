@@ -135,7 +135,8 @@ def envs() -> CrowdNavVectorEnv:
     (np.zeros(6), ["actions", "(3, 2)", "(6,)"]),
     (np.array([[0.1, 0.0], [np.nan, 0.0], [0.0, 0.0]]), ["actions[1]", "nan", "environment 1"]),
     (np.array([[0.1, 0.0], [0.0, 0.0], [0.0, np.inf]]), ["actions[2]", "inf"]),
-    ("fast", ["actions", "fast"])])
+    ("fast", ["actions", "fast"]),
+    (np.zeros((3, 2)) + 0.5j, ["actions", "numbers of shape (3, 2)", "complex"])])
 def test_bad_actions_are_refused_naming_the_environment(envs: CrowdNavVectorEnv,
                                                         batch: object,
                                                         words: list[str]) -> None:

@@ -313,6 +313,8 @@ class CrowdNavEnv(gymnasium.Env):
             raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, got None",
                              "give an element of env.action_space")
         try:
+            if np.iscomplexobj(action):  # numpy would drop the imaginary parts, silently
+                raise TypeError(action)
             a = np.asarray(action, dtype=np.float64).reshape(-1)
         except (TypeError, ValueError):  # a string, a dict, complex numbers
             raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, got "

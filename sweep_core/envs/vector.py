@@ -296,8 +296,10 @@ class CrowdNavVectorEnv(VectorEnv):
     def _actions(self, actions: Any) -> np.ndarray:
         want = (self.num_envs, self.width)
         try:
+            if np.iscomplexobj(actions):  # numpy would drop the imaginary parts, silently
+                raise TypeError(actions)
             a = np.asarray(actions, dtype=np.float64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError):  # a string, a dict, complex numbers
             raise SceneError("actions", f"must be numbers of shape {want}, got "
                              f"{show(actions)}", "give an element of env.action_space") from None
         if a.shape != want:
