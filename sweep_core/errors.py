@@ -63,10 +63,18 @@ class SceneError(SweepError, ValueError):
         fix: what to do instead (may be empty).
     """
 
-    def __init__(self, field: str, problem: str, fix: str = "") -> None:
-        self.field = field
-        self.problem = problem
-        self.fix = fix
+    def __init__(self, field: str | SceneError, problem: str | None = None,
+                 fix: str = "") -> None:
+        if isinstance(field, SceneError) and problem is None:
+            # SceneError(err), err's copy: how Gymnasium's AsyncVectorEnv raises again the
+            # error of one of its worker processes (``raise type(err)(err)``)
+            err = field
+            field, problem, fix = err.field, err.problem, err.fix
+        if isinstance(field, SceneError) or problem is None:
+            raise TypeError("SceneError(field, problem, fix='') needs a field and a problem")
+        self.field: str = field
+        self.problem: str = problem
+        self.fix: str = fix
         msg = f"{field}: {problem}"
         if fix:
             msg += f" (fix: {fix})"

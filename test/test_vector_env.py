@@ -417,3 +417,23 @@ def test_infos_combine_as_gymnasiums_add_info() -> None:
             assert all(ours[k].dtype == theirs[k].dtype for k in ours if hasattr(ours[k], "dtype"))
     finally:
         env.close()
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")  # Gymnasium logs the worker's traceback
+def test_gymnasiums_async_vector_env_raises_the_environments_refusal_as_it_was() -> None:
+    """Gymnasium's AsyncVectorEnv raises a worker's error again as ``type(err)(err)``: a
+    SceneError so built is the same refusal (field, problem, fix), not a TypeError."""
+    err = SceneError("action", "must be 2 finite numbers, got [nan, 0]", "give an element")
+    again = SceneError(err)
+    assert (again.field, again.problem, again.fix, str(again)) == (
+        err.field, err.problem, err.fix, str(err))
+    with pytest.raises(TypeError):
+        SceneError("action")  # type: ignore[call-arg]
+    envs = gymnasium.make_vec("sweep/CrowdNav-v0", num_envs=2, vectorization_mode="async", **KW)
+    try:
+        envs.reset(seed=0)
+        with pytest.raises(SceneError) as raised:
+            envs.step(np.array([[0.5, 0.0], [np.nan, 0.0]]))
+        assert str(raised.value).startswith("action: must be 2 finite numbers"), raised.value
+    finally:
+        envs.close()
