@@ -45,7 +45,10 @@ def test_engine_row_is_a_ratio_of_medians() -> None:
 
 
 @pytest.mark.parametrize(("option", "value"), [("--run-steps", "0"), ("--run-steps", "-1"),
-                                               ("--env-steps", "0"), ("--num-envs", "0"),
+                                               ("--run-steps", "1000000000"),
+                                               ("--env-steps", "0"),
+                                               ("--env-steps", "10000000000000"),
+                                               ("--num-envs", "0"),
                                                ("--num-envs", "100000"),
                                                ("--env-workers", "0"),
                                                ("--env-workers", "33")])

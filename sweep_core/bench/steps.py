@@ -51,6 +51,7 @@ import numpy as np
 from sweep_core.bench import options
 from sweep_core.bench.tables import write_csv
 from sweep_core.ensemble.cluster import default_workers
+from sweep_core.io import limits
 from sweep_core.io.metadata import run_metadata
 from sweep_core.io.recording.runs import record_run
 from sweep_core.model.scene import Scene, load_scene
@@ -326,10 +327,24 @@ _SHOWN = (("measure", 22), ("scene", 12), ("agents", 6), ("sweep_median_ms", 9),
           ("ratio", 7))
 
 
+def most_run_steps() -> int:
+    """The largest ``--run-steps``: each scene's recorded run (a temporary MCAP file) within
+    ``sweep run``'s bounds without ``--force``: at most ``limits.MAX_STEPS`` steps, and a
+    recording of at most ``limits.MAX_RECORDING_BYTES`` (uncompressed, as ``sweep run``
+    estimates it: about 18 kB a step for room_door's 200 people)."""
+    most = limits.MAX_STEPS
+    for name in STEP_SCENES:
+        scene = load_scene(name)
+        agents = scene.n_agents + len(scene.spec.get("robots") or [])
+        most = min(most, limits.MAX_RECORDING_BYTES // limits.frame_bytes(agents) - 1)
+    return most
+
+
 def run(args: argparse.Namespace) -> int:
     """The study (module docstring): prints the table, writes the CSV."""
-    options.count(args.run_steps, "--run-steps", example="200")
-    options.count(args.env_steps, "--env-steps", example="2000")
+    options.counts([args.run_steps], "--run-steps", high=most_run_steps(), example="200")
+    # as many environment steps as a run of sweep run takes at most (1e6: minutes per row)
+    options.counts([args.env_steps], "--env-steps", high=limits.MAX_STEPS, example="2000")
     options.counts([args.num_envs], "--num-envs", high=1024, example="32")
     options.counts([args.env_workers], "--env-workers", high=args.num_envs, example="2")
     options.csv_path(args.csv)
