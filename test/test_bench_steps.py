@@ -62,6 +62,23 @@ def test_steps_options_refused(capsys: pytest.CaptureFixture[str], tmp_path: obj
     assert not csv.exists()
 
 
+@pytest.mark.parametrize(("given", "workers"), [([], 1), (["--env-workers", "1"], 1)])
+def test_one_environment_runs_without_the_workers_row(monkeypatch, tmp_path, given,
+                                                      workers) -> None:
+    """--num-envs 1 is not refused for the default --env-workers (2): that default is at
+    most --num-envs, and 1 makes no workers row."""
+    row = {"measure": "m", "scene": "s"}
+    monkeypatch.setattr(steps, "engine_vs_orca", lambda name: row)
+    monkeypatch.setattr(steps, "recorded_vs_engine", lambda name, n: row)
+    monkeypatch.setattr(steps.kernels, "warm_up", lambda say: None)
+    asked = []
+    monkeypatch.setattr(steps, "env_rates", lambda n, k, w: asked.append((n, k, w)) or [])
+    csv = tmp_path / "steps.csv"
+    assert main(["bench", "speed", "--scenes", "steps", "--num-envs", "1", *given,
+                 "--csv", str(csv)]) == 0
+    assert asked == [(2000, 1, workers)]
+
+
 def test_recorded_row_pairs_each_recorded_step_with_an_engine_step() -> None:
     row = steps.recorded_vs_engine("crowdnav", 4)
     assert row["note"].startswith("steps 21-24,")  # four recorded steps measured

@@ -346,6 +346,8 @@ def run(args: argparse.Namespace) -> int:
     # as many environment steps as a run of sweep run takes at most (1e6: minutes per row)
     options.counts([args.env_steps], "--env-steps", high=limits.MAX_STEPS, example="2000")
     options.counts([args.num_envs], "--num-envs", high=1024, example="32")
+    if args.env_workers is None:  # the default: 2, or fewer on a single core or for K < 2
+        args.env_workers = min(2, default_workers(), args.num_envs)
     options.counts([args.env_workers], "--env-workers", high=args.num_envs, example="2")
     options.csv_path(args.csv)
     kernels.warm_up(lambda line: print(f"sweep: {line}", flush=True))
@@ -383,6 +385,7 @@ def add_options(p: argparse.ArgumentParser) -> None:
                    help="steps: environment steps timed, single and vectorised (default 2000)")
     p.add_argument("--num-envs", type=int, default=32, metavar="K",
                    help="steps: environments of the vectorised environment (default 32)")
-    p.add_argument("--env-workers", type=int, default=min(2, default_workers()), metavar="W",
+    p.add_argument("--env-workers", type=int, default=None, metavar="W",
                    help="steps: worker processes of the vectorised environment's second row "
-                        "(default: 2, or 1 on a single core: no such row)")
+                        "(default: 2, or 1 on a single core or with --num-envs 1: no such "
+                        "row)")
