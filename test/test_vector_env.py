@@ -5,6 +5,10 @@ environment's episode that of the single environment with the same seed, and its
 refused in one line naming the argument, the value and the fix."""
 from __future__ import annotations
 
+import os
+import signal
+import threading
+
 import gymnasium
 import numpy as np
 import pytest
@@ -239,6 +243,22 @@ def test_a_worker_that_ended_is_reported_in_one_line() -> None:
     assert "\n" not in text and "worker 1" in text and ("ended" in text), text
     split.close()
     assert not any(p.is_alive() for p in procs)
+
+
+def test_a_worker_killed_during_a_step_is_reported_with_its_exit_code() -> None:
+    """A worker killed while it steps (its answer never comes): the step says which worker
+    ended, its exit code (not None: it is reaped first) and what to do."""
+    split = vector.make(num_envs=2, workers=2, **KW)
+    split.reset(seed=0)
+    pid = split.workers.procs[1].pid
+    os.kill(pid, signal.SIGSTOP)  # it receives the step but cannot answer it
+    threading.Timer(0.5, os.kill, (pid, signal.SIGKILL)).start()
+    with pytest.raises(RuntimeError) as err:
+        split.step(actions(2, 0))
+    text = str(err.value)
+    assert text == ("worker 1 of the vector environment has ended (exit code -9): close it "
+                    "and make a new one"), text
+    split.close()
 
 
 def test_workers_end_when_their_parent_is_killed(tmp_path) -> None:

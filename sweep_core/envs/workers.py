@@ -164,23 +164,31 @@ class Workers:
         try:
             self.conns[w].send(msg)
         except (OSError, ValueError):
-            raise RuntimeError(f"worker {w} of the vector environment has ended (exit code "
-                               f"{self.procs[w].exitcode}): close it and make a new "
-                               "one") from None
+            raise self._ended(w) from None
+
+    def _ended(self, w: int) -> RuntimeError:
+        """The error of worker ``w`` gone (killed from outside): its exit code, once its
+        process is reaped (its pipe may close a moment before), and what to do."""
+        self.procs[w].join(CLOSE_WAIT)
+        return RuntimeError(f"worker {w} of the vector environment has ended (exit code "
+                            f"{self.procs[w].exitcode}): close it and make a new one")
 
     def _gather(self) -> list:
         out: list = []
-        failed = None
+        failed: tuple | None = None
+        ended: int | None = None
         for w, conn in enumerate(self.conns):
             try:
                 status, answer = conn.recv()
             except (EOFError, OSError):
-                status, answer = "error", ("other", "EOFError", "the worker process ended "
-                                           f"(exit code {self.procs[w].exitcode})")
+                ended = w if ended is None else ended
+                continue
             if status == "error":
                 failed = failed or (w, answer)
             elif answer is not None:
                 out.extend(answer)
+        if ended is not None:
+            raise self._ended(ended)
         if failed is not None:
             reraise(*failed)
         return out
