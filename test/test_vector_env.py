@@ -127,6 +127,21 @@ def test_more_environments_than_the_memory_holds_are_refused_before_building_the
     assert len(built) == 2  # only the two measured (one-time costs, then one environment)
 
 
+def test_more_workers_than_the_memory_holds_are_refused_before_starting_them(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each worker process takes memory of its own (WORKER_BYTES) beside the environments:
+    too many for the memory are refused naming workers, before any is started."""
+    from sweep_core.envs import workers
+    monkeypatch.setattr(vector, "available_memory", lambda: 10 ** 9)  # 1 GB
+    monkeypatch.setattr(workers.Workers, "__init__", lambda *a: pytest.fail("started"))
+    with pytest.raises(SceneError) as err:
+        vector.make(num_envs=64, workers=64, **KW)
+    text = str(err.value)
+    assert "\n" not in text and text.startswith("workers: 64 worker processes need about"), text
+    most = int(text.split("(fix: workers=")[1].split(" ")[0])
+    assert 2 <= most < 64 and text.endswith(" or fewer)"), text
+
+
 @pytest.fixture(scope="module")
 def envs() -> CrowdNavVectorEnv:
     env = vector.make(num_envs=3, **KW)

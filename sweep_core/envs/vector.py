@@ -41,7 +41,7 @@ from sweep_core.envs.crowdnav import (
     refuse_unknown,
     seed_value,
 )
-from sweep_core.envs.workers import Workers, reset_all, step_all
+from sweep_core.envs.workers import WORKER_BYTES, Workers, reset_all, start_method, step_all
 from sweep_core.errors import SceneError, show
 from sweep_core.model.scene import Scene, load_scene
 
@@ -121,6 +121,21 @@ def _memory_refusal(k: int, max_steps: int, measured: tuple[float, float, int],
     return SceneError("num_envs", f"{k} environments need about {size}", fix)
 
 
+def _check_workers(w: int, envs_need: int, have: int) -> None:
+    """Refuses ``w`` worker processes (:data:`WORKER_BYTES` each) that, beside the ``envs_need``
+    bytes of the environments, need more than MEMORY_SHARE of ``have`` bytes: before any is
+    started, naming workers and the most that fit."""
+    each = WORKER_BYTES[start_method()]
+    budget = MEMORY_SHARE * have - envs_need
+    if w * each <= budget:
+        return
+    most = int(budget // each)
+    raise SceneError("workers", f"{w} worker processes need about {w * each / 1e9:.2g} GB "
+                     f"({each / 1e6:.0f} MB each) beside the environments' "
+                     f"{envs_need / 1e9:.2g} GB, more than half the {have / 1e9:.2g} GB "
+                     "available", f"workers={most} or fewer" if most >= 2 else "workers=1")
+
+
 class CrowdNavVectorEnv(VectorEnv):
     """K :class:`CrowdNavEnv` stepped together (module docstring).
 
@@ -128,7 +143,8 @@ class CrowdNavVectorEnv(VectorEnv):
         num_envs: K, the number of environments (1 to :data:`MAX_ENVS`, and as many as half
             the available memory holds: the first environment's size times K, checked before
             the others are built).
-        workers: W, the processes stepping the K environments (1: this one; 1 to K).
+        workers: W, the processes stepping the K environments (1: this one; 1 to K, and as
+            many as half the available memory holds beside the environments).
         **kwargs: the arguments of :class:`CrowdNavEnv` (scene, robot, dt, max_steps, ...).
     """
 
@@ -158,6 +174,8 @@ class CrowdNavVectorEnv(VectorEnv):
         have = available_memory()
         if self.memory_estimate > MEMORY_SHARE * have:
             raise _memory_refusal(k, first.max_steps, measured, have)
+        if w > 1:
+            _check_workers(w, self.memory_estimate, have)
         # built afresh: the measured one's generator was seeded (reset(seed=None) draws anew)
         self.workers = Workers(k, w, scene, kwargs) if w > 1 else None
         self.envs = [] if w > 1 else [CrowdNavEnv(scene=scene, **kwargs) for _ in range(k)]
