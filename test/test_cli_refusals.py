@@ -128,3 +128,14 @@ def test_bench_social_refuses_a_t_end_shorter_than_a_step(capsys: pytest.Capture
                             "--dt", "0.01", "--out", str(tmp_path / "out")])
     assert err.startswith("sweep: error: --t-end: 0.001 s at dt = 0.01 s is no step"), err
     assert "(fix: --t-end 0.01 or more)" in err and not (tmp_path / "out").exists(), err
+
+
+def test_bench_social_refuses_a_dt_too_long_for_a_robot_before_any_run(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """crowdnav's robot (radius 0.3 m, 1 m/s) would cover its radius in a step of 0.5 s: refused
+    naming --dt and the scene before any run starts or the folder is made."""
+    err = _refused(capsys, ["bench", "social", "--scenes", "crowdnav", "--controllers",
+                            "pursuit", "--seeds", "1", "--workers", "1", "--t-end", "2",
+                            "--dt", "0.5", "--out", str(tmp_path / "out")])
+    assert err.startswith("sweep: error: --dt: 0.5 s is too long for 'crowdnav'"), err
+    assert "--dt below 0.3" in err and not (tmp_path / "out").exists()

@@ -34,6 +34,7 @@ from sweep_core.io.outputs import check_folder
 from sweep_core.model.controller_spec import CONTROLLERS
 from sweep_core.model.gallery import bundled_scenes
 from sweep_core.model.scene import load_scene
+from sweep_core.numerics.robots.fleet import check_step_length
 from sweep_core.text import text_table
 
 SCENES = ("robot_crowd", "crowdnav")
@@ -133,6 +134,12 @@ def _check(args: argparse.Namespace) -> list[Run]:
         if not scene.robots:
             raise SceneError("--scenes", f"{show(name)} has no robot",
                              f"use scenes with a robot, e.g. --scenes {' '.join(SCENES)}")
+        try:
+            check_step_length(scene, dt)
+        except SceneError as err:
+            raise SceneError("--dt", f"{dt:g} s is too long for {show(name)}: its "
+                             f"{err.field}: {err.problem}", f"--dt below "
+                             f"{min(r.radius / r.max_speed for r in scene.robots):g}") from None
         # every robot gets the benchmarked controller, which drives it to its goal
         aimless = next((k for k, r in enumerate(scene.spec.get("robots") or [])
                         if r.get("goal") is None), None)

@@ -60,6 +60,19 @@ from sweep_core.numerics.robots.weighted import project_weighted
 from sweep_core.numerics.schemes import Scheme, StepResult
 
 
+def check_step_length(scene: Scene, dt: float) -> None:
+    """SceneError naming the first robot of ``scene`` that a step of ``dt`` (s) at its
+    max_speed moves by its radius or more (a step could jump a wall), and the longest dt."""
+    for k, robot in enumerate(scene.robots):
+        if robot.max_speed * dt >= robot.radius:
+            raise SceneError(f"robots[{k}].kinematics.max_speed",
+                             f"{robot.max_speed:g} m/s covers {robot.max_speed * dt:g} m "
+                             f"in a step of {dt:g} s, not less than the radius "
+                             f"{robot.radius:g} m (a step could jump a wall)",
+                             f"use dt < {robot.radius / robot.max_speed:g} s or a lower "
+                             "max_speed")
+
+
 class Fleet:
     """The robots of ``scene`` stepped with time step ``dt`` (s); ``seed`` seeds the scans'
     noise. ``controllers`` maps a robot's name to a callable of a
@@ -73,14 +86,7 @@ class Fleet:
         self.dt = dt
         self.seed = seed
         self._scan_rng = np.random.Generator(np.random.PCG64(0))  # reseeded per scan
-        for k, robot in enumerate(scene.robots):
-            if robot.max_speed * dt >= robot.radius:
-                raise SceneError(f"robots[{k}].kinematics.max_speed",
-                                 f"{robot.max_speed:g} m/s covers {robot.max_speed * dt:g} m "
-                                 f"in a step of {dt:g} s, not less than the radius "
-                                 f"{robot.radius:g} m (a step could jump a wall)",
-                                 f"use dt < {robot.radius / robot.max_speed:g} s or a lower "
-                                 "max_speed")
+        check_step_length(scene, dt)
         self.every = [max(1, round(1.0 / (r.scan.rate * dt))) if r.scan else 0
                       for r in scene.robots]
         try:
