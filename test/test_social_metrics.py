@@ -306,3 +306,18 @@ def test_cli_refuses_a_bad_goal_radius_or_time_limit_with_a_fix(
     assert "\n" not in err and err.startswith(f"sweep: error: {option}: must be a positive "
                                               f"number of {unit}, got "), err
     assert f"(fix: e.g. {option} {example}, or leave it out" in err, err
+
+
+def test_cli_refuses_a_goal_radius_beyond_a_scenes_bound(tmp_path, capsys) -> None:
+    """--goal-radius 1e300 would count every frame as at the goal; a scene's goal_radius is
+    bounded by 1e4 m, and so is the option."""
+    from sweep_core.cli import main
+
+    path = tmp_path / "pass.mcap"
+    write_recording(path, push=False)
+    assert main(["analyze", str(path), "--quiet", "--no-plots", "--goal-radius", "1e300"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith("sweep: error: --goal-radius: 1e+300 m is beyond"
+                                              ), err
+    assert "(fix: --goal-radius 10000 or less)" in err, err
+    assert main(["analyze", str(path), "--quiet", "--no-plots", "--goal-radius", "1e4"]) == 0

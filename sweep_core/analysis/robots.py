@@ -21,6 +21,7 @@ from sweep_core.analysis.social import (
     nearest,
     robot_specs,
 )
+from sweep_core.checks import COORDINATE_BOUND
 from sweep_core.errors import SweepError
 from sweep_core.io import cdr
 from sweep_core.io.recording import read_recording, scan_recording
@@ -175,5 +176,9 @@ def for_run(meta: RunMeta, goal_radius: float | None = None,
                               or not (v > 0 and math.isfinite(v))):
             raise SweepError(f"{name}: must be a positive number of {unit}, got {v!r} (fix: "
                              f"e.g. {name} {example}, or leave it out for the scene's)")
+    if goal_radius is not None and goal_radius > COORDINATE_BOUND:  # a scene's own bound
+        raise SweepError(f"--goal-radius: {goal_radius!r} m is beyond the bound "
+                         f"{COORDINATE_BOUND:g} m of a scene's goal_radius (fix: "
+                         f"--goal-radius {COORDINATE_BOUND:g} or less)")
     specs = robot_specs(meta.scene, goal_radius, time_limit)
     return SocialMetrics(meta, specs) if specs else None
