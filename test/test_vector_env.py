@@ -472,3 +472,38 @@ def test_gymnasiums_async_vector_env_raises_the_environments_refusal_as_it_was()
         assert str(raised.value).startswith("action: must be 2 finite numbers"), raised.value
     finally:
         envs.close()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_step_that_failed_in_one_environment_is_refused_until_a_reset(
+        workers: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Environment 1 of 3 fails its step after environment 0 has taken its own: the batch is
+    out of step, so the next step and a masked reset are refused in one line; a reset of every
+    environment starts them again, as a new vector environment with the same seed would."""
+    from sweep_core.envs import crowdnav
+
+    plain = crowdnav.CrowdNavEnv.step
+
+    def fails(self, action):  # the second step of the episode seeded 1004 (environment 1)
+        if self.np_random_seed == 1004 and self.steps == 1:
+            raise RuntimeError("a step failed")
+        return plain(self, action)
+
+    monkeypatch.setattr(crowdnav.CrowdNavEnv, "step", fails)  # before the workers are forked
+    envs = CrowdNavVectorEnv(num_envs=3, workers=workers, **KW)
+    fresh = CrowdNavVectorEnv(num_envs=3, **KW)
+    try:
+        envs.reset(seed=1003)
+        envs.step(actions(3, 0))
+        with pytest.raises(RuntimeError, match="a step failed"):
+            envs.step(actions(3, 1))
+        for call in (lambda: envs.step(actions(3, 2)),
+                     lambda: envs.reset(options={"reset_mask": np.array([True, False, False])})):
+            with pytest.raises(SceneError, match=r"out of step \(fix: call reset\(\)"):
+                call()
+        assert same(envs.reset(seed=3), fresh.reset(seed=3))
+        assert same(envs.step(actions(3, 0)), fresh.step(actions(3, 0)))
+        assert same(envs.step(actions(3, 1)), fresh.step(actions(3, 1)))
+    finally:
+        envs.close()
+        fresh.close()

@@ -9,7 +9,10 @@ seeds environment i with s + i (Gymnasium's convention for vector environments),
 (``metadata["autoreset_mode"]``): the step after environment i's episode ended resets it (its
 action ignored) and returns its first observation, reward 0 and not done.
 ``reset(options={"reset_mask": mask})`` resets only the environments ``mask`` marks, as
-Gymnasium's SyncVectorEnv does (:meth:`CrowdNavVectorEnv.reset`).
+Gymnasium's SyncVectorEnv does (:meth:`CrowdNavVectorEnv.reset`). A step (or reset) that
+fails in one environment, after others have taken theirs, leaves the batch out of step: the
+error is raised, and then every step and masked reset is refused until ``reset()`` starts
+every environment again.
 
 With ``workers`` W > 1 the K environments are split into W contiguous shares, each stepped
 by its own process (:mod:`sweep_core.envs.workers`), so that W cores step the batch at once;
@@ -188,6 +191,9 @@ class CrowdNavVectorEnv(VectorEnv):
         self._done = np.zeros(k, dtype=np.bool_)
         #: the latest stacked observation (a masked reset keeps the unmarked rows)
         self._obs: dict[str, np.ndarray] | None = None
+        #: a step failed in one environment after others had taken theirs: the batch is out
+        #: of step until a reset of every environment
+        self._failed = False
 
     # -- gymnasium ----------------------------------------------------------------------
 
@@ -203,15 +209,19 @@ class CrowdNavVectorEnv(VectorEnv):
         seeds = self._seeds(seed)
         mask = self._mask(options)
         if mask is not None:
+            self._refuse_failed("reset")
             options = {k: v for k, v in options.items() if k != "reset_mask"}  # type: ignore
         super().reset(seed=seeds[0])
         marked = [True] * self.num_envs if mask is None else mask.tolist()
-        if self.workers is not None:
-            results = self.workers.reset(seeds, options, marked)
-        else:
-            results = reset_all(self.envs, seeds, options, marked)
+        try:
+            results = (self.workers.reset(seeds, options, marked) if self.workers is not None
+                       else reset_all(self.envs, seeds, options, marked))
+        except BaseException:
+            self._failed = True  # some environments may have been reset, others not
+            raise
         if mask is None:
             infos = self._combine([r[1] for r in results])
+            self._failed = False
             self._done[:] = False
             self._obs = self._stack([r[0] for r in results])
         else:
@@ -248,10 +258,15 @@ class CrowdNavVectorEnv(VectorEnv):
     def step(self, actions: Any) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray,
                                           np.ndarray, dict[str, Any]]:
         self._open("step")
+        self._refuse_failed("step")
         a = self._actions(actions)
         # next-step autoreset: an environment whose episode ended starts its next one
-        results = (self.workers.step(self._done, a) if self.workers is not None
-                   else step_all(self.envs, self._done, a))
+        try:
+            results = (self.workers.step(self._done, a) if self.workers is not None
+                       else step_all(self.envs, self._done, a))
+        except BaseException:
+            self._failed = True
+            raise
         rewards = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=np.bool_)
         truncated = np.zeros(self.num_envs, dtype=np.bool_)
@@ -305,6 +320,16 @@ class CrowdNavVectorEnv(VectorEnv):
                     for i, s in enumerate(seed)]
         raise SceneError("seed", f"must be an integer, a list of {k} seeds or None, got "
                          f"{show(seed)}", f"e.g. seed=0 or seed=[0, 1, ...] ({k} seeds)")
+
+    def _refuse_failed(self, call: str) -> None:
+        """Refuses ``call`` (a step, or a reset of some environments only) after a step that
+        failed in one environment: the environments before it had stepped, and their results
+        were not returned."""
+        if self._failed:
+            raise SceneError(call, "the last step failed in one environment after others had "
+                             "taken theirs, so the environments are out of step",
+                             "call reset() (without a reset_mask) to start every "
+                             "environment's episode again")
 
     def _open(self, call: str) -> None:
         """Refuses ``call`` after close(), with workers or without."""
