@@ -271,3 +271,18 @@ def test_a_complex_action_is_refused_not_cut_to_its_real_part(action):
         env.step(action)
     text = str(err.value)
     assert "\n" not in text and text.startswith("action:") and "complex" in text, text
+
+
+@pytest.mark.parametrize("options, words", [
+    ([1, 2], "options: must be a dict or None, got [1, 2] (a list)"),
+    ({"reset_mask": np.array([True])}, "options: has the key 'reset_mask', but the environment "
+                                       "takes no reset options"),
+    ({"seed": 3}, "options: has the key 'seed'")])
+def test_reset_options_the_environment_does_not_take_are_refused(options, words) -> None:
+    """A misspelt or foreign key would be ignored, silently; None and {} are accepted."""
+    env = gymnasium.make("sweep/CrowdNav-v0", scene=small_scene(), dt=0.1, max_steps=4)
+    with pytest.raises(SceneError) as raised:
+        env.reset(seed=0, options=options)
+    assert str(raised.value).startswith(words) and "(fix: " in str(raised.value)
+    env.reset(seed=0, options={})
+    env.reset(seed=0, options=None)

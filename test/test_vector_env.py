@@ -507,3 +507,20 @@ def test_a_step_that_failed_in_one_environment_is_refused_until_a_reset(
     finally:
         envs.close()
         fresh.close()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_misspelt_reset_option_is_refused_not_read_as_a_full_reset(workers: int) -> None:
+    envs = CrowdNavVectorEnv(num_envs=2, workers=workers, **KW)
+    try:
+        envs.reset(seed=0)
+        for options, words in (({"resetmask": np.array([True, False])},
+                                "options: has the key 'resetmask', but the environment takes "
+                                "only the key 'reset_mask'"),
+                               ([True, False], "options: must be a dict or None")):
+            with pytest.raises(SceneError) as raised:
+                envs.reset(options=options)
+            assert str(raised.value).startswith(words), raised.value
+        envs.reset(options={"reset_mask": np.array([True, False])})
+    finally:
+        envs.close()

@@ -104,6 +104,22 @@ def refuse_unknown(unknown: dict[str, Any], accepted: tuple[str, ...]) -> None:
                          f"give only {', '.join(accepted)}")
 
 
+def check_options(options: Any, accepted: tuple[str, ...] = ()) -> None:
+    """Refuses reset ``options`` that are neither None nor a dict, or that hold a key other
+    than the ``accepted`` ones (a misspelt key would otherwise be ignored, silently)."""
+    if options is None:
+        return
+    if not isinstance(options, dict):
+        raise SceneError("options", f"must be a dict or None, got {show(options)} (a "
+                         f"{type(options).__name__})", "give options=None or a dict")
+    unknown = next((key for key in options if key not in accepted), None)
+    if unknown is not None:
+        takes = (f"takes only the key {', '.join(repr(a) for a in accepted)}" if accepted
+                 else "takes no reset options")
+        raise SceneError("options", f"has the key {show(unknown)}, but the environment "
+                         f"{takes}", "remove the key (options=None resets with none)")
+
+
 def seed_value(seed: Any) -> Any:
     """A 0-d numpy array as the scalar it holds (``np.array(3)`` is the seed 3, as numpy's
     generators read it), anything else as it is (then checked as a seed)."""
@@ -293,6 +309,7 @@ class CrowdNavEnv(gymnasium.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        check_options(options)
         if seed is not None:
             seed = checks.integer(seed_value(seed), "seed",
                                   fix="give seed as an integer >= 0, or None")

@@ -40,6 +40,7 @@ from sweep_core.envs.crowdnav import (
     NO_RENDER,
     CrowdNavEnv,
     available_memory,
+    check_options,
     check_render_mode,
     refuse_unknown,
     seed_value,
@@ -237,6 +238,7 @@ class CrowdNavVectorEnv(VectorEnv):
 
     def _mask(self, options: dict[str, Any] | None) -> np.ndarray | None:
         """``options["reset_mask"]`` checked (the reset docstring), None without one."""
+        check_options(options, ("reset_mask",))
         if not options or "reset_mask" not in options:
             return None
         mask, k = options["reset_mask"], self.num_envs
