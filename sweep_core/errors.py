@@ -104,11 +104,20 @@ class InfeasibleError(SweepError):
         fix: what to do instead (default: the advice for a jam of agents).
     """
 
-    def __init__(self, t: float, agents: list[int], detail: str, fix: str = "") -> None:
-        self.t = t
-        self.agents = list(agents)
-        self.detail = detail
-        self._given = fix
+    def __init__(self, t: float | InfeasibleError, agents: list[int] | None = None,
+                 detail: str | None = None, fix: str = "") -> None:
+        if isinstance(t, InfeasibleError) and agents is None and detail is None:
+            # InfeasibleError(err), err's copy: how Gymnasium's AsyncVectorEnv raises again
+            # the error of one of its worker processes (``raise type(err)(err)``)
+            err = t
+            t, agents, detail, fix = err.t, err.agents, err.detail, err._given
+        if isinstance(t, InfeasibleError) or agents is None or detail is None:
+            raise TypeError("InfeasibleError(t, agents, detail, fix='') needs a time, the "
+                            "agents and a detail")
+        self.t: float = t
+        self.agents: list[int] = list(agents)
+        self.detail: str = detail
+        self._given: str = fix
         self.fix = fix or "smaller radii or radius growth, more room, or fewer agents"
         shown = ", ".join(str(a) for a in self.agents[:12])
         more = "" if len(self.agents) <= 12 else f" and {len(self.agents) - 12} more"

@@ -131,3 +131,17 @@ def test_a_pool_worker_hands_its_scene_error_to_the_parent() -> None:
     assert (caught.value.field, caught.value.problem, caught.value.fix) == (
         "agents.colour", "is not a scene key", "remove it")
     assert str(caught.value) == "agents.colour: is not a scene key (fix: remove it)"
+
+
+def test_an_infeasible_error_built_from_one_is_its_copy() -> None:
+    """``type(err)(err)``, how Gymnasium's AsyncVectorEnv raises a worker's error again, gives
+    the same error (time, agents, detail, the fix as given), not a TypeError."""
+    from sweep_core.errors import InfeasibleError
+
+    for err in (InfeasibleError(1.25, [3, 4], "rows broken by 2e-3 m"),
+                InfeasibleError(0.5, [], "a robot overlaps", fix="stop the robot")):
+        again = InfeasibleError(err)
+        assert (again.t, again.agents, again.detail, again.fix, str(again)) == (
+            err.t, err.agents, err.detail, err.fix, str(err))
+    with pytest.raises(TypeError):
+        InfeasibleError(1.0)  # type: ignore[call-arg]
