@@ -133,6 +133,11 @@ class InfeasibleError(SweepError):
         return (type(self), (self.t, self.agents, self.detail, self._given), self.__dict__)
 
 
+class WorkerError(SweepError, RuntimeError):
+    """A worker process of a vector environment failed (the message names the worker and its
+    error) or has ended (its exit code, and what to do)."""
+
+
 class RecordingError(SweepError):
     """An MCAP recording could not be written or read."""
 

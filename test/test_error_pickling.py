@@ -45,6 +45,9 @@ EXAMPLES: dict[str, Callable[[Any], BaseException]] = {
     "sweep_core.errors.InfeasibleError": lambda m: m.InfeasibleError(
         2.5, [3, 4], "residual 1e-3", "use a smaller dt"),
     "sweep_core.errors.RecordingError": lambda m: m.RecordingError("run.mcap: truncated"),
+    "sweep_core.errors.WorkerError": lambda m: m.WorkerError(
+        "worker 1 of the vector environment has ended (exit code -9): close it and make a new "
+        "one"),
     "sweep_core.errors.OutputError": lambda m: m.OutputError(
         "out.mcap", "it is a folder", "name a file"),
     "sweep_core.model.json_text.JSONLimitError": lambda m: m.JSONLimitError(

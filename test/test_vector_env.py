@@ -19,7 +19,7 @@ from test_envs import same as same_plain
 import sweep_core.envs  # noqa: F401  (registers sweep/CrowdNav-v0)
 from sweep_core.envs import vector
 from sweep_core.envs.vector import CrowdNavVectorEnv
-from sweep_core.errors import SceneError
+from sweep_core.errors import SceneError, SweepError
 
 
 def same(a: object, b: object) -> bool:
@@ -273,6 +273,7 @@ def test_a_worker_killed_during_a_step_is_reported_with_its_exit_code() -> None:
     text = str(err.value)
     assert text == ("worker 1 of the vector environment has ended (exit code -9): close it "
                     "and make a new one"), text
+    assert isinstance(err.value, SweepError)  # the command line says it in one line
     split.close()
 
 

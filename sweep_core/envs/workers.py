@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from sweep_core.errors import SceneError
+from sweep_core.errors import SceneError, WorkerError
 
 #: seconds a worker is given to finish after ``close`` before it is terminated
 CLOSE_WAIT = 5.0
@@ -117,8 +117,8 @@ def reraise(worker: int, what: tuple) -> None:
     """Raises the failure of worker ``worker`` (:func:`portable`'s tuple) in the parent."""
     if what[0] == "scene":
         raise SceneError(what[1], what[2], what[3])
-    raise RuntimeError(f"worker {worker} of the vector environment failed: {what[1]}: "
-                       f"{what[2]}")
+    raise WorkerError(f"worker {worker} of the vector environment failed: {what[1]}: "
+                      f"{what[2]}")
 
 
 class Workers:
@@ -163,17 +163,17 @@ class Workers:
 
     def _send(self, w: int, msg: tuple) -> None:
         if not self.conns:
-            raise RuntimeError("the vector environment is closed: make a new one")
+            raise WorkerError("the vector environment is closed: make a new one")
         try:
             self.conns[w].send(msg)
         except (OSError, ValueError):
             raise self._ended(w) from None
 
-    def _ended(self, w: int) -> RuntimeError:
+    def _ended(self, w: int) -> WorkerError:
         """The error of worker ``w`` gone (killed from outside): its exit code, once its
         process is reaped (its pipe may close a moment before), and what to do."""
         self.procs[w].join(CLOSE_WAIT)
-        return RuntimeError(f"worker {w} of the vector environment has ended (exit code "
+        return WorkerError(f"worker {w} of the vector environment has ended (exit code "
                             f"{self.procs[w].exitcode}): close it and make a new one")
 
     def _gather(self) -> list:
