@@ -184,3 +184,18 @@ def test_the_workers_row_steps_the_vector_environment_in_workers(monkeypatch):
     assert made == [(4, {}), (4, {"workers": 2})]
     assert "2 worker processes" in rows[2]["note"] and "CPU time:" in rows[1]["note"]
     assert len(steps.env_rates(8, 4, workers=1)) == 2
+
+
+@pytest.mark.parametrize("option, value", [("--num-envs", "64"), ("--env-workers", "2"),
+                                           ("--run-steps", "200"), ("--env-steps", "10")])
+def test_a_steps_option_without_the_steps_scenes_is_refused(
+        capsys: pytest.CaptureFixture[str], tmp_path, option: str, value: str) -> None:
+    """--scenes hex --num-envs 64 would measure no environment and say nothing of it."""
+    csv = tmp_path / "speed.csv"
+    rc = main(["bench", "speed", "--scenes", "hex", "--sizes", "100", option, value,
+               "--csv", str(csv)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err == (f"sweep: error: {option}: is an option of --scenes steps, "
+                               "which is not among --scenes hex (fix: add steps to --scenes, "
+                               f"or leave {option} out)"), err
+    assert not csv.exists()

@@ -51,6 +51,7 @@ import numpy as np
 from sweep_core.bench import options
 from sweep_core.bench.tables import write_csv
 from sweep_core.ensemble.cluster import default_workers
+from sweep_core.errors import SceneError
 from sweep_core.io import limits
 from sweep_core.io.metadata import run_metadata
 from sweep_core.io.recording.runs import record_run
@@ -342,6 +343,9 @@ def most_run_steps() -> int:
 
 def run(args: argparse.Namespace) -> int:
     """The study (module docstring): prints the table, writes the CSV."""
+    for name, default in STEPS_DEFAULTS.items():
+        if getattr(args, name) is None:
+            setattr(args, name, default)
     options.counts([args.run_steps], "--run-steps", high=most_run_steps(), example="200")
     # as many environment steps as a run of sweep run takes at most (1e6: minutes per row)
     options.counts([args.env_steps], "--env-steps", high=limits.MAX_STEPS, example="2000")
@@ -376,14 +380,30 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+#: the ``steps`` options' defaults (None on the command line: not given)
+STEPS_DEFAULTS = {"run_steps": 200, "env_steps": 2000, "num_envs": 32}
+
+
+def refuse_without_steps(args: argparse.Namespace) -> None:
+    """Refuses a ``steps`` option given when ``steps`` is not among ``--scenes``: it would
+    be ignored, silently."""
+    given = next((name for name in (*STEPS_DEFAULTS, "env_workers")
+                  if getattr(args, name, None) is not None), None)
+    if given is not None and "steps" not in args.scenes:
+        option = "--" + given.replace("_", "-")
+        raise SceneError(option, f"is an option of --scenes steps, which is not among "
+                         f"--scenes {' '.join(args.scenes)}",
+                         f"add steps to --scenes, or leave {option} out")
+
+
 def add_options(p: argparse.ArgumentParser) -> None:
     """The options of the ``steps`` scene set on ``sweep bench speed``."""
-    p.add_argument("--run-steps", type=int, default=200, metavar="STEPS",
+    p.add_argument("--run-steps", type=int, default=None, metavar="STEPS",
                    help="steps: with --scenes steps, steps of the recorded run measured, each "
                         "beside an unrecorded step (default 200)")
-    p.add_argument("--env-steps", type=int, default=2000, metavar="STEPS",
+    p.add_argument("--env-steps", type=int, default=None, metavar="STEPS",
                    help="steps: environment steps timed, single and vectorised (default 2000)")
-    p.add_argument("--num-envs", type=int, default=32, metavar="K",
+    p.add_argument("--num-envs", type=int, default=None, metavar="K",
                    help="steps: environments of the vectorised environment (default 32)")
     p.add_argument("--env-workers", type=int, default=None, metavar="W",
                    help="steps: worker processes of the vectorised environment's second row "
