@@ -286,3 +286,28 @@ def test_reset_options_the_environment_does_not_take_are_refused(options, words)
     assert str(raised.value).startswith(words) and "(fix: " in str(raised.value)
     env.reset(seed=0, options={})
     env.reset(seed=0, options=None)
+
+
+def test_a_step_after_the_episode_ended_is_refused_until_a_reset() -> None:
+    """Stepping on after the end would give the goal's reward again at every step, and grow
+    the episode beyond max_steps: refused in one line saying how it ended."""
+    scene = small_scene()
+    scene["robots"][0]["goal"] = [1.0, 1.5]  # 0.5 m ahead: reached within a few steps
+    env = gymnasium.make("sweep/CrowdNav-v0", scene=scene, dt=0.1, max_steps=40)
+    env.reset(seed=0)
+    for steps in range(1, 41):
+        _, reward, terminated, truncated, _ = env.step(np.array([0.8, 0.0]))
+        if terminated:
+            break
+    assert terminated and not truncated and reward > 0
+    with pytest.raises(SceneError, match=rf"^step: called after the episode ended \(the robot "
+                       rf"reached its goal at step {steps}\) \(fix: call reset\(\)"):
+        env.step(np.array([0.8, 0.0]))
+    short = gymnasium.make("sweep/CrowdNav-v0", scene=small_scene(), dt=0.1, max_steps=3)
+    short.reset(seed=0)
+    flags = [short.step(np.array([0.0, 0.0]))[3] for _ in range(3)]
+    assert flags == [False, False, True]
+    with pytest.raises(SceneError, match=r"\(truncated at max_steps = 3\)"):
+        short.step(np.array([0.0, 0.0]))
+    short.reset(seed=1)  # a new episode steps again
+    assert not short.step(np.array([0.0, 0.0]))[3]

@@ -228,6 +228,8 @@ class CrowdNavEnv(gymnasium.Env):
         self.touched: list[np.ndarray] = []
         self.steps, self.togo = 0, self.geodesic
         self.started = False  # reset() called: step() refuses to run before it
+        #: how the episode ended (step() refuses to go on until reset()), None while it runs
+        self.ended: str | None = None
 
     # -- the engine ---------------------------------------------------------------------
 
@@ -318,7 +320,7 @@ class CrowdNavEnv(gymnasium.Env):
         self.sim = self._simulator(engine_seed)
         self.rows, self.touched, self.steps = [], [], 0
         near, contacts, self.togo = self._record()
-        self.started = True
+        self.started, self.ended = True, None
         return self._observe(), self._info(near, contacts)
 
     def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool,
@@ -326,6 +328,9 @@ class CrowdNavEnv(gymnasium.Env):
         if not self.started:
             raise SceneError("step", "called before the first reset(): there is no episode "
                              "yet", "call reset() first")
+        if self.ended is not None:  # its rewards (a goal's among them) would be given again
+            raise SceneError("step", f"called after the episode ended ({self.ended})",
+                             "call reset() to start the next episode")
         if action is None:
             raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, got None",
                              "give an element of env.action_space")
@@ -361,6 +366,8 @@ class CrowdNavEnv(gymnasium.Env):
         info = self._info(near, contacts)
         if reached or truncated:
             info["metrics"] = self.metrics()
+            self.ended = (f"the robot reached its goal at step {self.steps}" if reached else
+                          f"truncated at max_steps = {self.max_steps}")
         return self._observe(), float(reward), bool(reached), bool(truncated), info
 
     def render(self) -> None:
