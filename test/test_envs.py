@@ -295,8 +295,10 @@ def test_a_step_after_the_episode_ended_is_refused_until_a_reset() -> None:
     scene["robots"][0]["goal"] = [1.0, 1.5]  # 0.5 m ahead: reached within a few steps
     env = gymnasium.make("sweep/CrowdNav-v0", scene=scene, dt=0.1, max_steps=40)
     env.reset(seed=0)
-    for steps in range(1, 41):
+    steps = 0
+    while steps < 40:
         _, reward, terminated, truncated, _ = env.step(np.array([0.8, 0.0]))
+        steps += 1
         if terminated:
             break
     assert terminated and not truncated and reward > 0
