@@ -74,3 +74,20 @@ def speed(args: argparse.Namespace) -> None:
     seconds(args.timeout, "--timeout", "30")
     seconds(args.backend_timeout, "--backend-timeout", "20")
     csv_path(args.csv)
+    refuse_without_steps(args)
+
+
+#: the ``steps`` options' defaults (None on the command line: not given)
+STEPS_DEFAULTS = {"run_steps": 200, "env_steps": 2000, "num_envs": 32}
+
+
+def refuse_without_steps(args: argparse.Namespace) -> None:
+    """Refuses a ``steps`` option given when ``steps`` is not among ``--scenes``: it would
+    be ignored, silently."""
+    given = next((name for name in (*STEPS_DEFAULTS, "env_workers")
+                  if getattr(args, name, None) is not None), None)
+    if given is not None and "steps" not in args.scenes:
+        option = "--" + given.replace("_", "-")
+        raise SceneError(option, f"is an option of --scenes steps, which is not among "
+                         f"--scenes {' '.join(args.scenes)}",
+                         f"add steps to --scenes, or leave {option} out")

@@ -267,7 +267,6 @@ def _cell(value: Any, width: int) -> str:
 
 def run(args: argparse.Namespace) -> int:
     options.speed(args)
-    steps.refuse_without_steps(args)
     if "steps" in args.scenes:  # the small and medium scenes beside ORCA (bench/steps.py)
         rest = [s for s in args.scenes if s != "steps"]
         csv = args.csv if not rest else str(Path(args.csv).with_name(

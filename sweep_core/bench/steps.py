@@ -49,9 +49,9 @@ from typing import Any
 import numpy as np
 
 from sweep_core.bench import options
+from sweep_core.bench.options import STEPS_DEFAULTS
 from sweep_core.bench.tables import write_csv
 from sweep_core.ensemble.cluster import default_workers
-from sweep_core.errors import SceneError
 from sweep_core.io import limits
 from sweep_core.io.metadata import run_metadata
 from sweep_core.io.recording.runs import record_run
@@ -378,22 +378,6 @@ def run(args: argparse.Namespace) -> int:
     write_csv(Path(args.csv), rows, COLUMNS)
     print(f"csv: {args.csv}")
     return 0
-
-
-#: the ``steps`` options' defaults (None on the command line: not given)
-STEPS_DEFAULTS = {"run_steps": 200, "env_steps": 2000, "num_envs": 32}
-
-
-def refuse_without_steps(args: argparse.Namespace) -> None:
-    """Refuses a ``steps`` option given when ``steps`` is not among ``--scenes``: it would
-    be ignored, silently."""
-    given = next((name for name in (*STEPS_DEFAULTS, "env_workers")
-                  if getattr(args, name, None) is not None), None)
-    if given is not None and "steps" not in args.scenes:
-        option = "--" + given.replace("_", "-")
-        raise SceneError(option, f"is an option of --scenes steps, which is not among "
-                         f"--scenes {' '.join(args.scenes)}",
-                         f"add steps to --scenes, or leave {option} out")
 
 
 def add_options(p: argparse.ArgumentParser) -> None:
