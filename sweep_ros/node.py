@@ -185,6 +185,10 @@ class SweepNode(RecordingMixin, PublishingMixin, DiagnosticsMixin, SteppingMixin
             self.scene0 = self.scene
             self.sim = Simulator(self.scene, dt=self._p["dt"], seed=self._p["seed"],
                                  solver=params.solver_options(self._p))
+            if self.sim.robots is not None:
+                # the robots follow their cmd_vel topics only: a scene's controller: key is
+                # for sweep run (it would override every command the node receives)
+                self.sim.robots.controllers.clear()
         except SceneError as err:
             raise StartError([f"scene {self._p['scene'] or '(bundled default)'}: {err}"]) from err
         #: why this node stops: a node of its name started before it (:class:`graph.SameName`)
