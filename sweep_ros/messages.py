@@ -131,6 +131,22 @@ def navigation_refusal(topic: str, err: SceneError, field: str = "goal",
 #: largest |roll| or |pitch| quaternion component of a map's origin taken as planar
 PLANAR_TOLERANCE = 1e-6
 
+#: a quaternion whose largest |component| exceeds this is scaled down first (its squares would
+#: overflow to inf)
+QUATERNION_SCALE_BOUND = 2.0 ** 500
+
+
+def bounded_quaternion(quat: list[float]) -> list[float]:
+    """The finite quaternion ``quat`` (x, y, z, w), or, when its largest |component| exceeds
+    QUATERNION_SCALE_BOUND, it times the power of two that brings that component into
+    [0.5, 1): exact, so it names the same rotation, and its norm, products and yaw stay
+    finite (a component of 1e200 squared is inf)."""
+    big = max(abs(c) for c in quat)
+    if big <= QUATERNION_SCALE_BOUND:
+        return quat
+    shift = math.frexp(big)[1]
+    return [math.ldexp(c, -shift) for c in quat]
+
 
 def map_from_grid(msg: Any, frame_id: str, topic: str = "map") -> OccupancyMap:
     """nav_msgs/OccupancyGrid -> OccupancyMap (its cells, resolution and origin; a cell is
@@ -148,11 +164,12 @@ def map_from_grid(msg: Any, frame_id: str, topic: str = "map") -> OccupancyMap:
     if not all(math.isfinite(c) for c in quat + [p.x, p.y]):
         raise CommandError(topic, f"non-finite info.origin {show([p.x, p.y] + quat)} (fix: "
                                   "publish a finite origin pose)")
-    norm = math.sqrt(sum(c * c for c in quat))
-    if norm < 1e-9 or max(abs(o.x), abs(o.y)) > PLANAR_TOLERANCE * norm:
+    qx, qy, qz, qw = bounded_quaternion(quat)
+    norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+    if norm < 1e-9 or max(abs(qx), abs(qy)) > PLANAR_TOLERANCE * norm:
         raise CommandError(topic, f"info.origin.orientation {show(quat)} is not a rotation "
                                   "about z (fix: publish a planar map, quaternion x = y = 0)")
-    yaw = 2.0 * elementary.atan2(o.z, o.w)
+    yaw = 2.0 * elementary.atan2(qz, qw)
     if not math.isfinite(info.resolution):
         raise CommandError(topic, f"info.resolution {show(info.resolution)} is not finite "
                                   "(fix: publish the cell size, m)")

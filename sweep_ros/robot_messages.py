@@ -19,7 +19,7 @@ from typing import Any
 
 from sweep_core.errors import show
 from sweep_core.model import elementary
-from sweep_ros.messages import MAX_COORDINATE, CommandError
+from sweep_ros.messages import MAX_COORDINATE, CommandError, bounded_quaternion
 
 #: largest |roll| or |pitch| quaternion component of a pose taken as planar (relative to its norm)
 PLANAR_TOLERANCE = 1e-6
@@ -86,9 +86,10 @@ def initial_pose(msg: Any, map_frame: str, topic: str) -> tuple[float, float, fl
         raise CommandError(topic, f"position {show([p.x, p.y])} is more than "
                                   f"{MAX_COORDINATE:g} m from the origin (fix: place the robot "
                                   "inside the scene)")
-    norm = math.sqrt(sum(c * c for c in quat))
-    if norm < 1e-9 or max(abs(o.x), abs(o.y)) > PLANAR_TOLERANCE * norm:
+    qx, qy, qz, qw = bounded_quaternion(quat)
+    norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+    if norm < 1e-9 or max(abs(qx), abs(qy)) > PLANAR_TOLERANCE * norm:
         raise CommandError(topic, f"orientation {show(quat)} is not a rotation about z (fix: "
                                   "send a planar pose, quaternion x = y = 0, not all zero)")
     # yaw in (-pi, pi] of the rotation about z (the quaternion need not be normalised)
-    return float(p.x), float(p.y), elementary.atan2(2.0 * o.w * o.z, o.w * o.w - o.z * o.z)
+    return float(p.x), float(p.y), elementary.atan2(2.0 * qw * qz, qw * qw - qz * qz)

@@ -59,6 +59,19 @@ def test_malformed_grids_are_refused_naming_the_field(change, words) -> None:
     assert "\n" not in text and "array(" not in text
 
 
+def test_a_huge_origin_quaternion_is_checked_as_the_rotation_it_names() -> None:
+    """Components near 1e200 (their squares overflow) name the rotation they do: a planar one
+    is taken with its yaw, one with a roll as large as its yaw is refused (it was taken as
+    planar: the overflowed norm let any roll through)."""
+    msg = grid_msg(CELLS)
+    o = msg.info.origin.orientation
+    o.z, o.w = 1e200, 1e200
+    assert messages.map_from_grid(msg, "map", "/map").origin[2] == pytest.approx(math.pi / 2)
+    o.x = 1e200
+    with pytest.raises(CommandError, match="is not a rotation about z"):
+        messages.map_from_grid(msg, "map", "/map")
+
+
 def test_map_topic_parameter() -> None:
     assert params.defaults()["map_topic"] == ""
     assert "map_topic" not in params.LIVE

@@ -54,6 +54,18 @@ def test_initial_pose_reads_the_yaw_of_a_planar_quaternion():
         pytest.approx(0.6, abs=1e-12)
 
 
+def test_a_huge_quaternion_gives_the_yaw_it_names():
+    """Components near 1e200 (their squares overflow): the yaw of the rotation they name, and a
+    roll as large as the yaw refused (the yaw was NaN, refused later as 'must be finite',
+    a value the message did not hold)."""
+    assert initial_pose(pose(1.0, 2.0, 1e200, 1e200), "map", "t") == \
+        (1.0, 2.0, initial_pose(pose(1.0, 2.0, 1.0, 1.0), "map", "t")[2])
+    assert initial_pose(pose(0, 0, -3e300, 1e300), "map", "t")[2] == \
+        initial_pose(pose(0, 0, -3.0, 1.0), "map", "t")[2]
+    with pytest.raises(CommandError, match="is not a rotation about z"):
+        initial_pose(pose(0, 0, 1e200, 1e200, qx=1e200), "map", "t")
+
+
 def test_bad_initial_poses_are_refused_naming_the_field_and_the_fix():
     cases = [(pose(0, 0, 0, 1, frame="odom"), r"header.frame_id 'odom' is not the map frame"),
              (pose(math.nan, 0, 0, 1), r"non-finite pose"),
