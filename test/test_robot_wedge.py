@@ -215,6 +215,25 @@ def test_a_new_scene_that_cuts_or_encloses_a_robot_is_refused_and_the_run_goes_o
     assert sim.n_steps == 3
 
 
+def test_a_placement_is_checked_against_the_map_of_the_new_scene():
+    """After set_scene, placements see the new map's blocked cells (they saw the old map's):
+    the middle of a blocked 2 m x 2 m block, clear of its boundary walls, is refused; a cell
+    blocked in the old map and free in the new one is taken."""
+    from sweep_core.model.maps import replace_map
+
+    base = {"agents": {"positions": [[8.0, 5.0]], "radius": 0.25}, "walls": BOX,
+            "robots": [{"name": "bot", "radius": 0.3, "pose": [1.0, 1.0, 0.0]}]}
+    old = [(c, r) for c in range(14, 18) for r in range(2, 6)]  # [7, 9] x [1, 3]
+    sim = Simulator(Scene.from_dict(replace_map(base, _map_spec(old))), dt=0.05, seed=0)
+    new = [(c, r) for c in range(6, 10) for r in range(6, 10)]  # [3, 5] x [3, 5]
+    sim.set_scene(Scene.from_dict(replace_map(base, _map_spec(new))))
+    with pytest.raises(SceneError, match="blocked"):
+        sim.robots.place("bot", (4.0, 4.0, 0.0), sim.t, sim.positions, sim.radii)
+    assert sim.robots.state("bot").pose == (1.0, 1.0, 0.0)
+    sim.robots.place("bot", (8.0, 2.0, 0.0), sim.t, sim.positions, sim.radii)
+    assert sim.robots.state("bot").pose == (8.0, 2.0, 0.0)
+
+
 CORRIDOR = [{"kind": "segment", "a": [-2.0, 0.0], "b": [14.0, 0.0]},
             {"kind": "segment", "a": [-2.0, 6.0], "b": [14.0, 6.0]}]
 

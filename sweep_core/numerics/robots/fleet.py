@@ -60,6 +60,13 @@ from sweep_core.numerics.robots.weighted import project_weighted
 from sweep_core.numerics.schemes import Scheme, StepResult
 
 
+def blocked_cells(scene: Scene) -> Callable[[np.ndarray], np.ndarray] | None:
+    """The test of whether points (N, 2) (m) lie in a blocked cell of ``scene``'s map (None
+    without a map): what placements and the robots' targets are checked against."""
+    grid = map_from_spec(scene.spec["map"], "map", None) if scene.spec.get("map") else None
+    return None if grid is None else grid.is_blocked
+
+
 def check_step_length(scene: Scene, dt: float) -> None:
     """SceneError naming the first robot of ``scene`` that a step of ``dt`` (s) at its
     max_speed moves by its radius or more (a step could jump a wall), and the longest dt."""
@@ -93,8 +100,7 @@ class Fleet:
             self.controllers: dict[str, Callable] = dict(controllers_of(scene))
         except SceneError as err:
             raise goal_refusal(scene, err) from err
-        grid = map_from_spec(scene.spec["map"], "map", None) if scene.spec.get("map") else None
-        self._blocked = None if grid is None else grid.is_blocked
+        self._blocked = blocked_cells(scene)
         self.reset()
 
     def reset(self) -> None:
@@ -138,6 +144,7 @@ class Fleet:
             planner: Any = self.controllers[name]  # a bundled one (fields_for)
             planner.rescene(scene, f)
         self.scene = scene
+        self._blocked = blocked_cells(scene)
 
     def check_geometry(self, scene: Scene, t: float) -> str:
         """What a robot's current disk would overlap in ``scene``'s walls, obstacles and map
