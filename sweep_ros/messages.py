@@ -131,6 +131,9 @@ def navigation_refusal(topic: str, err: SceneError, field: str = "goal",
 #: largest |roll| or |pitch| quaternion component of a map's origin taken as planar
 PLANAR_TOLERANCE = 1e-6
 
+#: a quaternion of a smaller norm names no rotation (it is refused)
+MIN_QUATERNION_NORM = 1e-9
+
 #: a quaternion whose largest |component| exceeds this is scaled down first (its squares would
 #: overflow to inf)
 QUATERNION_SCALE_BOUND = 2.0 ** 500
@@ -166,7 +169,12 @@ def map_from_grid(msg: Any, frame_id: str, topic: str = "map") -> OccupancyMap:
                                   "publish a finite origin pose)")
     qx, qy, qz, qw = bounded_quaternion(quat)
     norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-    if norm < 1e-9 or max(abs(qx), abs(qy)) > PLANAR_TOLERANCE * norm:
+    if norm < MIN_QUATERNION_NORM:
+        raise CommandError(topic, f"info.origin.orientation {show(quat)} is not a rotation "
+                                  f"about z: its norm {norm:.3g} is below "
+                                  f"{MIN_QUATERNION_NORM:g} (fix: publish a unit quaternion, "
+                                  "x = y = 0, z = sin(yaw / 2), w = cos(yaw / 2))")
+    if max(abs(qx), abs(qy)) > PLANAR_TOLERANCE * norm:
         raise CommandError(topic, f"info.origin.orientation {show(quat)} is not a rotation "
                                   "about z (fix: publish a planar map, quaternion x = y = 0)")
     yaw = 2.0 * elementary.atan2(qz, qw)

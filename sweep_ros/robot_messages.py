@@ -19,7 +19,12 @@ from typing import Any
 
 from sweep_core.errors import show
 from sweep_core.model import elementary
-from sweep_ros.messages import MAX_COORDINATE, CommandError, bounded_quaternion
+from sweep_ros.messages import (
+    MAX_COORDINATE,
+    MIN_QUATERNION_NORM,
+    CommandError,
+    bounded_quaternion,
+)
 
 #: largest |roll| or |pitch| quaternion component of a pose taken as planar (relative to its norm)
 PLANAR_TOLERANCE = 1e-6
@@ -88,8 +93,13 @@ def initial_pose(msg: Any, map_frame: str, topic: str) -> tuple[float, float, fl
                                   "inside the scene)")
     qx, qy, qz, qw = bounded_quaternion(quat)
     norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-    if norm < 1e-9 or max(abs(qx), abs(qy)) > PLANAR_TOLERANCE * norm:
+    if norm < MIN_QUATERNION_NORM:
+        raise CommandError(topic, f"orientation {show(quat)} is not a rotation about z: its "
+                                  f"norm {norm:.3g} is below {MIN_QUATERNION_NORM:g} (fix: send "
+                                  "a unit quaternion, x = y = 0, z = sin(yaw / 2), "
+                                  "w = cos(yaw / 2))")
+    if max(abs(qx), abs(qy)) > PLANAR_TOLERANCE * norm:
         raise CommandError(topic, f"orientation {show(quat)} is not a rotation about z (fix: "
-                                  "send a planar pose, quaternion x = y = 0, not all zero)")
+                                  "send a planar pose, quaternion x = y = 0)")
     # yaw in (-pi, pi] of the rotation about z (the quaternion need not be normalised)
     return float(p.x), float(p.y), elementary.atan2(2.0 * qw * qz, qw * qw - qz * qz)

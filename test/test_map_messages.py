@@ -42,6 +42,7 @@ def test_a_map_server_grid_becomes_the_map() -> None:
 @pytest.mark.parametrize("change, words", [
     (lambda m: setattr(m.header, "frame_id", "odom"), "frame 'odom' is not the simulation frame"),
     (lambda m: setattr(m.info.origin.orientation, "x", 0.5), "is not a rotation about z"),
+    (lambda m: setattr(m.info.origin.orientation, "w", 0.0), "its norm 0 is below 1e-09"),
     (lambda m: setattr(m.info.origin.position, "x", math.nan), "non-finite info.origin"),
     (lambda m: setattr(m.info, "resolution", 0.0), "info.resolution must be"),
     (lambda m: setattr(m.info, "resolution", math.inf), "info.resolution inf is not finite"),

@@ -66,6 +66,15 @@ def test_a_huge_quaternion_gives_the_yaw_it_names():
         initial_pose(pose(0, 0, 1e200, 1e200, qx=1e200), "map", "t")
 
 
+def test_a_quaternion_too_small_is_refused_with_its_norm():
+    """(0, 0, 1e-12, 1e-12) is not all zero: the refusal gives its norm and the bound (it
+    told the sender to send a quaternion 'not all zero')."""
+    with pytest.raises(CommandError) as err:
+        initial_pose(pose(0, 0, 1e-12, 1e-12), "map", "/r/initialpose")
+    text = str(err.value)
+    assert "norm 1.41e-12 is below 1e-09" in text and "not all zero" not in text, text
+
+
 def test_bad_initial_poses_are_refused_naming_the_field_and_the_fix():
     cases = [(pose(0, 0, 0, 1, frame="odom"), r"header.frame_id 'odom' is not the map frame"),
              (pose(math.nan, 0, 0, 1), r"non-finite pose"),
