@@ -10,23 +10,16 @@ from __future__ import annotations
 import pytest
 
 rclpy = pytest.importorskip("rclpy")
+from node_process import node_in_process  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
-from sweep_ros.node import SweepNode, typed_reason  # noqa: E402
+from sweep_ros.node import typed_reason  # noqa: E402
 
 
 @pytest.fixture
 def node():
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    n = SweepNode(context=context, parameter_overrides=[
-        Parameter("name_check_s", value=0.0), Parameter("record", value="")])
-    try:
+    with node_in_process([Parameter("record", value="")]) as n:
         yield n
-    finally:
-        n.close()
-        n.destroy_node()
-        rclpy.shutdown(context=context)
 
 
 @pytest.mark.parametrize("name,value,words", [

@@ -13,6 +13,7 @@ import pytest
 rclpy = pytest.importorskip("rclpy")
 import yaml  # noqa: E402
 from geometry_msgs.msg import TwistStamped  # noqa: E402
+from node_process import node_in_process  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.serialization import serialize_message  # noqa: E402
 from robot_scenes import small_scene  # noqa: E402
@@ -31,18 +32,10 @@ def node(tmp_path: Path) -> Iterator[SweepNode]:
     scene["robots"][0]["controller"] = "pursuit"
     path = tmp_path / "scene.yaml"
     path.write_text(yaml.safe_dump(scene))
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    n = SweepNode(context=context, parameter_overrides=[
-        Parameter("name_check_s", value=0.0), Parameter("scene", value=str(path)),
-        Parameter("dt", value=0.05)])
-    n._on_pause(SetBool.Request(data=True), SetBool.Response())
-    try:
+    with node_in_process([Parameter("scene", value=str(path)),
+                          Parameter("dt", value=0.05)]) as n:
+        n._on_pause(SetBool.Request(data=True), SetBool.Response())
         yield n
-    finally:
-        n.close()
-        n.destroy_node()
-        rclpy.shutdown(context=context)
 
 
 def step(n: SweepNode, k: int) -> None:
