@@ -384,11 +384,13 @@ def add_options(p: argparse.ArgumentParser) -> None:
     """The options of the ``steps`` scene set on ``sweep bench speed``."""
     p.add_argument("--run-steps", type=int, default=None, metavar="STEPS",
                    help="steps: with --scenes steps, steps of the recorded run measured, each "
-                        "beside an unrecorded step (default 200)")
+                        f"beside an unrecorded step (default {STEPS_DEFAULTS['run_steps']})")
     p.add_argument("--env-steps", type=int, default=None, metavar="STEPS",
-                   help="steps: environment steps timed, single and vectorised (default 2000)")
+                   help="steps: environment steps timed, single and vectorised (default "
+                        f"{STEPS_DEFAULTS['env_steps']})")
     p.add_argument("--num-envs", type=int, default=None, metavar="K",
-                   help="steps: environments of the vectorised environment (default 32)")
+                   help="steps: environments of the vectorised environment (default "
+                        f"{STEPS_DEFAULTS['num_envs']})")
     p.add_argument("--env-workers", type=int, default=None, metavar="W",
                    help="steps: worker processes of the vectorised environment's second row "
                         "(default: 2, or 1 on a single core or with --num-envs 1: no such "
