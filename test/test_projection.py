@@ -161,7 +161,7 @@ def test_row_summary_is_numpys(seed: int) -> None:
     of the two minima (NaN-propagating, initial inf), the rows within ROW_TOLERANCE, and
     ``rp.min() < 0 or rs.min() < 0`` (a NaN hiding the negatives of its array)."""
     from sweep_core.numerics.projection.options import ROW_TOLERANCE
-    from sweep_core.numerics.projection.project import row_summary
+    from sweep_core.numerics.projection.summaries import row_summary
     rng = np.random.default_rng(seed)
     for _ in range(200):
         rp, rs = (rng.choice([-1e-3, -1e-12, 0.0, 1e-12, 2e-3, np.nan], rng.integers(0, 5))

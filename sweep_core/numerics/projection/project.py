@@ -24,17 +24,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 import scipy.sparse as sp
 
 from sweep_core.errors import InfeasibleError
 from sweep_core.model.geometry import Geometry
 from sweep_core.numerics.constraints import Rows, linearise
-from sweep_core.numerics.projection import certified, dual, polish, refine
+from sweep_core.numerics.projection import certified, dual, polish, refine, small
 from sweep_core.numerics.projection.clear import clear_active
 from sweep_core.numerics.projection.clusters import row_matrix, solve_qp
 from sweep_core.numerics.projection.options import ROW_TOLERANCE, SolverOptions
+from sweep_core.numerics.projection.summaries import largest_step, row_summary
 from sweep_core.numerics.projection.warm import carry_multipliers
 
 #: a cluster the certified rounds left to the cluster solvers is sent there directly on the
@@ -97,39 +97,6 @@ def first_cutoff(q: np.ndarray, pred: np.ndarray, r1: np.ndarray) -> float:
     return 3.0 * math.sqrt(square) + 1e-3 * r_max
 
 
-@numba.njit(cache=True, nogil=True)
-def largest_step(q: np.ndarray, pred: np.ndarray, r: np.ndarray
-                 ) -> tuple[float, float]:  # pragma: no cover - compiled
-    """The largest |p_i - q_i|^2 (m^2; the sum x then y, as ``einsum("ij,ij->i")``) and the
-    largest r_i (m), each NaN as soon as one value is (as numpy's max)."""
-    square = 0.0 if len(q) else np.nan
-    for i in range(len(q)):
-        dx, dy = pred[i, 0] - q[i, 0], pred[i, 1] - q[i, 1]
-        square = dual.maximum(square, dx * dx + dy * dy)
-    r_max = r[0] if len(r) else np.nan
-    for i in range(1, len(r)):
-        r_max = dual.maximum(r_max, r[i])
-    return square, r_max
-
-
-@numba.njit(cache=True, nogil=True)
-def row_summary(rp: np.ndarray, rs: np.ndarray) -> tuple[float, int, bool]:  # pragma: no cover
-    """Of the residuals rp (P,) and rs (M,) (m): the worst, Python's ``min`` of numpy's
-    ``rp.min(initial=inf)`` and ``rs.min(initial=inf)`` (each NaN from a NaN on; the second
-    only when it is below the first); the rows holding with equality (residual <=
-    ROW_TOLERANCE); and whether a row is broken as numpy's ``rp.min() < 0 or rs.min() < 0``
-    says it (a NaN in an array hides its negative values: its min is NaN)."""
-    low_p, low_s = np.inf, np.inf
-    active = 0
-    for k in range(rp.shape[0]):
-        low_p = dual.minimum(low_p, rp[k])
-        active += rp[k] <= ROW_TOLERANCE
-    for k in range(rs.shape[0]):
-        low_s = dual.minimum(low_s, rs[k])
-        active += rs[k] <= ROW_TOLERANCE
-    return (low_s if low_s < low_p else low_p), active, low_p < 0.0 or low_s < 0.0
-
-
 def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
             opts: SolverOptions, warm: Projection | None = None) -> Projection:
     """Project the prediction pred (N, 2) onto C~(t1, q); q (N, 2) at t_n, r1 (N,) at t1.
@@ -157,6 +124,15 @@ def project(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.n
     if active >= 0:
         return Projection(pred.copy(), NO_ROWS, _NONE, _NONE, active, 0, 0, 0, 0.0, 0, 0, None,
                           held_for + 1 if skip is not None else 0)
+    if small.applies(geom, n, opts, warm is not None and warm.stuck is not None):
+        # a small scene's first pass in one compiled call (the same kernels, the same bits);
+        # None where it would solve more than the rounds certify, or widen the cutoff
+        carry = ((warm.rows, warm.lam_pair, warm.lam_single)
+                 if opts.warm_start and warm is not None and len(warm.y) == n else None)
+        fast = small.small_projection(geom, q, pred, r1, cut, opts, carry)
+        if fast is not None:
+            y, rows, lam_p, lam_s, active, qp_size, solves, bound, sweeps = fast
+            return Projection(y, rows, lam_p, lam_s, active, qp_size, solves, 0, bound, sweeps)
     todo = np.zeros(n, dtype=bool)
     built: Rows | None = None  # the rows of the wider cutoff, when already built
     while True:

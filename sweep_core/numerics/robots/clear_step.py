@@ -38,7 +38,8 @@ from sweep_core.model.geometry import DENSE_SEGMENTS, Geometry
 from sweep_core.model.wall_kernels import crossing_pairs, single_gaps
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clear import MAX_AGENTS, MIN_CUT, clear_count
-from sweep_core.numerics.projection.project import NO_ROWS, Projection, largest_step
+from sweep_core.numerics.projection.project import NO_ROWS, Projection
+from sweep_core.numerics.projection.summaries import largest_step
 from sweep_core.numerics.robots.overlaps import NAN, TOLERANCE, check_step, robot_gaps
 
 #: the overlap tolerance of the settle's target check (``model.robots.overlap``'s tol), m
