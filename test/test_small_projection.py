@@ -10,6 +10,7 @@ import pytest
 
 import sweep_core as sc
 from sweep_core.numerics.projection import SolverOptions, small
+from sweep_core.numerics import schemes
 from sweep_core.numerics.robots import fleet
 
 project_module = importlib.import_module("sweep_core.numerics.projection.project")
@@ -42,21 +43,34 @@ def crowded(sigma: float) -> sc.Scene:
                     "kinematics": kin, "weight": "inf"}]})
 
 
+def gathering() -> sc.Scene:
+    """Twenty people in open space (no wall, no robot) walking to one point: a growing
+    cluster of contacts, projected through the scheme's own step."""
+    angles = np.linspace(0.0, 2.0 * np.pi, 20, endpoint=False)
+    q = np.column_stack([3.0 * np.cos(angles), 3.0 * np.sin(angles)])
+    return sc.Scene.from_dict({"agents": {"positions": q.tolist(), "radius": 0.25},
+                               "drift": {"kind": "goal", "goal": [0.0, 0.0], "speed": 1.2},
+                               "noise": {"sigma": 0.1}})
+
+
 def captured(monkeypatch: pytest.MonkeyPatch, scene: sc.Scene, steps: int,
              dt: float) -> list[tuple[Any, ...]]:
-    """The arguments of every projection the robots' steps asked for."""
+    """The arguments of every projection the steps asked for (the robots' or, without
+    robots, the scheme's)."""
     calls: list[tuple[Any, ...]] = []
-    real = fleet.project
+    where = fleet if scene.robots else schemes
+    real = where.project
 
     def spy(geom: Any, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
             opts: SolverOptions, warm: Any = None) -> Any:
         calls.append((geom, t1, q.copy(), pred.copy(), r1.copy(), opts, warm))
         return real(geom, t1, q, pred, r1, opts, warm=warm)
 
-    monkeypatch.setattr(fleet, "project", spy)
+    monkeypatch.setattr(where, "project", spy)
     sim = sc.Simulator(scene, dt=dt, seed=4)
     for _ in range(steps):
-        sim.robots.command("robot", (1.0, 0.0, 0.0))
+        if scene.robots:
+            sim.robots.command("robot", (1.0, 0.0, 0.0))
         sim.step()
     monkeypatch.undo()
     return calls
@@ -76,10 +90,12 @@ def same(a: Any, b: Any) -> None:
         assert x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes(), name
 
 
-@pytest.mark.parametrize("sigma", [0.0, 0.3])
+@pytest.mark.parametrize("scene", ["robot", "noisy robot", "gathering"])
 def test_the_compiled_answer_has_the_bits_of_projects_own_path(
-        monkeypatch: pytest.MonkeyPatch, sigma: float) -> None:
-    calls = captured(monkeypatch, crowded(sigma), 150, 0.02)
+        monkeypatch: pytest.MonkeyPatch, scene: str) -> None:
+    made = {"robot": lambda: crowded(0.0), "noisy robot": lambda: crowded(0.3),
+            "gathering": gathering}[scene]()
+    calls = captured(monkeypatch, made, 150, 0.02)
     answered = solved = carried = 0
     real = small.small_projection
     for geom, t1, q, pred, r1, opts, warm in calls:
