@@ -10,7 +10,7 @@ import pytest
 import sweep_core as sc
 from sweep_core.model.scene import load_scene
 from sweep_core.numerics import simulator
-from sweep_core.numerics.robots import clear_step, fleet, overlaps
+from sweep_core.numerics.robots import clear_step, fleet, overlaps, small_step
 
 WALLS = [{"kind": "segment", "a": [-1.0, 0.0], "b": [9.0, 0.0]},
          {"kind": "segment", "a": [-1.0, 4.0], "b": [9.0, 4.0]},
@@ -45,7 +45,7 @@ def two_robots(sigma: float) -> sc.Scene:
 
 def run(scene: sc.Scene, steps: int, dt: float, commands: bool) -> tuple[str, dict]:
     """A hash of everything a step leaves (people, robots' poses, twists, contacts, stops, the
-    projection's active rows, the smallest gap) over ``steps`` steps, and the steps in which
+    projection's rows, multipliers, counts and bound, the smallest gap) over ``steps`` steps, and the steps in which
     a robot was stopped."""
     sim = sc.Simulator(scene, dt=dt, seed=3)
     h = hashlib.sha256()
@@ -61,22 +61,35 @@ def run(scene: sc.Scene, steps: int, dt: float, commands: bool) -> tuple[str, di
         for name in sim.robots.names:
             st = sim.robots.state(name)
             h.update(np.array(st.pose + st.twist + st.command).tobytes())
-            h.update(st.contact_ids.tobytes() + st.contact_impulse.tobytes())
+            h.update(st.contact_ids.tobytes() + st.contact_impulse.tobytes()
+                     + st.contact_xy.tobytes())
             h.update(f"{st.blocked} {st.stopped}".encode())
-        h.update(np.array([sim.last.projection.active, sim.min_gap]).tobytes())
+        proj = sim.last.projection
+        h.update(np.array([proj.active, sim.min_gap, proj.qp_size, proj.solves, proj.bound,
+                           proj.sweeps]).tobytes())
+        h.update(proj.lam_pair.tobytes() + proj.lam_single.tobytes() + proj.y.tobytes())
+        for name in proj.rows.__dataclass_fields__:
+            h.update(np.ascontiguousarray(getattr(proj.rows, name)).tobytes())
     blocked = sum(sim.robots.state(name).blocked for name in sim.robots.names)
     return h.hexdigest(), blocked
 
 
-def counted(monkeypatch: pytest.MonkeyPatch, taken: dict) -> None:
-    original = clear_step.simple_step
+def counted(monkeypatch: pytest.MonkeyPatch, taken: dict, paths: list) -> None:
+    """Counts the steps the compiled call takes (simple ones, with no row, and those with
+    contacts, projected in the call) and those it sends to the general path; ``paths`` gets
+    whether each step it took found the people's paths clear of the walls."""
+    original = small_step.simple_step
 
     def wrapped(*args, **kwargs):
         out = original(*args, **kwargs)
-        taken["simple" if isinstance(out, tuple) else "general"] += 1
+        if isinstance(out, tuple):
+            taken["contact" if out[0].rows.count else "simple"] += 1
+            paths.append(out[3])
+        else:
+            taken["general"] += 1
         return out
 
-    monkeypatch.setattr(clear_step, "simple_step", wrapped)
+    monkeypatch.setattr(small_step, "simple_step", wrapped)
 
 
 @pytest.mark.parametrize("case", ["crowdnav", "two robots", "two robots, noisy"])
@@ -88,21 +101,26 @@ def test_simple_steps_have_the_general_paths_bits(monkeypatch: pytest.MonkeyPatc
         scene, steps, dt, commands = load_scene("crowdnav"), 150, 0.1, False
     else:
         scene, steps, dt, commands = two_robots(0.4 if "noisy" in case else 0.05), 120, 0.05, True
-    taken = {"simple": 0, "general": 0}
-    counted(monkeypatch, taken)
+    taken = {"simple": 0, "contact": 0, "general": 0}
+    taken_paths: list[bool] = []
+    counted(monkeypatch, taken, taken_paths)
     checked, ends = [], []
     crossings = simulator.crossings
     monkeypatch.setattr(simulator, "crossings", lambda *a: checked.append(1) or crossings(*a))
     checked_end = fleet.checked_end
     monkeypatch.setattr(fleet, "checked_end", lambda *a: ends.append(checked_end(*a)) or ends[-1])
     fast, blocked = run(scene, steps, dt, commands)
-    assert taken["simple"] > 10 and taken["general"] > 3, taken
+    assert taken["simple"] > 10 and taken["contact"] > 3, taken
+    assert taken["general"] > 3 or case == "crowdnav", taken
     assert blocked > 0 or case == "crowdnav"  # robots stopped by the settle too
-    # a simple step, and a general one whose end check found the same, checked the people's
-    # paths (none might cross a wall): the simulator does not check them again
-    assert 0 < sum(paths for _, paths in ends) <= len(ends) == taken["general"]
-    assert len(checked) == sum(not paths for _, paths in ends)
+    # every step the call sends back ends on the general path's check; a step taken here, or
+    # a general one whose end check found the same, checked the people's paths (none might
+    # cross a wall): the simulator does not check them again
+    assert len(ends) == taken["general"]
+    assert 0 < sum(taken_paths) + sum(p for _, p in ends)
+    assert len(checked) == sum(not p for _, p in ends) + sum(not p for p in taken_paths)
     monkeypatch.setattr(clear_step, "applies", lambda *args: False)
+    monkeypatch.setattr(small_step, "applies", lambda *args: False)
     general, _ = run(scene, steps, dt, commands)
     assert fast == general
 

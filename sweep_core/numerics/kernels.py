@@ -27,13 +27,13 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
 from sweep_core.numerics.projection import certified, clear, dual, pairwise, small, summaries
 from sweep_core.numerics.projection.clusters import solve_active
-from sweep_core.numerics.projection.options import SolverOptions
 from sweep_core.numerics.robots import (
     clear_step,
     contacts,
     control,
     guard,
     overlaps,
+    small_step,
     social_kernels,
     window,
 )
@@ -43,7 +43,8 @@ from sweep_core.numerics.simulator import Simulator
 #: the modules that hold compiled kernels
 MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
                                    noise, constraints, guard, social_kernels, window, contacts,
-                                   control, clear, overlaps, clear_step, small, summaries)
+                                   control, clear, overlaps, clear_step, small, summaries,
+                                   small_step)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -125,13 +126,18 @@ def cached() -> bool:
 
 
 def _room() -> Scene:
-    """Two agents in a room of a segment wall, a half-plane and a circle obstacle, nothing
-    moving (a geometry the small scenes' compiled paths take)."""
+    """Two people walking into each other beside a prescribed robot, in a room of a segment
+    wall, a half-plane and a circle obstacle, nothing moving (the small scenes' compiled
+    paths)."""
+    kin = {"type": "holonomic", "max_speed": 1.0}
     return Scene.from_dict({
-        "agents": {"positions": [[0.0, 0.0], [0.5, 0.0]], "radius": 0.2},
+        "agents": {"positions": [[0.0, 0.0], [0.4, 0.0]], "radius": 0.2},
+        "drift": {"kind": "goal", "goal": [0.2, 0.0], "speed": 1.0},
         "walls": [{"kind": "segment", "a": [-2.0, -1.0], "b": [2.0, -1.0]},
                   {"kind": "halfplane", "normal": [0.0, -1.0], "offset": -2.0}],
-        "obstacles": [{"kind": "circle", "center": [0.25, 0.8], "radius": 0.2}]})
+        "obstacles": [{"kind": "circle", "center": [0.25, 0.8], "radius": 0.2}],
+        "robots": [{"name": "robot", "radius": 0.3, "pose": [0.2, -0.5, 0.0],
+                    "kinematics": kin, "weight": "inf"}]})
 
 
 def _jam() -> Scene:
@@ -210,14 +216,9 @@ def _exercise() -> None:
     clear.clear_count(two, two, np.full(2, 0.2), 0.1, np.ones((1, 2)), np.zeros(1), two,
                       two + 1.0, two + 3.0, np.ones(2))
     # a small scene's projection in one call (the jam's polygon sends its steps to project's
-    # own path): two agents pressed together, the second step warm-started from the first
-    pressed = np.array([[0.0, 0.0], [0.5, 0.0]])
-    first = small.small_projection(_room().geometry, pressed, pressed + [[0.1, 0.0], [-0.1, 0.0]],
-                                   np.full(2, 0.2), 0.7, SolverOptions(), None)
-    if first is not None:
-        small.small_projection(_room().geometry, pressed, pressed + [[0.1, 0.0], [-0.1, 0.0]],
-                               np.full(2, 0.2), 0.7, SolverOptions(),
-                               (first[1], first[2], first[3]))
+    # own path), and a robot's step with contacts in one call: two people pressed together
+    # beside a robot, steps warm-started from the one before
+    Simulator(_room(), dt=0.02, seed=0).step(3)
     # a simple robot step in one call (the jam has no robot; its polygon would send it back)
     clear_step.clear_robot_step(two, two, np.full(2, 0.2), np.array([[3.0, 0.0]]),
                                 np.array([[3.1, 0.0]]), np.full(1, 0.3), np.ones(1, np.bool_),

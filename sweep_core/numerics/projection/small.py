@@ -76,7 +76,7 @@ def small_projection(geom: Geometry, q: np.ndarray, pred: np.ndarray, r1: np.nda
         old = (rows.pair_i, rows.pair_j, rows.single_a, rows.single_kind, rows.single_item,
                np.ascontiguousarray(lam_p, dtype=np.float64),
                np.ascontiguousarray(lam_s, dtype=np.float64), True)
-    out = _project(q, pred, r1, float(cut), hn, hc, sa, sb, cc, cr, not geom.is_empty,
+    out = first_pass(q, pred, r1, float(cut), hn, hc, sa, sb, cc, cr, not geom.is_empty,
                    *old, float(opts.tol), int(opts.max_rounds))
     (ok, y, pi, pj, pe, pb, s_a, s_n, s_b, s_kind, s_item, lam, active, qp_size, solves,
      bound, rounds) = out
@@ -88,7 +88,7 @@ def small_projection(geom: Geometry, q: np.ndarray, pred: np.ndarray, r1: np.nda
 
 
 @numba.njit(cache=True, nogil=True)
-def _project(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, cut: float, hn: np.ndarray,
+def first_pass(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, cut: float, hn: np.ndarray,
              hc: np.ndarray, sa: np.ndarray, sb: np.ndarray, cc: np.ndarray, cr: np.ndarray,
              walls: bool, old_i: np.ndarray, old_j: np.ndarray, old_a: np.ndarray,
              old_kind: np.ndarray, old_item: np.ndarray, old_lam_p: np.ndarray,

@@ -18,7 +18,9 @@ and their centre paths against the wall segments (``crossing_pairs``). Only when
 is the simple one does the fleet take the step from it; otherwise nothing has changed and the
 step runs through the general path, which asks again and acts on the answer (a stop, a QP, an
 error naming who overlaps). Each value is computed by the same kernel from the same
-arguments, so a step taken here has the bits the general path gives it.
+arguments, so a step taken here has the bits the general path gives it. (The fleet asks it
+through :func:`~sweep_core.numerics.robots.small_step.robot_step`, whose call goes on with the
+projection when the prediction breaks a row but no robot stops.)
 
 It applies (:func:`applies`) when every robot is prescribed (weight inf), the scene has no map
 of blocked cells, at most ``clear.MAX_AGENTS`` people, and a geometry without user
@@ -38,7 +40,6 @@ from sweep_core.model.geometry import DENSE_SEGMENTS, Geometry
 from sweep_core.model.wall_kernels import crossing_pairs, single_gaps
 from sweep_core.numerics.projection import dual
 from sweep_core.numerics.projection.clear import MAX_AGENTS, MIN_CUT, clear_count
-from sweep_core.numerics.projection.project import NO_ROWS, Projection
 from sweep_core.numerics.projection.summaries import largest_step
 from sweep_core.numerics.robots.overlaps import NAN, TOLERANCE, check_step, robot_gaps
 
@@ -51,9 +52,6 @@ CONTACT_TOL = 1e-6
 NOT_CLEAR = -1
 #: ... or when no robot would stop (the settle has nothing to do) but the rest is not simple
 SETTLED = -2
-
-
-_NO_MULTIPLIER = np.empty(0)
 
 
 class _Room(NamedTuple):
@@ -88,7 +86,7 @@ class _Room(NamedTuple):
                              self.walls)
 
 
-def _room(geom: Geometry, people: int) -> _Room:
+def room_for(geom: Geometry, people: int) -> _Room:
     """:class:`_Room` for ``people`` people in ``geom`` (static)."""
     hn, hc, sa, sb, cc, cr = geom.packed
     walls = not geom.is_empty
@@ -107,52 +105,6 @@ def applies(geom: Geometry, people: int, all_prescribed: bool, has_map: bool) ->
             and people * len(geom.segment_a) <= DENSE_SEGMENTS)
 
 
-def robot_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
-               states: list[Any], targets: list[tuple], moving: list[bool], has_map: bool,
-               warm: Projection | None) -> tuple[Projection, np.ndarray, Gaps, bool] | bool:
-    """A fleet's step when it is a simple one: the robots (``states``, ``RobotState``) moved
-    to their ``targets`` (x, y, yaw) with their commands as twists and no contact, and
-    :func:`simple_step`'s answer returned; otherwise, nothing changed, True when no robot
-    would stop (the general path may skip its settle) and False when some might, the scene is
-    not one this applies to (:func:`applies`; ``has_map``: blocked cells) or the last
-    projection (``warm``) held clusters back (the general path then counts their steps)."""
-    if (not applies(geom, len(q), all(st.robot.prescribed for st in states), has_map)
-            or (warm is not None and warm.stuck is not None and len(warm.y) == len(q))):
-        return False
-    done = simple_step(geom, t1, q, pred, r1,
-                       np.array([st.pose[:2] for st in states], dtype=np.float64),
-                       np.array([p[:2] for p in targets], dtype=np.float64),
-                       np.array([st.robot.radius for st in states], dtype=np.float64),
-                       np.array(moving, dtype=np.bool_))
-    if not isinstance(done, tuple):
-        return done
-    for k, st in enumerate(states):
-        st.pose, st.twist = targets[k], st.command
-        st.contact_ids = np.empty(0, dtype=np.int64)
-        st.contact_xy, st.contact_impulse = np.empty((0, 2)), np.empty((0, 2))
-    return done
-
-
-def simple_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
-                start: np.ndarray, target: np.ndarray, radius: np.ndarray,
-                moving: np.ndarray) -> tuple[Projection, np.ndarray, Gaps, bool] | bool:
-    """The step's projection (the prediction, no rows), the people's positions at its end (a
-    copy), their gaps there and whether their paths are clear of the wall segments, when the
-    step is a simple one (:func:`clear_robot_step`); otherwise, nothing changed, True when no
-    robot would stop (SETTLED) and False else. Arguments as :func:`clear_robot_step`'s;
-    ``geom`` the scene's geometry (static: :func:`applies`) and t1 (s) the step's end."""
-    q = np.ascontiguousarray(q, dtype=np.float64)
-    pred = np.ascontiguousarray(pred, dtype=np.float64)
-    r1 = np.ascontiguousarray(r1, dtype=np.float64)
-    room = _room(geom, len(q))
-    active = clear_robot_step(q, pred, r1, start, target, radius, moving, *room)
-    if active < 0:
-        return active == SETTLED
-    y = pred.copy()
-    return (Projection(y, NO_ROWS, _NO_MULTIPLIER, _NO_MULTIPLIER, active, 0, 0, 0, 0.0, 0,
-                       0, None, 0), y.copy(), room.gaps(), bool(room.out[10]))
-
-
 def checked_end(geom: Geometry, t1: float, q: np.ndarray, y: np.ndarray, r1: np.ndarray,
                 states: list[Any], start: list[tuple], has_map: bool
                 ) -> tuple[Gaps | None, bool]:
@@ -168,7 +120,7 @@ def checked_end(geom: Geometry, t1: float, q: np.ndarray, y: np.ndarray, r1: np.
             and len(q) == len(y)):
         q = np.ascontiguousarray(q, dtype=np.float64)
         r1 = np.ascontiguousarray(r1, dtype=np.float64)
-        room = _room(geom, len(y))
+        room = room_for(geom, len(y))
         if clear_end(q, y, r1, np.array([p[:2] for p in start], dtype=np.float64),
                      np.array([st.pose[:2] for st in states], dtype=np.float64),
                      np.array([st.robot.radius for st in states], dtype=np.float64), *room):

@@ -48,13 +48,14 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise
 from sweep_core.numerics.projection import Projection, project
 from sweep_core.numerics.robots import kinematics
-from sweep_core.numerics.robots.clear_step import checked_end, robot_step
+from sweep_core.numerics.robots.clear_step import checked_end
 from sweep_core.numerics.robots.contacts import set_contacts
 from sweep_core.numerics.robots.control import goal_field, observe
 from sweep_core.numerics.robots.planners import controllers_of
 from sweep_core.numerics.robots.reaction import avoidance
 from sweep_core.numerics.robots.refusals import geometry_problem, goal_refusal
 from sweep_core.numerics.robots.scan import scan
+from sweep_core.numerics.robots.small_step import robot_step
 from sweep_core.numerics.robots.state import Command, RobotState
 from sweep_core.numerics.robots.weighted import project_weighted
 from sweep_core.numerics.schemes import Scheme, StepResult
@@ -222,7 +223,7 @@ class Fleet:
         targets = [kinematics.arc(st.pose, st.command, h) for st in states]
         moving = [st.robot.prescribed and st.command != (0.0, 0.0, 0.0) for st in states]
         simple = robot_step(self.scene.geometry, t1, q, pred, r1, states, targets, moving,
-                            self._blocked is not None, scheme.warm)
+                            self._blocked is not None, scheme.warm, scheme.solver, h)
         if isinstance(simple, tuple):  # the general path's bits, in one compiled call
             proj, people, gaps, paths_clear = simple
             self.people_gaps = (t1, people, r1, self.scene.geometry, gaps, paths_clear)
