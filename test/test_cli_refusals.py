@@ -139,3 +139,32 @@ def test_bench_social_refuses_a_dt_too_long_for_a_robot_before_any_run(
                             "--dt", "0.5", "--out", str(tmp_path / "out")])
     assert err.startswith("sweep: error: --dt: 0.5 s is too long for 'crowdnav'"), err
     assert "--dt below 0.3" in err and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("t_end", ["0.001", "0.005", "0"])
+def test_sweep_run_refuses_a_t_end_shorter_than_half_a_step(capsys: pytest.CaptureFixture[str],
+                                                            tmp_path: Path, t_end: str) -> None:
+    """round(t_end / dt) steps: none below half a step; refused before anything is written."""
+    out = tmp_path / "r.mcap"
+    err = _refused(capsys, ["run", "crowdnav", "--t-end", t_end, "--dt", "0.01",
+                            "--out", str(out), "--quiet"])
+    assert err.startswith(f"sweep: error: --t-end: {float(t_end):g} s at dt = 0.01 s is no "
+                          "step: the recording would hold the start only"), err
+    assert err.endswith("(fix: --t-end 0.01 or more)"), err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sweep_run_refuses_a_horizon_shorter_than_half_a_step(capsys: pytest.CaptureFixture[str],
+                                                              tmp_path: Path) -> None:
+    """Without --t-end a robot scene runs to its horizon: one shorter than half a step is
+    refused naming --t-end and saying the horizon was its value."""
+    data = copy.deepcopy(small_scene())
+    data["horizon"] = 0.002
+    data["robots"][0]["controller"] = "pursuit"
+    scene = tmp_path / "short.yaml"
+    scene.write_text(dump_yaml(data))
+    out = tmp_path / "r.mcap"
+    err = _refused(capsys, ["run", str(scene), "--out", str(out), "--quiet"])
+    assert err.startswith("sweep: error: --t-end: 0.002 s at dt = 0.01 s is no step: "), err
+    assert "the scene's horizon, 0.002 s" in err and "(fix: --t-end 0.01 or more)" in err, err
+    assert not out.exists()

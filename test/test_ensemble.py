@@ -224,6 +224,9 @@ def test_record_full_needs_the_directory_on_the_worker(tmp_path):
 @pytest.mark.parametrize("args, needle", [
     (["--runs", "0"], "--runs: must be an integer >= 1, got 0"),
     (["--runs", "2", "--t-end", "-1"], "--t-end: must be a positive number, got -1"),
+    (["--runs", "2", "--t-end", "0.001"], "--t-end: 0.001 s at dt = 0.01 s is no step"),
+    (["--runs", "2", "--t-end", "0.2", "--vary", "dt=0.01,0.5"],
+     "--t-end: 0.2 s at dt = 0.5 s is no step"),
     (["--runs", "2", "--workers", "0"], "--workers: 0 is not a positive number"),
     (["--runs", "2", "--vary", "noise.sgima=0.1,0.2"], "--vary: unknown key 'noise.sgima'"),
     (["--runs", "2", "--vary", "noise.sigma=0.1,,0.2"], "--vary: noise.sigma: bad value list"),
@@ -313,6 +316,18 @@ def test_runs_whose_recording_passes_the_bound_are_refused_before_any_starts(tmp
     with pytest.raises(SceneError, match=r"^--t-end: 10000 s at dt = 0.01 s records .* GB "
                                          r"uncompressed on its worker, more than the limit 2 GB"):
         run(None, runs=2, t_end=10000.0, dt=0.01, client=object(), out=tmp_path / "o")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("t_end, vary, dt", [(0.004, None, 0.01),
+                                              (0.2, {"dt": [0.001, 0.5]}, 0.5)])
+def test_a_t_end_below_half_a_step_is_refused_before_any_run(tmp_path, t_end, vary, dt):
+    """A run of round(t_end / dt) steps, none: refused naming --t-end, the time step and the
+    shortest --t-end of one step, before a cluster is asked for anything (the client here
+    answers nothing) or the folder is made."""
+    with pytest.raises(SceneError, match=rf"^--t-end: {t_end:g} s at dt = {dt:g} s is no "
+                                         rf"step: .* \(fix: --t-end {dt:g} or more\)$"):
+        run(None, runs=2, t_end=t_end, dt=0.01, vary=vary, client=object(), out=tmp_path / "o")
     assert not (tmp_path / "o").exists()
 
 

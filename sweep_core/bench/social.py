@@ -116,9 +116,7 @@ def _check(args: argparse.Namespace) -> list[Run]:
     if args.t_end is not None:
         t_end = options.seconds(args.t_end, "--t-end", "30")
         limits.check_run_size(1, dt, t_end, 1)
-        if round(t_end / dt) == 0:  # a run of round(t_end / dt) steps: none
-            raise SceneError("--t-end", f"{t_end:g} s at dt = {dt:g} s is no step: every run "
-                             "would measure its start only", f"--t-end {dt:g} or more")
+        limits.check_some_step(t_end, dt, "every run would measure its start only")
     for option, names in (("--scenes", args.scenes), ("--controllers", args.controllers)):
         twice = next((n for k, n in enumerate(names) if n in names[:k]), None)
         if twice is not None:

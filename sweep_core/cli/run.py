@@ -102,6 +102,9 @@ def _run(args: argparse.Namespace) -> int:
     dt = limits.check_dt(args.dt, "--dt")
     t_end = checks.number(args.t_end if args.t_end is not None else default_t_end(scene),
                           "--t-end", nonnegative=True)
+    limits.check_some_step(t_end, dt, "the recording would hold the start only" + (
+        "" if args.t_end is not None else f" (the scene's horizon, {t_end:g} s, is --t-end's "
+        "default)"))
     solver = SolverOptions.from_values(args.eps_abs, args.max_iter, exact_vars=args.exact_vars,
                                        tol=args.tol, max_rounds=args.max_rounds,
                                        method=args.method, backend=args.backend)

@@ -192,6 +192,8 @@ def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0:
                          "ensemble", f"--runs {MAX_RUNS // len(points)} or fewer, or fewer "
                          "--vary values")
     for point in points:
+        limits.check_some_step(t_end, float(point.get("dt", dt)),
+                               "every run would end at its start")
         if "dt" in point:
             check_steps(t_end, float(point["dt"]), "--vary dt")
     check_recording(base, t_end, min(float(p.get("dt", dt)) for p in points))

@@ -1,6 +1,6 @@
 """Bounds on the size of a run, shared by ``sweep run`` and the node: the time-step range, the
 step count and the recording size a run may reach without ``--force``
-(:func:`check_dt`, :func:`check_run_size`, :func:`frame_bytes`).
+(:func:`check_dt`, :func:`check_some_step`, :func:`check_run_size`, :func:`frame_bytes`).
 
 The node's ``dt`` parameter range is [:data:`DT_MIN`, :data:`DT_MAX`]; ``sweep run --dt`` uses
 the same range, so a scene that runs in one runs in the other.
@@ -44,6 +44,18 @@ def check_dt(dt: object, field: str = "dt") -> float:
                                 "steps sweep run and sweep_node accept",
                          f"a time step between {DT_MIN:g} and {DT_MAX:g} s")
     return value
+
+
+def check_some_step(t_end: float, dt: float, outcome: str, field: str = "--t-end") -> int:
+    """The steps of a run of ``t_end`` s at ``dt`` s, ``round(t_end / dt)`` as
+    ``Simulator.run`` takes them; a SceneError naming ``field`` when that is none (``t_end``
+    below half a step). ``outcome`` says what such a run would give, e.g. "the recording would
+    hold its start only"; the fix given is ``dt`` itself, the shortest time of one step."""
+    steps = int(round(t_end / dt))
+    if steps == 0:
+        raise SceneError(field, f"{t_end:g} s at dt = {dt:g} s is no step: {outcome}",
+                         f"{field} {dt:g} or more")
+    return steps
 
 
 def frame_bytes(n_agents: int, frame_id: str = "map") -> int:
