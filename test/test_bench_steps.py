@@ -199,3 +199,36 @@ def test_a_steps_option_without_the_steps_scenes_is_refused(
                                "which is not among --scenes hex (fix: add steps to --scenes, "
                                f"or leave {option} out)"), err
     assert not csv.exists()
+
+
+@pytest.mark.parametrize("memory, option, problem", [
+    # half of 8 GB holds the 1024 environments (about 0.9 GB), not 1024 workers (16 MB each)
+    (8 * 10 ** 9, "--env-workers", "1024 worker processes need about"),
+    # half of 1 GB does not hold the 1024 environments
+    (10 ** 9, "--num-envs", "1024 environments need about")])
+def test_the_environments_memory_is_refused_before_any_row_runs(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path,
+        memory: int, option: str, problem: str) -> None:
+    """The vector environment refuses K environments or W workers the available memory does
+    not hold when it is built, after the engine rows (minutes): the bench asks it first."""
+    pytest.importorskip("gymnasium")
+    from sweep_core.envs import vector
+
+    monkeypatch.setattr(vector, "available_memory", lambda: memory)
+    ran = []
+
+    def row(name: str, *_: object) -> dict:
+        ran.append(name)
+        return {"measure": "engine step", "scene": name}
+
+    monkeypatch.setattr(steps, "engine_vs_orca", row)
+    monkeypatch.setattr(steps, "recorded_vs_engine", row)
+    csv = tmp_path / "steps.csv"
+    rc = main(["bench", "speed", "--scenes", "steps", "--num-envs", "1024", "--env-workers",
+               "1024", "--env-steps", "1024", "--csv", str(csv)])
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert rc == 2 and "\n" not in err, err
+    assert err.startswith(f"sweep: error: {option}: {problem}"), err
+    assert f"(fix: {option} " in err and "max_steps" not in err.split("(fix:")[1], err
+    assert ran == [] and "engine step" not in captured.out and not csv.exists()

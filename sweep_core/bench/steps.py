@@ -245,6 +245,19 @@ def env_rates(steps: int, num_envs: int, workers: int = 1) -> list[dict[str, Any
     return rows
 
 
+def check_env_memory(num_envs: int, workers: int) -> None:
+    """Refuses, before any row runs, the vectorised rows' ``num_envs`` environments and
+    ``workers`` processes that the memory does not hold (the vector environment's own check,
+    naming --num-envs and --env-workers); nothing without gymnasium or a vector entry point."""
+    try:
+        import sweep_core.envs as envs
+    except ImportError:
+        return
+    if envs.has_vector():
+        envs.check_memory(num_envs, workers if 1 < workers <= num_envs else 1,
+                          {"num_envs": "--num-envs", "workers": "--env-workers"})
+
+
 def _rate(label: str, steps: int, k: int, make: Callable[[], Any], workers: int = 1
           ) -> dict[str, Any]:
     env = make()
@@ -355,6 +368,7 @@ def run(args: argparse.Namespace) -> int:
     options.counts([args.env_workers], "--env-workers", high=args.num_envs, example="2")
     options.csv_path(args.csv)
     kernels.warm_up(lambda line: print(f"sweep: {line}", flush=True))
+    check_env_memory(args.num_envs, args.env_workers)  # the environments' rows come last
     missing = pyrvo_missing()
     if missing:
         print(f"ORCA: skipped ({missing}); install pyrvo (requirements-dev.txt) for its column; "

@@ -15,7 +15,7 @@ import gymnasium
 
 from sweep_core.envs.crowdnav import CrowdNavEnv
 
-__all__ = ["CrowdNavEnv", "ENV_ID", "has_vector", "make_single", "make_vector"]
+__all__ = ["CrowdNavEnv", "ENV_ID", "check_memory", "has_vector", "make_single", "make_vector"]
 
 #: the registered id
 ENV_ID = "sweep/CrowdNav-v0"
@@ -34,6 +34,15 @@ def has_vector() -> bool:
     """Whether ``ENV_ID`` has a vectorised entry point (``gymnasium.make_vec``'s
     ``vector_entry_point`` mode)."""
     return gymnasium.registry[ENV_ID].vector_entry_point is not None
+
+
+def check_memory(num_envs: int, workers: int, options: dict[str, str]) -> int:
+    """:func:`sweep_core.envs.vector.check_memory` of the default environment: the memory
+    estimate (bytes) of ``make_vector(num_envs, workers=workers)``, or its SceneError naming
+    the arguments as ``options`` maps them (for the bench, which does not import gymnasium)."""
+    from sweep_core.envs.vector import check_memory as check
+
+    return check(num_envs, workers, options)
 
 
 def make_vector(num_envs: int, **kwargs: object) -> gymnasium.vector.VectorEnv:

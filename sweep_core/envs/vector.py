@@ -26,6 +26,7 @@ those that have it; ``metrics`` at the end of an episode).
 from __future__ import annotations
 
 import tracemalloc
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -45,7 +46,8 @@ from sweep_core.envs.crowdnav import (
     refuse_unknown,
     seed_value,
 )
-from sweep_core.envs.workers import WORKER_BYTES, Workers, reset_all, start_method, step_all
+from sweep_core.envs.memory import check_workers, memory_need, memory_refusal
+from sweep_core.envs.workers import Workers, reset_all, step_all
 from sweep_core.errors import SceneError, show
 from sweep_core.model.scene import Scene, load_scene
 
@@ -62,7 +64,7 @@ GROWTH_STEPS = 16
 
 def _memory_of(build: Any) -> tuple[float, float, int]:
     """(bytes one environment keeps, bytes its history grows by per step, scratch bytes), from
-    which :func:`_memory_need` gives what K environments take at the end of their longest
+    which :func:`.memory.memory_need` gives what K environments take at the end of their longest
     episode (``max_steps``): one
     more environment (after a first has paid the one-time costs) built, reset and stepped
     with its Python and numpy allocations traced; what it keeps after one step, plus what
@@ -93,51 +95,45 @@ def _memory_of(build: Any) -> tuple[float, float, int]:
             tracemalloc.stop()
 
 
-def _memory_need(k: int, max_steps: int, measured: tuple[float, float, int]) -> int:
-    """Bytes K environments take at the end of an episode of ``max_steps`` steps, from
-    :func:`_memory_of`'s measure."""
-    kept, per_step, scratch = measured
-    return int(k * max(kept + per_step * max_steps, 1) + scratch)
+def _check_memory(k: int, w: int, first: CrowdNavEnv, build: Any,
+                  options: Mapping[str, str] | None = None) -> int:
+    """The memory (bytes) K environments take at the end of ``first``'s longest episode,
+    measured on one more (``build()``, :func:`_memory_of`; ``first`` has paid the one-time
+    costs); refused (SceneError) when it, or it and W > 1 worker processes, need more than
+    MEMORY_SHARE of the available memory."""
+    measured = _memory_of(build)
+    need = memory_need(k, first.max_steps, measured)
+    have = available_memory()
+    if need > MEMORY_SHARE * have:
+        raise memory_refusal(k, first.max_steps, measured, have, options)
+    if w > 1:
+        check_workers(w, need, have, options)
+    return need
 
 
-def _memory_refusal(k: int, max_steps: int, measured: tuple[float, float, int],
-                    have: int) -> SceneError:
-    """The one-line refusal of K environments of ``max_steps`` steps needing more than
-    MEMORY_SHARE of ``have`` bytes: naming num_envs when fewer environments fit, else
-    max_steps (with its largest value that fits) when a shorter episode does."""
-    kept, per_step, scratch = measured
-    need = _memory_need(k, max_steps, measured)
-    budget = MEMORY_SHARE * have
-    one = (need - scratch) / k
-    envs = int((budget - scratch) // one) if budget > scratch else 0
-    steps = (int(((budget - scratch) / k - kept) // per_step)
-             if per_step > 0 and budget > scratch + k * kept else 0)
-    steps = min(int(0.9 * steps), max_steps - 1)  # a margin for the next measure's noise
-    size = (f"{need / 1e9:.2g} GB ({one / 1e6:.2g} MB each, at max_steps={max_steps}), more "
-            f"than half the {have / 1e9:.2g} GB available")
-    if envs < 1 and steps >= 1:
-        return SceneError("max_steps", f"{max_steps} steps is too long an episode: at its "
-                          f"end the {k} environment{'s' if k > 1 else ''} need about {size}",
-                          f"max_steps={steps} or fewer")
-    fix = f"num_envs={max(1, envs)} or fewer"
-    if steps >= 1:
-        fix += f", or max_steps={steps} or fewer"
-    return SceneError("num_envs", f"{k} environments need about {size}", fix)
+def _first(scene: Any, kwargs: dict[str, Any]) -> tuple[Scene | dict, CrowdNavEnv]:
+    """The scene (a path read once, to be shared) and a first environment of it, reset and
+    stepped once (it pays the one-time costs: imports, kernels)."""
+    if not isinstance(scene, (Scene, dict)):
+        scene = load_scene(str(scene if scene is not None else DEFAULT_SCENE))
+    first = CrowdNavEnv(scene=scene, **kwargs)
+    first.reset(seed=0)
+    first.step(np.zeros(first.action_space.shape))
+    return scene, first
 
 
-def _check_workers(w: int, envs_need: int, have: int) -> None:
-    """Refuses ``w`` worker processes (:data:`WORKER_BYTES` each) that, beside the ``envs_need``
-    bytes of the environments, need more than MEMORY_SHARE of ``have`` bytes: before any is
-    started, naming workers and the most that fit."""
-    each = WORKER_BYTES[start_method()]
-    budget = MEMORY_SHARE * have - envs_need
-    if w * each <= budget:
-        return
-    most = int(budget // each)
-    raise SceneError("workers", f"{w} worker processes need about {w * each / 1e9:.2g} GB "
-                     f"({each / 1e6:.0f} MB each) beside the environments' "
-                     f"{envs_need / 1e9:.2g} GB, more than half the {have / 1e9:.2g} GB "
-                     "available", f"workers={most} or fewer" if most >= 2 else "workers=1")
+def check_memory(num_envs: int, workers: int = 1, options: Mapping[str, str] | None = None,
+                 **kwargs: Any) -> int:
+    """What :class:`CrowdNavVectorEnv` (``num_envs``, ``workers``, ``**kwargs``) checks of the
+    memory, without building its environments or starting its workers: the estimate (bytes),
+    or its SceneError, naming the arguments as ``options`` maps them (e.g. ``{"num_envs":
+    "--num-envs"}``: a command's options), so that a command refuses them before other work."""
+    scene, first = _first(kwargs.pop("scene", None), kwargs)
+    try:
+        return _check_memory(num_envs, workers, first,
+                             lambda: CrowdNavEnv(scene=scene, **kwargs), options)
+    finally:
+        first.close()
 
 
 class CrowdNavVectorEnv(VectorEnv):
@@ -167,19 +163,9 @@ class CrowdNavVectorEnv(VectorEnv):
         if w > k:
             raise SceneError("workers", f"{w} is more than the {k} environments",
                              f"workers={k} or fewer")
-        scene = kwargs.pop("scene", None)
-        if not isinstance(scene, (Scene, dict)):  # a path: read once, shared by the K
-            scene = load_scene(str(scene if scene is not None else DEFAULT_SCENE))
-        first = CrowdNavEnv(scene=scene, **kwargs)  # pays the one-time costs (imports, kernels)
-        first.reset(seed=0)
-        first.step(np.zeros(first.action_space.shape))
-        measured = _memory_of(lambda: CrowdNavEnv(scene=scene, **kwargs))
-        self.memory_estimate = _memory_need(k, first.max_steps, measured)
-        have = available_memory()
-        if self.memory_estimate > MEMORY_SHARE * have:
-            raise _memory_refusal(k, first.max_steps, measured, have)
-        if w > 1:
-            _check_workers(w, self.memory_estimate, have)
+        scene, first = _first(kwargs.pop("scene", None), kwargs)
+        self.memory_estimate = _check_memory(k, w, first,
+                                             lambda: CrowdNavEnv(scene=scene, **kwargs))
         # built afresh: the measured one's generator was seeded (reset(seed=None) draws anew)
         self.workers = Workers(k, w, scene, kwargs) if w > 1 else None
         self.envs = [] if w > 1 else [CrowdNavEnv(scene=scene, **kwargs) for _ in range(k)]
@@ -393,4 +379,4 @@ def make(num_envs: int = 1, workers: int = 1, **kwargs: Any) -> CrowdNavVectorEn
     return CrowdNavVectorEnv(num_envs=num_envs, workers=workers, **kwargs)
 
 
-__all__ = ["CrowdNavVectorEnv", "MAX_ENVS", "available_memory", "make"]
+__all__ = ["CrowdNavVectorEnv", "MAX_ENVS", "available_memory", "check_memory", "make"]
