@@ -54,24 +54,52 @@ class SweepError(Exception):
     """Base class of every error sweep_core raises on purpose."""
 
 
-class SceneError(SweepError, ValueError):
+class _Arguments:
+    """Mixin of the errors built from arguments they keep as attributes (:attr:`ARGUMENTS`, in
+    the constructor's order): ``type(err)(err)`` is err's copy (how Gymnasium's AsyncVectorEnv
+    raises again the error of one of its worker processes), and a pickle rebuilds err from
+    them (a worker process sends it to its parent)."""
+
+    #: the attributes that keep the constructor's arguments, in its order
+    ARGUMENTS: tuple[str, ...] = ()
+
+    def _given(self, kind: type, given: tuple, required: int) -> tuple:
+        """The constructor's arguments ``given`` (the first ``required`` of them needed), or,
+        when the first is an error of ``kind`` and the other needed ones are None, that
+        error's own: its copy. TypeError for any other call."""
+        first, needed = given[0], given[1:required]
+        if isinstance(first, kind) and all(value is None for value in needed):
+            return first.arguments()
+        if isinstance(first, kind) or any(value is None for value in needed):
+            raise TypeError(f"{kind.__name__}({', '.join(self.ARGUMENTS)}) needs "
+                            f"{', '.join(self.ARGUMENTS[:required])}, or an error to copy")
+        return given
+
+    def arguments(self) -> tuple:
+        """The arguments that build this error again."""
+        return tuple(getattr(self, name) for name in self.ARGUMENTS)
+
+    def __reduce__(self) -> tuple:
+        """Pickled with its arguments (a worker process sends it to its parent)."""
+        return (type(self), self.arguments(), self.__dict__)
+
+
+class SceneError(_Arguments, SweepError, ValueError):
     """A scene (or a simulator option) is invalid.
 
     Attributes:
         field: dotted path of the offending key, e.g. ``"agents.radius"``.
         problem: what is wrong with it.
         fix: what to do instead (may be empty).
+
+    ``SceneError(err)`` is err's copy (:class:`_Arguments`).
     """
+
+    ARGUMENTS = ("field", "problem", "fix")
 
     def __init__(self, field: str | SceneError, problem: str | None = None,
                  fix: str = "") -> None:
-        if isinstance(field, SceneError) and problem is None:
-            # SceneError(err), err's copy: how Gymnasium's AsyncVectorEnv raises again the
-            # error of one of its worker processes (``raise type(err)(err)``)
-            err = field
-            field, problem, fix = err.field, err.problem, err.fix
-        if isinstance(field, SceneError) or problem is None:
-            raise TypeError("SceneError(field, problem, fix='') needs a field and a problem")
+        field, problem, fix = self._given(SceneError, (field, problem, fix), 2)
         self.field: str = field
         self.problem: str = problem
         self.fix: str = fix
@@ -79,10 +107,6 @@ class SceneError(SweepError, ValueError):
         if fix:
             msg += f" (fix: {fix})"
         super().__init__(msg)
-
-    def __reduce__(self) -> tuple:
-        """Pickled with its arguments (a worker process sends it to its parent)."""
-        return (type(self), (self.field, self.problem, self.fix), self.__dict__)
 
 
 class CostError(SceneError):
@@ -92,7 +116,7 @@ class CostError(SceneError):
     may claim anything)."""
 
 
-class InfeasibleError(SweepError):
+class InfeasibleError(_Arguments, SweepError):
     """The linearised feasible set of a step is empty or the projection failed.
 
     The simulator's state is left at the last accepted step.
@@ -102,22 +126,19 @@ class InfeasibleError(SweepError):
         agents: indices of the agents involved in the most violated constraints.
         detail: solver status or residual.
         fix: what to do instead (default: the advice for a jam of agents).
+
+    ``InfeasibleError(err)`` is err's copy (:class:`_Arguments`).
     """
+
+    ARGUMENTS = ("t", "agents", "detail", "fix_given")
 
     def __init__(self, t: float | InfeasibleError, agents: list[int] | None = None,
                  detail: str | None = None, fix: str = "") -> None:
-        if isinstance(t, InfeasibleError) and agents is None and detail is None:
-            # InfeasibleError(err), err's copy: how Gymnasium's AsyncVectorEnv raises again
-            # the error of one of its worker processes (``raise type(err)(err)``)
-            err = t
-            t, agents, detail, fix = err.t, err.agents, err.detail, err._given
-        if isinstance(t, InfeasibleError) or agents is None or detail is None:
-            raise TypeError("InfeasibleError(t, agents, detail, fix='') needs a time, the "
-                            "agents and a detail")
+        t, agents, detail, fix = self._given(InfeasibleError, (t, agents, detail, fix), 3)
         self.t: float = t
         self.agents: list[int] = list(agents)
         self.detail: str = detail
-        self._given: str = fix
+        self.fix_given: str = fix  # the fix as given ('': the default below)
         self.fix = fix or "smaller radii or radius growth, more room, or fewer agents"
         shown = ", ".join(str(a) for a in self.agents[:12])
         more = "" if len(self.agents) <= 12 else f" and {len(self.agents) - 12} more"
@@ -127,10 +148,6 @@ class InfeasibleError(SweepError):
             f"no feasible configuration at t = {t:.6g} s: {what}; state kept at the last "
             f"accepted step (fix: {self.fix})"
         )
-
-    def __reduce__(self) -> tuple:
-        """Pickled with its arguments (an ensemble's worker sends it to the client)."""
-        return (type(self), (self.t, self.agents, self.detail, self._given), self.__dict__)
 
 
 class WorkerError(SweepError, RuntimeError):
@@ -142,7 +159,7 @@ class RecordingError(SweepError):
     """An MCAP recording could not be written or read."""
 
 
-class OutputError(SweepError):
+class OutputError(_Arguments, SweepError):
     """An output file cannot be written safely: it is one of the inputs, it is not a regular
     file (a folder, a device, a FIFO), another run is writing it, or the writing failed.
 
@@ -150,14 +167,16 @@ class OutputError(SweepError):
         path: the output path.
         problem: what is wrong.
         fix: what to do instead.
+
+    ``OutputError(err)`` is err's copy (:class:`_Arguments`).
     """
 
-    def __init__(self, path: str, problem: str, fix: str) -> None:
-        self.path = path
-        self.problem = problem
-        self.fix = fix
-        super().__init__(f"{path}: {problem} (fix: {fix})")
+    ARGUMENTS = ("path", "problem", "fix")
 
-    def __reduce__(self) -> tuple:
-        """Pickled with its arguments (a worker process sends it to its parent)."""
-        return (type(self), (self.path, self.problem, self.fix), self.__dict__)
+    def __init__(self, path: str | OutputError, problem: str | None = None,
+                 fix: str | None = None) -> None:
+        path, problem, fix = self._given(OutputError, (path, problem, fix), 3)
+        self.path: str = path
+        self.problem: str = problem
+        self.fix: str = fix
+        super().__init__(f"{path}: {problem} (fix: {fix})")

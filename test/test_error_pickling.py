@@ -148,3 +148,19 @@ def test_an_infeasible_error_built_from_one_is_its_copy() -> None:
             err.t, err.agents, err.detail, err.fix, str(err))
     with pytest.raises(TypeError):
         InfeasibleError(1.0)  # type: ignore[call-arg]
+
+
+@pytest.mark.parametrize("name", ["sweep_core.errors.SceneError", "sweep_core.errors.CostError",
+                                  "sweep_core.errors.InfeasibleError",
+                                  "sweep_core.errors.OutputError"])
+def test_an_error_built_from_one_of_its_kind_is_its_copy(name: str) -> None:
+    """``type(err)(err)``, how Gymnasium's AsyncVectorEnv raises a worker's error again, gives
+    the same error (type, message, attributes), not a TypeError; a call with neither the
+    arguments nor such an error is a TypeError."""
+    module = _import(name.rsplit(".", 1)[0])
+    err = EXAMPLES[name](module)
+    again = type(err)(err)
+    assert type(again) is type(err) and str(again) == str(err) and again.args == err.args
+    assert _plain(vars(again)) == _plain(vars(err))
+    with pytest.raises(TypeError):
+        type(err)("only the first argument")
