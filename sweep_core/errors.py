@@ -63,12 +63,13 @@ class _Arguments:
     #: the attributes that keep the constructor's arguments, in its order
     ARGUMENTS: tuple[str, ...] = ()
 
-    def _given(self, kind: type, given: tuple, required: int) -> tuple:
+    def _given(self, kind: type, given: tuple, required: int) -> tuple[Any, ...]:
         """The constructor's arguments ``given`` (the first ``required`` of them needed), or,
         when the first is an error of ``kind`` and the other needed ones are None, that
         error's own: its copy. TypeError for any other call."""
         first, needed = given[0], given[1:required]
-        if isinstance(first, kind) and all(value is None for value in needed):
+        if (isinstance(first, kind) and isinstance(first, _Arguments)
+                and all(value is None for value in needed)):
             return first.arguments()
         if isinstance(first, kind) or any(value is None for value in needed):
             raise TypeError(f"{kind.__name__}({', '.join(self.ARGUMENTS)}) needs "
@@ -99,13 +100,13 @@ class SceneError(_Arguments, SweepError, ValueError):
 
     def __init__(self, field: str | SceneError, problem: str | None = None,
                  fix: str = "") -> None:
-        field, problem, fix = self._given(SceneError, (field, problem, fix), 2)
-        self.field: str = field
-        self.problem: str = problem
-        self.fix: str = fix
-        msg = f"{field}: {problem}"
-        if fix:
-            msg += f" (fix: {fix})"
+        args = self._given(SceneError, (field, problem, fix), 2)
+        self.field: str = args[0]
+        self.problem: str = args[1]
+        self.fix: str = args[2]
+        msg = f"{self.field}: {self.problem}"
+        if self.fix:
+            msg += f" (fix: {self.fix})"
         super().__init__(msg)
 
 
@@ -134,18 +135,19 @@ class InfeasibleError(_Arguments, SweepError):
 
     def __init__(self, t: float | InfeasibleError, agents: list[int] | None = None,
                  detail: str | None = None, fix: str = "") -> None:
-        t, agents, detail, fix = self._given(InfeasibleError, (t, agents, detail, fix), 3)
-        self.t: float = t
-        self.agents: list[int] = list(agents)
-        self.detail: str = detail
+        args = self._given(InfeasibleError, (t, agents, detail, fix), 3)
+        self.t: float = args[0]
+        self.agents: list[int] = list(args[1])
+        self.detail: str = args[2]
+        fix = args[3]
         self.fix_given: str = fix  # the fix as given ('': the default below)
         self.fix = fix or "smaller radii or radius growth, more room, or fewer agents"
         shown = ", ".join(str(a) for a in self.agents[:12])
         more = "" if len(self.agents) <= 12 else f" and {len(self.agents) - 12} more"
-        what = (f"{detail}" if fix and not self.agents else
-                f"agents [{shown}{more}] cannot be placed without overlap ({detail})")
+        what = (f"{self.detail}" if fix and not self.agents else
+                f"agents [{shown}{more}] cannot be placed without overlap ({self.detail})")
         super().__init__(
-            f"no feasible configuration at t = {t:.6g} s: {what}; state kept at the last "
+            f"no feasible configuration at t = {self.t:.6g} s: {what}; state kept at the last "
             f"accepted step (fix: {self.fix})"
         )
 
@@ -175,8 +177,8 @@ class OutputError(_Arguments, SweepError):
 
     def __init__(self, path: str | OutputError, problem: str | None = None,
                  fix: str | None = None) -> None:
-        path, problem, fix = self._given(OutputError, (path, problem, fix), 3)
-        self.path: str = path
-        self.problem: str = problem
-        self.fix: str = fix
-        super().__init__(f"{path}: {problem} (fix: {fix})")
+        args = self._given(OutputError, (path, problem, fix), 3)
+        self.path: str = args[0]
+        self.problem: str = args[1]
+        self.fix: str = args[2]
+        super().__init__(f"{self.path}: {self.problem} (fix: {self.fix})")

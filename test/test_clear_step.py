@@ -45,8 +45,8 @@ def two_robots(sigma: float) -> sc.Scene:
 
 def run(scene: sc.Scene, steps: int, dt: float, commands: bool) -> tuple[str, dict]:
     """A hash of everything a step leaves (people, robots' poses, twists, contacts, stops, the
-    projection's rows, multipliers, counts and bound, the smallest gap) over ``steps`` steps, and the steps in which
-    a robot was stopped."""
+    projection's rows, multipliers, counts and bound, the smallest gap) over ``steps`` steps,
+    and the steps in which a robot was stopped."""
     sim = sc.Simulator(scene, dt=dt, seed=3)
     h = hashlib.sha256()
     for k in range(steps):

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import sweep_core as sc
-from sweep_core.numerics.projection import SolverOptions, small
 from sweep_core.numerics import schemes
+from sweep_core.numerics.projection import SolverOptions, small
 from sweep_core.numerics.robots import fleet, small_step
 
 project_module = importlib.import_module("sweep_core.numerics.projection.project")
