@@ -125,19 +125,20 @@ def cached() -> bool:
     return not uncached()
 
 
-def _room() -> Scene:
-    """Two people walking into each other beside a prescribed robot, in a room of a segment
-    wall, a half-plane and a circle obstacle, nothing moving (the small scenes' compiled
-    paths)."""
+def _room(robot: bool = True) -> Scene:
+    """Two people walking into each other beside a prescribed robot (or none), in a room of a
+    segment wall, a half-plane and a circle obstacle, nothing moving (the small scenes'
+    compiled paths: the robots' step, or the scheme's projection)."""
     kin = {"type": "holonomic", "max_speed": 1.0}
+    robots = [{"name": "robot", "radius": 0.3, "pose": [0.2, -0.5, 0.0], "kinematics": kin,
+               "weight": "inf"}] if robot else []
     return Scene.from_dict({
         "agents": {"positions": [[0.0, 0.0], [0.4, 0.0]], "radius": 0.2},
         "drift": {"kind": "goal", "goal": [0.2, 0.0], "speed": 1.0},
         "walls": [{"kind": "segment", "a": [-2.0, -1.0], "b": [2.0, -1.0]},
                   {"kind": "halfplane", "normal": [0.0, -1.0], "offset": -2.0}],
         "obstacles": [{"kind": "circle", "center": [0.25, 0.8], "radius": 0.2}],
-        "robots": [{"name": "robot", "radius": 0.3, "pose": [0.2, -0.5, 0.0],
-                    "kinematics": kin, "weight": "inf"}]})
+        "robots": robots})
 
 
 def _jam() -> Scene:
@@ -219,6 +220,7 @@ def _exercise() -> None:
     # own path), and a robot's step with contacts in one call: two people pressed together
     # beside a robot, steps warm-started from the one before
     Simulator(_room(), dt=0.02, seed=0).step(3)
+    Simulator(_room(robot=False), dt=0.02, seed=0).step(3)
     # a simple robot step in one call (the jam has no robot; its polygon would send it back)
     clear_step.clear_robot_step(two, two, np.full(2, 0.2), np.array([[3.0, 0.0]]),
                                 np.array([[3.1, 0.0]]), np.full(1, 0.3), np.ones(1, np.bool_),
