@@ -109,16 +109,17 @@ def simple_step(geom: Geometry, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
                np.ascontiguousarray(warm.lam_pair, dtype=np.float64),
                np.ascontiguousarray(warm.lam_single, dtype=np.float64), True)
     project = len(q) >= 2 and opts.method == "certified"
+    out = _step(q, pred, r1, start, target, radius, moving, *room, project, float(h), *old,
+                float(opts.tol), int(opts.max_rounds))
     (code, y, pi, pj, pe, pb, s_a, s_n, s_b, s_kind, s_item, lam, active, qp_size, solves,
-     rounds, bound, ids, xy, imp, counts) = _step(q, pred, r1, start, target, radius, moving, *room,
-                                          project, float(h), *old, float(opts.tol),
-                                          int(opts.max_rounds))
+     rounds, bound, ids, xy, imp, counts) = out
     robots = len(target)
     if code >= 0:  # no row broken: the prediction itself, no contact
         y = pred.copy()
         proj = Projection(y, NO_ROWS, _NO_MULTIPLIER, _NO_MULTIPLIER, code, 0, 0, 0, 0.0, 0,
                           0, None, 0)
-        none = [(np.empty(0, dtype=np.int64), np.empty((0, 2)), np.empty((0, 2)))] * robots
+        none = [(np.empty(0, dtype=np.int64), np.empty((0, 2)), np.empty((0, 2)))
+                for _ in range(robots)]
         return proj, y.copy(), room.gaps(), bool(room.out[10]), none
     if code != CONTACT:
         return code == SETTLED
