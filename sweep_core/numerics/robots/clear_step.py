@@ -97,6 +97,28 @@ def room_for(geom: Geometry, people: int) -> _Room:
                  np.empty(room, dtype=np.intp), np.empty(room, dtype=np.bool_), out)
 
 
+class Rooms:
+    """One simulation's :class:`_Room`, kept from step to step and made again when the
+    geometry or the number of people changes. The compiled calls write every entry they read,
+    so a kept room gives the bits a new one gives. The :class:`Gaps` of ``_Room.gaps`` are
+    views of its arrays: they hold until the next step's call."""
+
+    __slots__ = ("geom", "people", "room")
+
+    def __init__(self) -> None:
+        self.geom: Geometry | None = None
+        self.people = -1
+        self.room: _Room | None = None
+
+    def get(self, geom: Geometry, people: int) -> _Room:
+        """The room for ``people`` people in ``geom`` (static): the kept one if it fits."""
+        room = self.room
+        if room is None or self.geom is not geom or self.people != people:
+            room = self.room = room_for(geom, people)
+            self.geom, self.people = geom, people
+        return room
+
+
 def applies(geom: Geometry, people: int, all_prescribed: bool, has_map: bool) -> bool:
     """Whether :func:`clear_robot_step` may answer a step of this scene (module docstring):
     ``geom`` the scene's geometry, ``people`` its people now."""

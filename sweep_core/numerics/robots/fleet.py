@@ -48,7 +48,7 @@ from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise
 from sweep_core.numerics.projection import Projection, project
 from sweep_core.numerics.robots import kinematics
-from sweep_core.numerics.robots.clear_step import checked_end
+from sweep_core.numerics.robots.clear_step import Rooms, checked_end
 from sweep_core.numerics.robots.contacts import set_contacts
 from sweep_core.numerics.robots.control import goal_field, observe
 from sweep_core.numerics.robots.planners import controllers_of
@@ -112,6 +112,8 @@ class Fleet:
         #: whether it found that no person's path might cross a wall segment)
         self.people_gaps: tuple[float, np.ndarray, np.ndarray, Geometry, Gaps, bool] | None \
             = None
+        #: the compiled small steps' work arrays, kept from step to step
+        self.rooms = Rooms()
 
     def snapshot(self) -> tuple:
         """What a step changes (the robots' states, the step count, the bundled planners'
@@ -223,7 +225,8 @@ class Fleet:
         targets = [kinematics.arc(st.pose, st.command, h) for st in states]
         moving = [st.robot.prescribed and st.command != (0.0, 0.0, 0.0) for st in states]
         simple = robot_step(self.scene.geometry, t1, q, pred, r1, states, targets, moving,
-                            self._blocked is not None, scheme.warm, scheme.solver, h)
+                            self._blocked is not None, scheme.warm, scheme.solver, h,
+                            self.rooms)
         if isinstance(simple, tuple):  # the general path's bits, in one compiled call
             proj, people, gaps, paths_clear = simple
             self.people_gaps = (t1, people, r1, self.scene.geometry, gaps, paths_clear)

@@ -2,11 +2,12 @@
 
 Where :func:`~sweep_core.numerics.robots.clear_step.applies` holds (prescribed robots among at
 most ``clear.MAX_AGENTS`` people in a static geometry, no map), :meth:`Fleet.step
-<sweep_core.numerics.robots.fleet.Fleet.step>` asks :func:`robot_step` first. Its compiled call
-(:func:`_step`) asks the simple step's questions
-(:func:`~sweep_core.numerics.robots.clear_step.clear_robot_step`); when they find that no robot
-stops but the prediction breaks a row (people touch each other, a wall or a robot's disk), it
-goes on, in the same call, with what the general path does next for such a step:
+<sweep_core.numerics.robots.fleet.Fleet.step>` asks :func:`robot_step` first. Its first
+compiled call asks the simple step's questions
+(:func:`~sweep_core.numerics.robots.clear_step.clear_robot_step`, which answers with one
+number); when they find that no robot stops but the prediction breaks a row (people touch each
+other, a wall or a robot's disk), a second call (:func:`_contact_step`) goes on with what the
+general path does next for such a step:
 
 - the projection (:func:`~sweep_core.numerics.projection.small.small_projection`'s arithmetic,
   on the geometry with the robots' target disks appended to the circles, as
@@ -40,14 +41,14 @@ from sweep_core.numerics.projection.small import first_pass
 from sweep_core.numerics.projection.summaries import largest_step
 from sweep_core.numerics.robots.clear_step import (
     SETTLED,
+    Rooms,
     applies,
     clear_end,
     clear_robot_step,
-    room_for,
 )
 from sweep_core.numerics.robots.contacts import circle_contacts
 
-#: what :func:`_step` returns for a step with contacts it has taken
+#: what :func:`_contact_step` returns for a step with contacts it has taken
 CONTACT = -3
 
 _NO_MULTIPLIER = np.empty(0)
@@ -55,9 +56,20 @@ _NO_INDEX = np.empty(0, dtype=np.intp)
 _NO_KIND = np.empty(0, dtype=np.int8)
 
 
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+#: a robot's contacts when it has none: person ids (0,), positions (0, 2), impulses (0, 2)
+#: (read only: every robot without contacts shares them)
+_NO_CONTACTS = (_read_only(np.empty(0, dtype=np.int64)), _read_only(np.empty((0, 2))),
+                _read_only(np.empty((0, 2))))
+
+
 def robot_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
                states: list[Any], targets: list[tuple], moving: list[bool], has_map: bool,
-               warm: Projection | None, opts: SolverOptions, h: float
+               warm: Projection | None, opts: SolverOptions, h: float, rooms: Rooms
                ) -> tuple[Projection, np.ndarray, Gaps, bool] | bool:
     """A fleet's step of h s when this module takes it: the robots (``states``,
     ``RobotState``) moved to their ``targets`` (x, y, yaw) with their commands as twists and
@@ -66,7 +78,8 @@ def robot_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: n
     nothing changed, True when no robot would stop (the general path may skip its settle)
     and False when some might, the scene is not one this applies to (``has_map``: blocked
     cells) or the last projection (``warm``) held clusters back (the general path then
-    counts their steps). ``opts``: the scheme's solver options."""
+    counts their steps). ``opts``: the scheme's solver options; ``rooms``: the simulation's
+    kept work arrays (the gaps returned are views of them, valid until the next step)."""
     if (not applies(geom, len(q), all(st.robot.prescribed for st in states), has_map)
             or (warm is not None and warm.stuck is not None and len(warm.y) == len(q))):
         return False
@@ -76,7 +89,7 @@ def robot_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: n
                        np.array([st.pose[:2] for st in states], dtype=np.float64),
                        np.array([p[:2] for p in targets], dtype=np.float64),
                        np.array([st.robot.radius for st in states], dtype=np.float64),
-                       np.array(moving, dtype=np.bool_), warm, opts, h)
+                       np.array(moving, dtype=np.bool_), warm, opts, h, rooms)
     if not isinstance(done, tuple):
         return done
     proj, people, gaps, paths, contacts = done
@@ -88,18 +101,19 @@ def robot_step(geom: Geometry, t1: float, q: np.ndarray, pred: np.ndarray, r1: n
 
 def simple_step(geom: Geometry, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
                 start: np.ndarray, target: np.ndarray, radius: np.ndarray, moving: np.ndarray,
-                warm: Projection | None, opts: SolverOptions, h: float) -> tuple | bool:
+                warm: Projection | None, opts: SolverOptions, h: float, rooms: Rooms
+                ) -> tuple | bool:
     """The step's projection, the people's positions at its end (a copy of the projection's),
     their gaps there, whether their paths are clear of the wall segments, and each robot's
     contacts (person ids (K,), their positions (K, 2) m, impulses (K, 2) m/s), when
     :func:`_step` takes it; otherwise, nothing changed, True when no robot would stop and
     False else. The robots go from ``start`` (R, 2) to ``target`` (R, 2), radii ``radius``
     (R,), ``moving`` (R,) bool; ``geom`` the scene's (static) geometry; ``warm`` the last
-    projection to start from (None: none)."""
+    projection to start from (None: none); ``rooms``: the kept work arrays."""
     q = np.ascontiguousarray(q, dtype=np.float64)
     pred = np.ascontiguousarray(pred, dtype=np.float64)
     r1 = np.ascontiguousarray(r1, dtype=np.float64)
-    room = room_for(geom, len(q))
+    room = rooms.get(geom, len(q))
     if warm is None:
         old = (_NO_INDEX, _NO_INDEX, _NO_INDEX, _NO_KIND, _NO_INDEX, _NO_MULTIPLIER,
                _NO_MULTIPLIER, False)
@@ -108,19 +122,21 @@ def simple_step(geom: Geometry, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
         old = (rows.pair_i, rows.pair_j, rows.single_a, rows.single_kind, rows.single_item,
                np.ascontiguousarray(warm.lam_pair, dtype=np.float64),
                np.ascontiguousarray(warm.lam_single, dtype=np.float64), True)
-    project = len(q) >= 2 and opts.method == "certified"
-    out = _step(q, pred, r1, start, target, radius, moving, *room, project, float(h), *old,
-                float(opts.tol), int(opts.max_rounds))
-    (code, y, pi, pj, pe, pb, s_a, s_n, s_b, s_kind, s_item, lam, active, qp_size, solves,
-     rounds, bound, ids, xy, imp, counts) = out
+    # the simple step's questions alone first: its answer is one number, where the call
+    # that goes on with the projection returns some twenty arrays (each boxed on return)
+    code = clear_robot_step(q, pred, r1, start, target, radius, moving, *room)
     robots = len(target)
     if code >= 0:  # no row broken: the prediction itself, no contact
         y = pred.copy()
         proj = Projection(y, NO_ROWS, _NO_MULTIPLIER, _NO_MULTIPLIER, code, 0, 0, 0, 0.0, 0,
                           0, None, 0)
-        none = [(np.empty(0, dtype=np.int64), np.empty((0, 2)), np.empty((0, 2)))
-                for _ in range(robots)]
-        return proj, y.copy(), room.gaps(), bool(room.out[10]), none
+        return proj, y.copy(), room.gaps(), bool(room.out[10]), [_NO_CONTACTS] * robots
+    if code != SETTLED or not (len(q) >= 2 and opts.method == "certified"):
+        return code == SETTLED
+    (code, y, pi, pj, pe, pb, s_a, s_n, s_b, s_kind, s_item, lam, active, qp_size, solves,
+     rounds, bound, ids, xy, imp, counts) = _contact_step(
+        q, pred, r1, start, target, radius, *room, float(h), *old, float(opts.tol),
+        int(opts.max_rounds))
     if code != CONTACT:
         return code == SETTLED
     m = len(pb)
@@ -132,25 +148,25 @@ def simple_step(geom: Geometry, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
 
 
 @numba.njit(cache=True, nogil=True)
-def _step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.ndarray,
-          target: np.ndarray, radius: np.ndarray, moving: np.ndarray, hn: np.ndarray,
-          hc: np.ndarray, sa: np.ndarray, sb: np.ndarray, cc: np.ndarray, cr: np.ndarray,
-          static: np.ndarray, dense_pairs: int, walls: bool, i: np.ndarray, j: np.ndarray,
-          pg: np.ndarray, vals: np.ndarray, near_a: np.ndarray, near_k: np.ndarray,
-          out_i: np.ndarray, out_k: np.ndarray, unsure: np.ndarray, out: np.ndarray,
-          project: bool, h: float, old_i: np.ndarray, old_j: np.ndarray, old_a: np.ndarray,
-          old_kind: np.ndarray, old_item: np.ndarray, old_lam_p: np.ndarray,
-          old_lam_s: np.ndarray, has_warm: bool, tol: float, max_rounds: int
-          ) -> tuple:  # pragma: no cover - compiled
-    """:func:`simple_step`'s arithmetic. The first value: ``clear_robot_step``'s answer
-    (>= 0: a simple step, its active rows; NOT_CLEAR; SETTLED), or CONTACT with the step taken
-    (``project``: the projection may be tried); then the projection's y, rows, multipliers,
-    active rows, QP agents, solves, rounds and bound, and the robots' contacts, robot after robot
+def _contact_step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.ndarray,
+                  target: np.ndarray, radius: np.ndarray, hn: np.ndarray, hc: np.ndarray,
+                  sa: np.ndarray, sb: np.ndarray, cc: np.ndarray, cr: np.ndarray,
+                  static: np.ndarray, dense_pairs: int, walls: bool, i: np.ndarray,
+                  j: np.ndarray, pg: np.ndarray, vals: np.ndarray, near_a: np.ndarray,
+                  near_k: np.ndarray, out_i: np.ndarray, out_k: np.ndarray,
+                  unsure: np.ndarray, out: np.ndarray, h: float, old_i: np.ndarray,
+                  old_j: np.ndarray, old_a: np.ndarray, old_kind: np.ndarray,
+                  old_item: np.ndarray, old_lam_p: np.ndarray, old_lam_s: np.ndarray,
+                  has_warm: bool, tol: float, max_rounds: int
+                  ) -> tuple:  # pragma: no cover - compiled
+    """:func:`simple_step`'s arithmetic after ``clear_robot_step`` answered SETTLED (no robot
+    stops, the prediction is not a simple step): the projection, tried where its cutoff
+    admits it, then the contacts and the end check. The first value: CONTACT with the step
+    taken, else SETTLED (nothing taken); then the projection's y, rows, multipliers, active
+    rows, QP agents, solves, rounds and bound, and the robots' contacts, robot after robot
     (ids, positions, impulses, and each robot's count)."""
     robots = target.shape[0]
-    code = clear_robot_step(q, pred, r1, start, target, radius, moving, hn, hc, sa, sb, cc,
-                            cr, static, dense_pairs, walls, i, j, pg, vals, near_a, near_k,
-                            out_i, out_k, unsure, out)
+    code = SETTLED
     # project's geometry: the robots' target disks after the scene's circles
     nc = cc.shape[0]
     circles = np.empty((nc + robots, 2))
@@ -160,20 +176,19 @@ def _step(q: np.ndarray, pred: np.ndarray, r1: np.ndarray, start: np.ndarray,
     counts = np.zeros(robots, dtype=np.intp)
     ids = np.empty(0, dtype=np.int64)
     xy, imp = np.empty((0, 2)), np.empty((0, 2))
-    if code == SETTLED and project:
-        # project's cutoff, and its test of the prediction against the rows: a prediction
-        # that holds them all (its end not clear) is left to the general path
-        square, r_max = largest_step(q, pred, r1)
-        cut = 3.0 * math.sqrt(square) + 1e-3 * r_max
-        if not cut >= MIN_CUT or clear_count(q, pred, r1, cut, hn, hc, sa, sb, circles,
-                                              circle_r) < 0:
-            ok, y, pi, pj, pe, pb, s_a, s_n, s_b, s_kind, s_item, lam, active, qp_size, \
-                solves, bound, rounds = first_pass(q, pred, r1, cut, hn, hc, sa, sb, circles,
-                                              circle_r, True, old_i, old_j, old_a, old_kind,
-                                              old_item, old_lam_p, old_lam_s, has_warm, tol,
-                                              max_rounds)
-            if ok:
-                code = CONTACT
+    # project's cutoff, and its test of the prediction against the rows: a prediction
+    # that holds them all (its end not clear) is left to the general path
+    square, r_max = largest_step(q, pred, r1)
+    cut = 3.0 * math.sqrt(square) + 1e-3 * r_max
+    if not cut >= MIN_CUT or clear_count(q, pred, r1, cut, hn, hc, sa, sb, circles,
+                                          circle_r) < 0:
+        ok, y, pi, pj, pe, pb, s_a, s_n, s_b, s_kind, s_item, lam, active, qp_size, \
+            solves, bound, rounds = first_pass(q, pred, r1, cut, hn, hc, sa, sb, circles,
+                                          circle_r, True, old_i, old_j, old_a, old_kind,
+                                          old_item, old_lam_p, old_lam_s, has_warm, tol,
+                                          max_rounds)
+        if ok:
+            code = CONTACT
     if code != CONTACT:
         none = np.empty(0, dtype=np.intp)
         return (code, pred, none, none, np.empty((0, 2)), np.empty(0), none,
