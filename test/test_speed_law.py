@@ -117,3 +117,27 @@ def test_the_law_slows_a_dense_ring_and_without_it_the_step_is_the_pure_model():
     # free speed 1.34 m/s: the pure model keeps it, the law slows the crowd (the gaps at
     # 2.5 per m^2 are below 0.6 m, so T = 1 s allows at most 0.6 m/s to most agents)
     assert speed(dense) > 1.2 and speed(law) < 0.9
+
+
+def test_the_laws_velocities_do_not_depend_on_the_room_its_search_makes_first():
+    """The compiled call searches the pairs with room for a hint first and again with room
+    for all when more are found: a room of one pair or of thousands gives the same bits as
+    the pairs and rules called one by one."""
+    from sweep_core.model.neighbours import pairs_within
+    from sweep_core.numerics.csm import CUT, law, searched_law
+
+    rng = np.random.default_rng(4)
+    q = rng.uniform(0.0, 6.0, (60, 2))
+    r = np.full(60, 0.2)
+    u = rng.normal(0.0, 1.0, (60, 2))
+    walls = np.zeros((0, 2))
+    args = (1.0, 2.0, 0.1, walls, 0.7, 0.9, 0.9, 0.5)
+    top = float(np.sqrt(np.max(np.einsum("ij,ij->i", u, u))))
+    pi, pj = pairs_within(q, 0.4 + max(top * 1.0, CUT * 0.1))
+    want = law(q, r, u, pi, pj, 2.0, 0.1, walls, 0.7, 0.9, 0.9, 1.0, 0.5)
+    for room in (1, 4 * 60, 100_000):
+        v, found = searched_law(q, r, u, *args, room)
+        assert found == len(pi) > 4 * 60
+        assert v.tobytes() == want.tobytes()
+    still, none = searched_law(q, r, np.zeros((60, 2)), *args, 1)
+    assert none == 0 and not still.any()

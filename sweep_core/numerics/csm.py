@@ -46,7 +46,7 @@ import numpy as np
 
 from sweep_core.model import elementary
 from sweep_core.model.elementary import cos, exp
-from sweep_core.model.neighbours import SizedSearch
+from sweep_core.model.neighbours import SizedSearch, pairs_into
 
 #: repulsion terms with exponent (l - d) / D below -CUT are left out (a e^-CUT, a 1e-4 of a)
 CUT = 9.2
@@ -190,7 +190,9 @@ def leader_push(v: np.ndarray, e: np.ndarray, lead: np.ndarray, beta: float) -> 
     return out
 
 
-#: the speed law's pair search (its reach holds many more pairs than 4 per agent)
+#: the room the speed law's pair search makes first (its reach holds many more pairs than 4
+#: per agent): the last search's count and a quarter more, a hint only (the compiled search
+#: runs again when more are found)
 _SEARCH = SizedSearch()
 
 
@@ -212,20 +214,54 @@ def csm(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float, strength: 
     q = np.ascontiguousarray(q, dtype=np.float64)
     r = np.ascontiguousarray(r, dtype=np.float64)
     u = np.ascontiguousarray(u, dtype=np.float64)
+    w = _NO_WALLS if walls is None else np.ascontiguousarray(walls, dtype=np.float64)
+    v, found = searched_law(q, r, u, float(time_gap), float(strength), float(reach), w,
+                            float(lateral), float(fade), float(length), float(beta),
+                            max(4 * n, _SEARCH.expect))
+    _SEARCH.expect = found + found // 4
+    return v
+
+
+_NO_WALLS = np.zeros((0, 2))
+
+
+@numba.njit(cache=True, nogil=True)
+def searched_law(q: np.ndarray, r: np.ndarray, u: np.ndarray, time_gap: float,
+                 strength: float, reach: float, walls: np.ndarray, lateral: float, fade: float,
+                 length: float, beta: float, room: int
+                 ) -> tuple[np.ndarray, int]:  # pragma: no cover - compiled
+    """:func:`csm`'s search and rules for N >= 1 agents in one call: the search's reach from
+    the largest wished speed, the pairs (``pairs_into``, with room for ``room`` pairs first,
+    searched again with room for all when more are found: the pairs do not depend on it), then
+    :func:`law`. The velocities (N, 2) m/s and the pairs found (0 when no one wishes to move:
+    then u itself, copied)."""
     # the largest |u_i| is the square root of the largest square (sqrt is monotone and
     # correctly rounded); 2 max r
     square, rmax = largest_square(u, r)
     top = math.sqrt(square)
     if top == 0.0:
-        return u.copy()
+        return u.copy(), 0
     far = max(top * time_gap, CUT * reach if strength > 0.0 else 0.0)
-    pi, pj = _SEARCH(q, rmax + far)
-    w = _NO_WALLS if walls is None else np.ascontiguousarray(walls, dtype=np.float64)
-    return law(q, r, u, pi, pj, float(strength), float(reach), w, float(lateral), float(fade),
-               float(length), float(time_gap), float(beta))
+    i, j, found = _pairs(q, rmax + far, room)
+    return law(q, r, u, i, j, strength, reach, walls, lateral, fade, length, time_gap,
+               beta), found
 
 
-_NO_WALLS = np.zeros((0, 2))
+@numba.njit(cache=True, nogil=True)
+def _pairs(q: np.ndarray, reach: float, room: int
+           ) -> tuple[np.ndarray, np.ndarray, int]:  # pragma: no cover - compiled
+    """``pairs_within``'s pairs (i, j) of q (N, 2) at most ``reach`` m apart, searched with
+    room for ``room`` pairs first; and how many were found."""
+    if q.shape[0] < 2:
+        none = np.empty(0, dtype=np.intp)
+        return none, none, 0
+    while True:
+        i = np.empty(room, dtype=np.intp)
+        j = np.empty(room, dtype=np.intp)
+        found = pairs_into(q, reach, i, j)
+        if found <= room:
+            return i[:found], j[:found], found
+        room = found
 
 
 @numba.njit(cache=True, nogil=True)
