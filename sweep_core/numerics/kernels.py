@@ -31,6 +31,7 @@ from sweep_core.numerics.robots import (
     clear_step,
     contacts,
     control,
+    episode,
     guard,
     overlaps,
     small_step,
@@ -44,7 +45,7 @@ from sweep_core.numerics.simulator import Simulator
 MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
                                    noise, constraints, guard, social_kernels, window, contacts,
                                    control, clear, overlaps, clear_step, small, summaries,
-                                   small_step)
+                                   small_step, episode)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -288,6 +289,13 @@ def _exercise() -> None:
     contacts.pair_contacts(one, one + 1, np.ones((1, 2)), np.ones(1), 1, 1, 0.1, ids, imp)
     social_kernels.nearest_pass(0.0, 0.0, 0.0, 0.0, 0.3, np.ones((1, 2)), np.ones(1),
                                 np.zeros((1, 2)), np.empty(3))
+    # the environment's record of a step (the people's pass, the goal field's distance, the
+    # observation), with people and without
+    grid = (np.arange(3.0), np.arange(2.0), np.ones((2, 3, 1)))
+    for n in (1, 0):
+        episode.record(0.5, 0.5, 0.1, 1.0, 0.0, 0.2, 0.1, 0.3, np.ones((n, 2)), np.ones(n),
+                       np.zeros((n, 2)), *grid, 2.0, 1.0, 0, 0.0, 0.0, ranges, 5.0,
+                       np.empty(episode.OUT), np.empty(6), np.empty(2), np.empty(2))
     # perf7: a scan's directions, ray cast and hit count in one call
     robot_scan.cast_beams(0.0, np.zeros(2), 0.0, 0.0, np.ones((1, 2)), np.ones(1),
                           np.ones((1, 2)), 2 * np.ones((1, 2)), np.ones((1, 2)), np.ones(1), 5.0)
