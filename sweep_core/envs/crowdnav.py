@@ -46,10 +46,11 @@ from gymnasium import spaces
 
 from sweep_core import checks
 from sweep_core.analysis import social
+from sweep_core.envs.actions import Actions
 from sweep_core.errors import SceneError, show
 from sweep_core.io import limits
-from sweep_core.model import elementary
 from sweep_core.model.scene import Scene, load_scene
+from sweep_core.numerics.robots import episode
 from sweep_core.numerics.robots.scan import bounded_ranges
 from sweep_core.numerics.simulator import Simulator
 
@@ -204,12 +205,21 @@ class CrowdNavEnv(gymnasium.Env):
         self.field = social.goal_field(self.scene, self.spec_robot.goal, self.spec_robot.radius,
                                        start)
         self.geodesic = float(self.field.travel_distance(start[None, :])[0])
+        # the goal field's grid as its travel_distance reads it (episode.record's arguments)
+        self.grid = (np.ascontiguousarray(self.field.x, dtype=np.float64),
+                     np.ascontiguousarray(self.field.y, dtype=np.float64),
+                     np.ascontiguousarray(self.field.distance[:, :, None], dtype=np.float64))
+        self.on_grid = self.field.x.size >= 2 and self.field.y.size >= 2
+        self.goal_xy = (float(self.spec_robot.goal[0]), float(self.spec_robot.goal[1]))
+        #: episode.record's row and scratch
+        self.out = np.empty(episode.OUT)
         kin = spec.get("kinematics") or {}
         self.holonomic = kin.get("type") == "holonomic"
         vmax = float(kin.get("max_speed", 1.0))
         wmax = float(kin.get("max_angular_speed", 1.0))
         high = np.array([vmax, vmax, wmax] if self.holonomic else [vmax, wmax])
         self.box = spaces.Box(-high, high, dtype=np.float64)
+        self.actions = Actions(self.box, self.holonomic)
         self.action_space = self.box
         self.range_max = float(spec["scan"].get("range_max", 10.0))
         # the scene the episodes run: this robot without its controller, which the actions
@@ -256,36 +266,40 @@ class CrowdNavEnv(gymnasium.Env):
         bounded_ranges(ranges, self.range_max, out)
         return out
 
-    def _observe(self) -> dict[str, np.ndarray]:
-        st = self._state()
-        x, y, yaw = (float(v) for v in st.pose)
-        s, c = elementary.sincos(yaw)
-        goal = self.spec_robot.goal
-        dx, dy = float(goal[0]) - x, float(goal[1]) - y
-        ranges = self._ranges()
-        if len(ranges) != self.beams:  # no scan taken yet
-            ranges = np.full(self.beams, self.range_max)
-        return {"odom": np.array([x, y, yaw, *(float(v) for v in st.twist)]),
-                "scan": ranges,
-                "goal": np.array([c * dx + s * dy, -s * dx + c * dy])}
-
-    def _record(self) -> tuple[float, int, float]:
-        """Appends this instant to the episode's series; (clearance, contacts, distance to
-        go along the geodesic field)."""
+    def _take(self) -> tuple[dict[str, np.ndarray], tuple, int, float, Any]:
+        """Appends this instant to the episode's series and observes it, in one compiled call
+        (:func:`~sweep_core.numerics.robots.episode.record`): (the observation, the row
+        appended, the contacts, the distance to go along the geodesic field (m), the robot's
+        state)."""
         st, sim = self._state(), self.sim
-        x, y, yaw = (float(v) for v in st.pose)
-        u, w = float(st.twist[0]), float(st.twist[1])
-        s, c = elementary.sincos(yaw)
-        vx, vy = c * u - s * w, s * u + c * w
-        near, ttc = social.nearest(np.array([x, y]), np.array([vx, vy]),
-                                   self.spec_robot.radius, sim.positions, sim.radii,
-                                   sim.velocities)
+        p, v = st.pose, st.twist
+        x, y = float(p[0]), float(p[1])
         ids, imp = _contacts(st)
         total, most = (float(imp.sum()), float(imp.max())) if len(imp) else (0.0, 0.0)
-        self.rows.append((self.steps * self.dt, x, y, yaw, vx, vy, near, ttc, len(ids),
-                          total, most))
+        scan = st.scan
+        ranges = (_NO_RANGES if scan is None
+                  else np.ascontiguousarray(scan.ranges, dtype=np.float64))
+        if len(ranges) == self.beams:
+            bounded = np.empty(self.beams)
+        else:  # no scan taken yet
+            ranges, bounded = _NO_RANGES, np.full(self.beams, self.range_max)
+        odom, goal, out = np.empty(6), np.empty(2), self.out
+        episode.record(x, y, float(p[2]), float(v[0]), float(v[1]), float(v[2]),
+                       self.steps * self.dt, self.spec_robot.radius, sim.positions, sim.radii,
+                       sim.velocities, *self.grid, *self.goal_xy, len(ids), total, most,
+                       ranges, self.range_max, out, odom, goal, bounded)
+        values = out.tolist()
+        row = tuple(values[:11])
+        self.rows.append(row)
         self.touched.append(ids)
-        return near, len(ids), self._togo(x, y)
+        if self.on_grid:
+            togo, cx, cy = values[episode.TOGO], values[episode.CLAMPED_X], \
+                values[episode.CLAMPED_Y]
+            if cx != x or cy != y:  # Python's hypot (not the C library's): _togo's bits
+                togo += math.hypot(x - cx, y - cy)
+        else:
+            togo = self._togo(x, y)
+        return {"odom": odom, "scan": bounded, "goal": goal}, row, len(ids), togo, st
 
     def _togo(self, x: float, y: float) -> float:
         """The distance to go (m) from (x, y): the goal field's geodesic distance on its grid;
@@ -319,9 +333,9 @@ class CrowdNavEnv(gymnasium.Env):
         engine_seed = int(self.np_random.integers(0, 2**31 - 1))
         self.sim = self._simulator(engine_seed)
         self.rows, self.touched, self.steps = [], [], 0
-        near, contacts, self.togo = self._record()
+        obs, row, contacts, self.togo, st = self._take()
         self.started, self.ended = True, None
-        return self._observe(), self._info(near, contacts)
+        return obs, self._info(row, contacts, st)
 
     def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool,
                                          dict[str, Any]]:
@@ -334,28 +348,16 @@ class CrowdNavEnv(gymnasium.Env):
         if action is None:
             raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, got None",
                              "give an element of env.action_space")
-        try:
-            if np.iscomplexobj(action):  # numpy would drop the imaginary parts, silently
-                raise TypeError(action)
-            a = np.asarray(action, dtype=np.float64).reshape(-1)
-        except (TypeError, ValueError):  # a string, a dict, complex numbers
-            raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, got "
-                             f"{show(action)}", "give an element of env.action_space") from None
-        if a.shape != self.box.shape or not np.isfinite(a).all():
-            raise SceneError("action", f"must be {self.box.shape[0]} finite numbers, "
-                             f"got {show(a)}", "give an element of env.action_space")
-        # np.clip's values on finite actions, without its Python wrapper
-        a = np.minimum(np.maximum(a, self.box.low), self.box.high)
-        cmd = (a[0], a[1], a[2]) if self.holonomic else (a[0], 0.0, a[1])
+        cmd = self.actions.command(action)
         assert self.sim.robots is not None
-        self.sim.robots.command(self.name, tuple(float(v) for v in cmd))
+        self.sim.robots.command(self.name, cmd)
         self.sim.step()
         self.steps += 1
         before = self.togo
-        near, contacts, self.togo = self._record()
-        goal = self.spec_robot
-        x, y = self.rows[-1][1], self.rows[-1][2]
-        reached = math.hypot(x - goal.goal[0], y - goal.goal[1]) <= goal.goal_radius
+        obs, row, contacts, self.togo, st = self._take()
+        near = row[6]
+        gx, gy = self.goal_xy
+        reached = math.hypot(row[1] - gx, row[2] - gy) <= self.spec_robot.goal_radius
         success, contact, discomfort = self.rewards
         reward = before - self.togo
         reward += success if reached else 0.0
@@ -363,27 +365,31 @@ class CrowdNavEnv(gymnasium.Env):
         reward -= discomfort * self.dt * (social.DISCOMFORT - near) if near < social.DISCOMFORT \
             else 0.0
         truncated = not reached and self.steps >= self.max_steps
-        info = self._info(near, contacts)
+        info = self._info(row, contacts, st)
         if reached or truncated:
             info["metrics"] = self.metrics()
             self.ended = (f"the robot reached its goal at step {self.steps}" if reached else
                           f"truncated at max_steps = {self.max_steps}")
-        return self._observe(), float(reward), bool(reached), bool(truncated), info
+        return obs, float(reward), bool(reached), bool(truncated), info
 
     def render(self) -> None:
         """Refused in one line: the environment draws nothing (:data:`NO_RENDER`)."""
         raise SceneError("render", "the environment draws nothing (its only render mode is "
                          "None)", NO_RENDER)
 
-    def _info(self, near: float, contacts: int) -> dict[str, Any]:
-        st, row = self._state(), self.rows[-1]
-        return {"t_s": row[0], "clearance_m": near, "ttc_s": row[7], "contacts": contacts,
+    @staticmethod
+    def _info(row: tuple, contacts: int, st: Any) -> dict[str, Any]:
+        """A step's info (module docstring) from its row, contacts and the robot's state."""
+        return {"t_s": row[0], "clearance_m": row[6], "ttc_s": row[7], "contacts": contacts,
                 "clipped": int(st.clipped), "blocked": int(st.blocked)}
 
 
 #: the impulses of no contact (read only)
 _NO_IMPULSE = np.empty(0)
 _NO_IMPULSE.flags.writeable = False
+#: the ranges of no scan (empty; writeable, as the scans' ranges are, so that the compiled
+#: record takes it with the same signature)
+_NO_RANGES = np.empty(0)
 
 
 def _contacts(st: Any) -> tuple[np.ndarray, np.ndarray]:
