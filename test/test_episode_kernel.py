@@ -1,8 +1,9 @@
 """The environment's compiled record of a step (:mod:`sweep_core.numerics.robots.episode`) and
 its action checks (:mod:`sweep_core.envs.actions`) give the bits of the Python they replace:
 ``analysis.social.nearest``, the goal field's ``travel_distance`` clamped to the grid plus
-Python's ``math.hypot`` off it, the odometry and the goal in base_link, the bounded scan, and
-numpy's checks and clip of an action; and the comparison fails for a kernel one ulp off."""
+Python's ``math.hypot`` off it, the odometry and the goal in base_link, the bounded scan, the
+contacts' impulses summed, and numpy's checks and clip of an action; and the comparison fails
+for a kernel one ulp off."""
 from __future__ import annotations
 
 import copy
@@ -62,8 +63,11 @@ def reference(env: CrowdNavEnv, case: dict) -> list[float]:
     dx, dy = float(goal[0]) - x, float(goal[1]) - y
     ranges = np.empty(len(case["ranges"]))
     bounded_ranges(case["ranges"], 8.0, ranges)
+    imp = case["impulses"]
+    imp = np.hypot(imp[:, 0], imp[:, 1])
+    total, most = (float(imp.sum()), float(imp.max())) if len(imp) else (0.0, 0.0)
     return [vx, vy, near, ttc, togo, x, y, yaw, u, w, omega, c * dx + s * dy,
-            -s * dx + c * dy, *ranges.tolist()]
+            -s * dx + c * dy, *ranges.tolist(), len(imp), total, most]
 
 
 def compiled(env: CrowdNavEnv, case: dict, record: Callable[..., None]) -> list[float]:
@@ -73,13 +77,13 @@ def compiled(env: CrowdNavEnv, case: dict, record: Callable[..., None]) -> list[
     out, odom, goal = np.empty(episode.OUT), np.empty(6), np.empty(2)
     scan = np.empty(len(case["ranges"]))
     record(x, y, yaw, *case["twist"], 0.5, case["radius"], case["people"], case["radii"],
-           case["velocities"], *env.grid, *env.goal_xy, 0, 0.0, 0.0, case["ranges"], 8.0,
-           out, odom, goal, scan)
+           case["velocities"], *env.grid, *env.goal_xy, len(case["impulses"]),
+           case["impulses"], case["ranges"], 8.0, out, odom, goal, scan)
     togo, cx, cy = out[episode.TOGO], out[episode.CLAMPED_X], out[episode.CLAMPED_Y]
     if cx != x or cy != y:
         togo += math.hypot(x - cx, y - cy)
     return [out[4], out[5], out[6], out[7], float(togo), *odom.tolist(), *goal.tolist(),
-            *scan.tolist()]
+            *scan.tolist(), out[8], out[9], out[10]]
 
 
 def cases(env: CrowdNavEnv, count: int = 400) -> list[dict]:
@@ -98,12 +102,16 @@ def cases(env: CrowdNavEnv, count: int = 400) -> list[dict]:
         velocities = rng.normal(0.0, 1.0, (n, 2))
         if n and k % 4 == 0:
             velocities[rng.uniform(size=n) < 0.5] = np.nan
+        impulses = rng.exponential(0.2, (int(rng.choice([0, 0, 1, 2, 5, 9, 17])), 2))
+        impulses *= np.where(rng.uniform(size=impulses.shape) < 0.5, -1.0, 1.0)
+        if k % 5 == 0:
+            impulses[: k % 3] = 0.0
         ranges = rng.uniform(-1.0, 10.0, 9)
         ranges[rng.integers(0, 9, 3)] = [np.nan, np.inf, -np.inf]
         out.append({"pose": pose, "twist": rng.normal(0.0, 1.0, 3).tolist(),
                     "radius": float(rng.uniform(0.1, 0.5)), "people": people,
                     "radii": rng.uniform(0.1, 0.4, n), "velocities": velocities,
-                    "ranges": ranges})
+                    "ranges": ranges, "impulses": impulses})
     return out
 
 
@@ -118,7 +126,7 @@ def test_the_kernel_gives_the_python_values_bit_for_bit(env) -> None:
     assert off and any(len(c["people"]) == 0 for c in cases(env))
 
 
-@pytest.mark.parametrize("slot", [4, 6, 7, episode.TOGO, "odom", "goal"])
+@pytest.mark.parametrize("slot", [4, 6, 7, 9, 10, episode.TOGO, "odom", "goal"])
 def test_a_kernel_one_ulp_off_is_caught(env, slot) -> None:
     def mutated(*args: object) -> None:
         episode.record(*args)

@@ -274,8 +274,10 @@ class CrowdNavEnv(gymnasium.Env):
         st, sim = self._state(), self.sim
         p, v = st.pose, st.twist
         x, y = float(p[0]), float(p[1])
-        ids, imp = _contacts(st)
-        total, most = (float(imp.sum()), float(imp.max())) if len(imp) else (0.0, 0.0)
+        ids = np.asarray(st.contact_ids, dtype=np.int64).reshape(-1)
+        # the impulses of the people in contact (none without contact)
+        impulses = (np.ascontiguousarray(st.contact_impulse, dtype=np.float64).reshape(-1, 2)
+                    if len(ids) else _NO_IMPULSES)
         scan = st.scan
         ranges = (_NO_RANGES if scan is None
                   else np.ascontiguousarray(scan.ranges, dtype=np.float64))
@@ -286,8 +288,8 @@ class CrowdNavEnv(gymnasium.Env):
         odom, goal, out = np.empty(6), np.empty(2), self.out
         episode.record(x, y, float(p[2]), float(v[0]), float(v[1]), float(v[2]),
                        self.steps * self.dt, self.spec_robot.radius, sim.positions, sim.radii,
-                       sim.velocities, *self.grid, *self.goal_xy, len(ids), total, most,
-                       ranges, self.range_max, out, odom, goal, bounded)
+                       sim.velocities, *self.grid, *self.goal_xy, len(ids), impulses, ranges,
+                       self.range_max, out, odom, goal, bounded)
         values = out.tolist()
         row = tuple(values[:11])
         self.rows.append(row)
@@ -384,18 +386,8 @@ class CrowdNavEnv(gymnasium.Env):
                 "clipped": int(st.clipped), "blocked": int(st.blocked)}
 
 
-#: the impulses of no contact (read only)
-_NO_IMPULSE = np.empty(0)
-_NO_IMPULSE.flags.writeable = False
-#: the ranges of no scan (empty; writeable, as the scans' ranges are, so that the compiled
-#: record takes it with the same signature)
+#: the impulses of no contact, (0, 2) m/s (writeable, as the engine's are, so that the
+#: compiled record takes it with the same signature; never written)
+_NO_IMPULSES = np.empty((0, 2))
+#: the ranges of no scan (the same)
 _NO_RANGES = np.empty(0)
-
-
-def _contacts(st: Any) -> tuple[np.ndarray, np.ndarray]:
-    """A robot state's contacts: person ids (K,) and |impulse| (K,) m/s."""
-    ids = np.asarray(st.contact_ids, dtype=np.int64).reshape(-1)
-    if not len(ids):  # the common case: no contact, no impulse
-        return ids, _NO_IMPULSE
-    imp = np.asarray(st.contact_impulse, dtype=np.float64).reshape(-1, 2)
-    return ids, np.hypot(imp[:, 0], imp[:, 1])

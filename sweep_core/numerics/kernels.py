@@ -294,7 +294,7 @@ def _exercise() -> None:
     grid = (np.arange(3.0), np.arange(2.0), np.ones((2, 3, 1)))
     for n in (1, 0):
         episode.record(0.5, 0.5, 0.1, 1.0, 0.0, 0.2, 0.1, 0.3, np.ones((n, 2)), np.ones(n),
-                       np.zeros((n, 2)), *grid, 2.0, 1.0, 0, 0.0, 0.0, ranges, 5.0,
+                       np.zeros((n, 2)), *grid, 2.0, 1.0, n, np.ones((n, 2)), ranges, 5.0,
                        np.empty(episode.OUT), np.empty(6), np.empty(2), np.empty(2))
     # perf7: a scan's directions, ray cast and hit count in one call
     robot_scan.cast_beams(0.0, np.zeros(2), 0.0, 0.0, np.ones((1, 2)), np.ones(1),

@@ -8,8 +8,9 @@ frame, the clearance to the nearest person and the smallest time to collision
 :func:`sweep_core.analysis.social.nearest`), the goal field's distance at the robot's position
 clamped to the grid (:func:`~sweep_core.model.bilinear.bilinear`, the interpolation of
 ``Geodesic.travel_distance``), the odometry and the goal in base_link
-(:func:`~sweep_core.model.elementary.sincos`) and the scan's ranges bounded to
-[0, range_max] (:func:`~sweep_core.numerics.robots.scan.bounded_ranges`). Each value is
+(:func:`~sweep_core.model.elementary.sincos`), the scan's ranges bounded to [0, range_max]
+(:func:`~sweep_core.numerics.robots.scan.bounded_ranges`) and the contacts' impulses summed
+(:func:`~sweep_core.numerics.projection.pairwise.numpy_sum`, numpy's order). Each value is
 computed by the same kernels, or the same operations in the same order, as the Python it
 replaces (no fused multiply-add: numba compiles without fastmath), so the records and
 observations keep their bits (test_episode_kernel compares them). The straight distance off
@@ -25,6 +26,7 @@ import numpy as np
 
 from sweep_core.model.bilinear import bilinear
 from sweep_core.model.elementary import sincos
+from sweep_core.numerics.projection.pairwise import numpy_sum
 from sweep_core.numerics.robots.scan import bounded_ranges
 from sweep_core.numerics.robots.social_kernels import nearest_pass
 
@@ -48,12 +50,24 @@ def clamp(s: float, low: float, high: float) -> float:  # pragma: no cover - com
 
 
 @numba.njit(cache=True)
+def largest(a: np.ndarray) -> float:  # pragma: no cover - compiled
+    """numpy's ``a.max()`` of a (K,) vector, K >= 1: the first NaN propagates."""
+    most = a[0]
+    for k in range(1, a.shape[0]):
+        if most != most:
+            break
+        if a[k] > most or a[k] != a[k]:
+            most = a[k]
+    return most
+
+
+@numba.njit(cache=True)
 def record(x: float, y: float, yaw: float, u: float, w: float, omega: float, t: float,
            radius: float, people: np.ndarray, radii: np.ndarray, velocities: np.ndarray,
            nodes_x: np.ndarray, nodes_y: np.ndarray, distance: np.ndarray, goal_x: float,
-           goal_y: float, contacts: int, impulse: float, impulse_max: float,
-           ranges: np.ndarray, range_max: float, out: np.ndarray, odom: np.ndarray,
-           goal: np.ndarray, scan: np.ndarray) -> None:  # pragma: no cover - compiled
+           goal_y: float, contacts: int, impulses: np.ndarray, ranges: np.ndarray,
+           range_max: float, out: np.ndarray, odom: np.ndarray, goal: np.ndarray,
+           scan: np.ndarray) -> None:  # pragma: no cover - compiled
     """One instant of a robot's episode.
 
     Args:
@@ -62,8 +76,9 @@ def record(x: float, y: float, yaw: float, u: float, w: float, omega: float, t: 
         people (N, 2) m, radii (N,) m, velocities (N, 2) m/s: the people.
         nodes_x (W,), nodes_y (H,) m, distance (H, W, 1) m: the goal field's grid and its
             travel distance (the distance left unread with fewer than 2 nodes along an axis).
-        goal_x, goal_y: the goal (m); contacts, impulse, impulse_max: the robot's contacts
-            (count, sum and largest |impulse|, m/s), copied to the row.
+        goal_x, goal_y: the goal (m); contacts: the people in contact with the robot;
+            impulses (K, 2) m/s: their impulses (K = 0 without contact), summed in the row
+            as |impulse| (numpy's ``hypot``, ``sum`` and ``max``: impulse and largest).
         ranges (B,) m, range_max m: the latest scan's ranges, bounded into ``scan`` (B,).
         out (:data:`OUT`,): the row, the distance to go on the grid at the position clamped
             to the grid (m) and that position (m); odom (6,): x, y, yaw, the twist; goal (2,):
@@ -78,7 +93,12 @@ def record(x: float, y: float, yaw: float, u: float, w: float, omega: float, t: 
         nearest_pass(x, y, vx, vy, radius, people, radii, velocities, out[14:17])
         out[6] = out[14]
         out[7] = out[15] if out[16] > 0 else math.nan
-    out[8], out[9], out[10] = contacts, impulse, impulse_max
+    out[8], out[9], out[10] = contacts, 0.0, 0.0
+    if impulses.shape[0]:
+        size = np.empty(impulses.shape[0])
+        for k in range(impulses.shape[0]):
+            size[k] = np.hypot(impulses[k, 0], impulses[k, 1])
+        out[9], out[10] = numpy_sum(size), largest(size)
     cx = clamp(x, nodes_x[0], nodes_x[nodes_x.shape[0] - 1])
     cy = clamp(y, nodes_y[0], nodes_y[nodes_y.shape[0] - 1])
     out[TOGO], out[CLAMPED_X], out[CLAMPED_Y] = math.nan, cx, cy
