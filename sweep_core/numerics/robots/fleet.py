@@ -378,7 +378,8 @@ class Fleet:
         kept = self.people_gaps
         if (kept is None or kept[3] is not geom or kept[1] is not y
                 or (kept[0] != t1 and (geom.is_moving or not geom.fixed_halfplanes))
-                or (kept[2] is not r1 and not np.array_equal(kept[2], r1))):
+                or (kept[2] is not r1 and (kept[2].shape != r1.shape
+                                           or not (kept[2] == r1).all()))):
             return None
         return kept[4], kept[5]
 
