@@ -24,7 +24,16 @@ from numba.core.registry import CPUDispatcher
 
 from sweep_core.model import elementary, fields, neighbours, wall_kernels
 from sweep_core.model.scene import Scene
-from sweep_core.numerics import constraints, csm, entry, exit_choice, headway, noise, schemes
+from sweep_core.numerics import (
+    constraints,
+    csm,
+    entry,
+    exit_choice,
+    headway,
+    noise,
+    schemes,
+    ziggurat,
+)
 from sweep_core.numerics.projection import certified, clear, dual, pairwise, small, summaries
 from sweep_core.numerics.projection.clusters import solve_active
 from sweep_core.numerics.robots import (
@@ -45,7 +54,7 @@ from sweep_core.numerics.simulator import Simulator
 MODULES: tuple[ModuleType, ...] = (neighbours, wall_kernels, dual, schemes, robot_scan,
                                    noise, constraints, guard, social_kernels, window, contacts,
                                    control, clear, overlaps, clear_step, small, summaries,
-                                   small_step, episode)
+                                   small_step, episode, ziggurat)
 
 #: the message shown while kernels compile
 COMPILING = "compiling kernels, first run on this machine (cached for later runs)"
@@ -252,6 +261,13 @@ def _exercise() -> None:
     ranges = np.array([1.0, np.inf])
     robot_scan.finish_ranges(ranges, np.ones(robot_scan.finite_count(ranges)), 0.01, 0.05, 5.0)
     noise.pcg64_state((0, 0, 1))
+    # a scan's noise drawn in compiled code (numpy's PCG64 stream and ziggurat)
+    noise.key_normals(noise.seed_words(0), 0, 1, 2)
+    ziggurat.standard_normals(noise.pcg64_start(np.zeros(3, dtype=np.uint64)), np.empty(2))
+    pcg = np.ones(4, dtype=np.uint64)  # the helpers compiled into them (own entries too)
+    ziggurat.next_double(pcg), ziggurat.next_uint64(pcg), ziggurat.standard_normal(pcg)
+    ziggurat.lcg_step(pcg)
+    ziggurat.mul_high(np.uint64(3), np.uint64(5))
     # the environment's observation of them (NaN and infinite ranges bounded)
     robot_scan.bounded_ranges(ranges, 5.0, np.empty(2))
     # the sampling planner's forecast of the people it sees

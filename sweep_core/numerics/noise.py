@@ -6,8 +6,12 @@ sigma -> 0 study). A scene with sigma = 0 everywhere draws nothing.
 """
 from __future__ import annotations
 
+import functools
+
 import numba
 import numpy as np
+
+from sweep_core.numerics import ziggurat
 
 
 def generator(seed: int) -> np.random.Generator:
@@ -24,8 +28,10 @@ def increments(rng: np.random.Generator, h: float, n: int) -> np.ndarray:
 # -- a generator seeded by a key, without building a SeedSequence ---------------------------
 # numpy's SeedSequence (O'Neill's seed_seq_fe, pool of 4 32-bit words) and PCG64's seeding,
 # computed on Python integers: the state PCG64(key) starts in, set on a kept generator, is
-# the stream of np.random.Generator(np.random.PCG64(key)) at a tenth of its cost (the robots'
-# scans seed one per robot and scan). test_noise checks the two agree.
+# the stream of np.random.Generator(np.random.PCG64(key)) at a tenth of its cost. The robots'
+# scans (one key (seed, robot, step) per robot and scan) seed and draw in compiled code
+# instead: key_normals, the state from pcg64_start and the draws of .ziggurat.
+# test_noise_keys and test_scan_noise check both against numpy.
 _MASK32 = 0xFFFFFFFF
 _MASK128 = (1 << 128) - 1
 _INIT_A, _MULT_A = 0x43B0D7E5, 0x931E8875
@@ -99,6 +105,57 @@ def pcg64_state(key: tuple[int, ...]) -> dict:
     state = (((inc + seed) & _MASK128) * _PCG_MULT + inc) & _MASK128  # state 0, two steps
     return {"bit_generator": "PCG64", "state": {"state": state, "inc": inc},
             "has_uint32": 0, "uinteger": 0}
+
+
+@numba.njit(cache=True, nogil=True)
+def pcg64_start(entropy: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """The state ``np.random.PCG64(key)`` starts in, from the key's entropy words (uint64
+    holding 32-bit values, :func:`seed_words`' layout): (4,) uint64, the 128-bit state's high
+    and low halves, then the increment's (:func:`pcg64_state`'s, as :mod:`.ziggurat` steps
+    it)."""
+    u64 = _state_words(entropy)
+    one = np.uint64(1)
+    out = np.empty(4, dtype=np.uint64)
+    out[2] = (u64[2] << one) | (u64[3] >> np.uint64(63))  # inc = (seq << 1) | 1
+    out[3] = (u64[3] << one) | one
+    out[0], out[1] = out[2], out[3]  # state 0, one step: inc
+    low = out[1] + u64[1]  # + seed
+    out[0] = out[0] + u64[0] + (one if low < out[1] else np.uint64(0))
+    out[1] = low
+    ziggurat.lcg_step(out)
+    return out
+
+
+@functools.lru_cache(maxsize=16)
+def seed_words(seed: int) -> np.ndarray:
+    """A seed's SeedSequence entropy words (:func:`_words`), (W,) uint64 read-only, computed
+    once per seed: the head of a key (seed, ...) that :func:`key_normals` completes."""
+    words = np.array(_words((seed,)), dtype=np.uint64)
+    words.flags.writeable = False
+    return words
+
+
+@numba.njit(cache=True, nogil=True)
+def key_normals(head: np.ndarray, a: int, b: int, n: int) -> np.ndarray:  # pragma: no cover
+    """(n,) the first n ``standard_normal`` draws of ``np.random.Generator(np.random.PCG64(
+    [seed, a, b]))``, numpy's bits (:mod:`.ziggurat`): ``head`` the seed's words
+    (:func:`seed_words`), a and b non-negative integers below 2^63."""
+    entropy = np.empty(head.shape[0] + 4, dtype=np.uint64)
+    m = head.shape[0]
+    entropy[:m] = head
+    for value in (a, b):
+        v = np.uint64(value)
+        if v == np.uint64(0):
+            entropy[m] = v
+            m += 1
+        while v > np.uint64(0):
+            entropy[m] = v & np.uint64(_MASK32)
+            m += 1
+            v >>= np.uint64(32)
+    state = pcg64_start(entropy[:m])
+    out = np.empty(n)
+    ziggurat.standard_normals(state, out)
+    return out
 
 
 def reseed(rng: np.random.Generator, key: tuple[int, ...]) -> np.random.Generator:
