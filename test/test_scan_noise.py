@@ -2,12 +2,16 @@
 PCG64 seeding, the PCG64 stream and numpy's ziggurat, :mod:`sweep_core.numerics.ziggurat`)
 is numpy's own: bit for bit the draws of ``np.random.Generator(np.random.PCG64([seed, a,
 b]))``, for seeds from 0 to far beyond 64 bits, and long enough streams to take the
-ziggurat's rare paths (the tail beyond NOR_R, the wedges' exp test) many times."""
+ziggurat's rare paths (the tail beyond NOR_R, the wedges' exp test) many times; and a scan
+with noise is the ray cast plus those draws."""
 from __future__ import annotations
 
 import numpy as np
 
+from sweep_core.model.robots import ScanSpec
+from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise, ziggurat
+from sweep_core.numerics.robots.scan import cast_beams, finish_ranges, scan
 
 SEEDS = [0, 1, 2, 7, 2**31 - 1, 2**32 - 1, 2**32, 2**32 + 1, 2**40 + 7, 2**63 - 1, 2**63,
          2**64 - 1, 2**64 + 5, 2**100 + 17, 12345678901234567890123456789]
@@ -61,3 +65,27 @@ def test_a_started_state_draws_numpys_stream() -> None:
         ziggurat.standard_normals(noise.pcg64_start(words), out)
         assert out.tobytes() == numpys(key, 3000).tobytes(), key
 
+
+def test_a_noisy_scan_is_the_ray_cast_plus_numpys_draws() -> None:
+    spec = ScanSpec(0.05, 6.0, -3.0, 3.0, 0.01, 10.0, 0.05)
+    geom = Scene.from_dict({
+        "agents": {"positions": [[0.0, 0.0]], "radius": 0.2},
+        "walls": [{"kind": "segment", "a": [-2.0, -1.0], "b": [4.0, -1.0]},
+                  {"kind": "halfplane", "normal": [0.0, -1.0], "offset": -2.0}]}).geometry
+    rng = np.random.default_rng(4)
+    for seed, robot, step in [(0, 0, 0), (3, 1, 17), (2**70 + 1, 2, 2**33)]:
+        people = rng.uniform(-1.5, 3.0, (12, 2))
+        radii = np.full(12, 0.2)
+        pose = (0.1, 0.2, 0.7)
+        got = scan(spec, pose, 0.0, step, geom, people, radii, (seed, robot, step))
+        want, hits = cast_beams(0.7, spec.angles(), 0.1, 0.2, people, radii, geom.packed[2],
+                                geom.packed[3], geom.packed[0], geom.offsets(0.0), 6.0)
+        draws = np.random.Generator(np.random.PCG64([seed, robot, step])).standard_normal(hits)
+        finish_ranges(want, draws, 0.05, 0.05, 6.0)
+        assert hits > 0 and got.ranges.tobytes() == want.tobytes()
+        assert (got.t, got.step, got.pose, got.spec) == (0.0, step, pose, spec)
+        quiet = scan(spec, pose, 0.0, step, geom, people, radii)  # no key: no noise
+        plain, _ = cast_beams(0.7, spec.angles(), 0.1, 0.2, people, radii, geom.packed[2],
+                              geom.packed[3], geom.packed[0], geom.offsets(0.0), 6.0)
+        finish_ranges(plain, np.empty(0), 0.0, 0.05, 6.0)
+        assert quiet.ranges.tobytes() == plain.tobytes()

@@ -261,13 +261,17 @@ def _exercise() -> None:
     ranges = np.array([1.0, np.inf])
     robot_scan.finish_ranges(ranges, np.ones(robot_scan.finite_count(ranges)), 0.01, 0.05, 5.0)
     noise.pcg64_state((0, 0, 1))
-    # a scan's noise drawn in compiled code (numpy's PCG64 stream and ziggurat)
+    # a scan's noise drawn in its compiled call (numpy's PCG64 stream and ziggurat), and the
+    # whole scan in one call
     noise.key_normals(noise.seed_words(0), 0, 1, 2)
     ziggurat.standard_normals(noise.pcg64_start(np.zeros(3, dtype=np.uint64)), np.empty(2))
     pcg = np.ones(4, dtype=np.uint64)  # the helpers compiled into them (own entries too)
     ziggurat.next_double(pcg), ziggurat.next_uint64(pcg), ziggurat.standard_normal(pcg)
     ziggurat.lcg_step(pcg)
     ziggurat.mul_high(np.uint64(3), np.uint64(5))
+    robot_scan.scan_ranges(0.0, np.zeros(2), 0.0, 0.0, np.ones((1, 2)), np.ones(1),
+                           np.ones((1, 2)), 2 * np.ones((1, 2)), np.ones((1, 2)), np.ones(1),
+                           0.05, 5.0, 0.01, noise.seed_words(0), 0, 1)
     # the environment's observation of them (NaN and infinite ranges bounded)
     robot_scan.bounded_ranges(ranges, 5.0, np.empty(2))
     # the sampling planner's forecast of the people it sees

@@ -45,7 +45,6 @@ from sweep_core.model.geometry import Geometry
 from sweep_core.model.maps import map_from_spec
 from sweep_core.model.robots import overlap
 from sweep_core.model.scene import Scene
-from sweep_core.numerics import noise
 from sweep_core.numerics.projection import Projection, project
 from sweep_core.numerics.robots import kinematics
 from sweep_core.numerics.robots.clear_step import Rooms, checked_end
@@ -93,7 +92,6 @@ class Fleet:
         self.scene = scene
         self.dt = dt
         self.seed = seed
-        self._scan_rng = np.random.Generator(np.random.PCG64(0))  # reseeded per scan
         check_step_length(scene, dt)
         self.every = [max(1, round(1.0 / (r.scan.rate * dt))) if r.scan else 0
                       for r in scene.robots]
@@ -394,11 +392,9 @@ class Fleet:
             if others:
                 disks = np.concatenate([people, np.array([s.pose[:2] for s in others])])
                 disk_r = np.concatenate([radii, [s.robot.radius for s in others]])
-            # the stream of Generator(PCG64([seed, k, step])), on a kept generator
-            rng = (noise.reseed(self._scan_rng, (self.seed, k, self.step_index))
-                   if spec.noise_std > 0 else None)
+            # the noise: the stream of Generator(PCG64([seed, k, step]))
             st.scan = scan(spec, st.pose, t, self.step_index, self.scene.geometry, disks,
-                           disk_r, rng)
+                           disk_r, (self.seed, k, self.step_index))
 
     def scanned(self, name: str) -> bool:
         """Robot ``name`` took a scan at the current step."""

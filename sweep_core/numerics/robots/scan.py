@@ -8,7 +8,9 @@ k increment (cosines and sines from :mod:`sweep_core.model.elementary`, per beam
 do not depend on the CPU); its range is the smallest s >= 0 with o + s u_k on a disk's circle
 (s = b - sqrt(b^2 - |o - c|^2 + R^2), b = <u, c - o>), a segment (solved by cross products)
 or a half-plane's line. Noise: a Gaussian of noise_std m added to every return within
-range_max, drawn from a generator seeded by (run seed, robot index, step). Then, as REP 117
+range_max, drawn from a generator seeded by (run seed, robot index, step): the stream of
+numpy's ``Generator(PCG64([seed, robot, step]))``, drawn in the compiled scan
+(:func:`sweep_core.numerics.noise.key_normals`). Then, as REP 117
 says, a range (noisy or not) below range_min is -inf (something too close to measure) and one
 above range_max +inf (no return within range): every finite range lies in
 [range_min, range_max].
@@ -25,6 +27,7 @@ import numpy as np
 from sweep_core.model.elementary import sincos
 from sweep_core.model.geometry import Geometry
 from sweep_core.model.robots import ScanSpec
+from sweep_core.numerics import noise
 
 
 @dataclass(frozen=True)
@@ -174,11 +177,40 @@ def bounded_ranges(ranges: np.ndarray, range_max: float, out: np.ndarray
         out[b] = range_max if v > range_max else v
 
 
+@numba.njit(cache=True, nogil=True)
+def scan_ranges(yaw: float, angles: np.ndarray, ox: float, oy: float, centers: np.ndarray,
+                radii: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray, hp_n: np.ndarray,
+                hp_c: np.ndarray, range_min: float, range_max: float, noise_std: float,
+                head: np.ndarray, robot: int, step: int
+                ) -> np.ndarray:  # pragma: no cover - compiled
+    """A scan's ranges (B,) m in one call: :func:`cast_beams` (the same arguments up to
+    range_max), then, with noise_std > 0 (m), one draw per finite range from
+    ``Generator(PCG64([seed, robot, step]))`` (``head`` the seed's words,
+    :func:`sweep_core.numerics.noise.seed_words`), then :func:`finish_ranges`."""
+    ranges, hits = cast_beams(yaw, angles, ox, oy, centers, radii, seg_a, seg_b, hp_n, hp_c,
+                              range_max)
+    draws = (noise.key_normals(head, robot, step, hits) if noise_std > 0.0
+             else np.empty(0))
+    finish_ranges(ranges, draws, noise_std, range_min, range_max)
+    return ranges
+
+
+#: the seed's words of a scan without noise (not read)
+_NO_WORDS = np.zeros(1, dtype=np.uint64)
+
+
+def _pairs(a: np.ndarray) -> np.ndarray:
+    """``a`` as (M, 2) rows: itself when 2-D already (the packed arrays mostly are)."""
+    return a if a.ndim == 2 and a.shape[1] == 2 else a.reshape(-1, 2)
+
+
 def scan(spec: ScanSpec, pose: tuple[float, float, float], t: float, step: int,
          geometry: Geometry, disks: np.ndarray, disk_radii: np.ndarray,
-         rng: np.random.Generator | None = None) -> Scan:
+         noise_key: tuple[int, int, int] | None = None) -> Scan:
     """The scan from ``pose`` (x, y, yaw) at time t (s): ``disks`` (C, 2) and ``disk_radii`` (C,)
-    are the people and the other robots (m); ``rng`` draws the range noise (None: none)."""
+    are the people and the other robots (m); ``noise_key`` (seed, robot index, step), all
+    non-negative, seeds the range noise: the draws of ``np.random.Generator(
+    np.random.PCG64(list(noise_key)))`` (None: no noise)."""
     geom = geometry.at(t)
     # the geometry's contiguous float64 arrays, made once per geometry; the half-planes'
     # offsets c + v t at t
@@ -188,13 +220,13 @@ def scan(spec: ScanSpec, pose: tuple[float, float, float], t: float, step: int,
         disk_radii = np.concatenate([disk_radii, circle_r])
     centers = np.ascontiguousarray(disks, dtype=float)
     radii = np.ascontiguousarray(disk_radii, dtype=float)
-    ranges, hits = cast_beams(float(pose[2]), _angles(spec), float(pose[0]), float(pose[1]),
-                              centers.reshape(-1, 2), radii, seg_a.reshape(-1, 2),
-                              seg_b.reshape(-1, 2), normals.reshape(-1, 2), geom.offsets(t),
-                              float(spec.range_max))
-    noisy = rng is not None and spec.noise_std > 0
-    draws = (rng.standard_normal(hits) if noisy  # type: ignore[union-attr]
-             else np.empty(0))
-    finish_ranges(ranges, draws, float(spec.noise_std) if noisy else 0.0,
-                  float(spec.range_min), float(spec.range_max))
-    return Scan(t, step, (float(pose[0]), float(pose[1]), float(pose[2])), ranges, spec)
+    x, y, yaw = float(pose[0]), float(pose[1]), float(pose[2])
+    if noise_key is not None and spec.noise_std > 0:
+        seed, robot, at = noise_key
+        head, std = noise.seed_words(seed), float(spec.noise_std)
+    else:
+        head, std, robot, at = _NO_WORDS, 0.0, 0, 0
+    ranges = scan_ranges(yaw, _angles(spec), x, y, _pairs(centers), radii, _pairs(seg_a),
+                         _pairs(seg_b), _pairs(normals), geom.offsets(t),
+                         float(spec.range_min), float(spec.range_max), std, head, robot, at)
+    return Scan(t, step, (x, y, yaw), ranges, spec)
