@@ -192,6 +192,81 @@ def _encode_run(start: int, head: tuple[int, int, bytes], batch: MarkerBatch,
     return buf, start + reps * len(unit), pad
 
 
+#: messages of at most this many markers are written from a kept plan (:func:`_plan`)
+_SMALL_MESSAGE = 64
+_STAMP = struct.Struct("<iI").pack
+#: (key of :func:`_layout`'s offsets, or None for the stamp at 0; width in bytes) of the parts
+#: of a marker :func:`_planned` writes: stamp, id, the float64 columns, the float32 colour
+_PARTS = ((None, 8), ("id", 4), ("position", 24), ("orientation", 32), ("scale", 24),
+          ("color", 16))
+
+
+@lru_cache(maxsize=64)
+def _plan(frame: bytes, kinds: tuple[tuple[str, int, int, int], ...]
+          ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], int]:
+    """A whole MarkerArray of the markers of ``kinds`` ((ns, type, action, count) per batch,
+    counts > 0) in ``frame``: its bytes with every stamp and column zero (uint8, the last
+    marker's trailing padding included); the index in it (intp, one row per marker) of the
+    bytes of the stamps (8), ids (4), float64 position, orientation and scale (80) and
+    float32 colours (16); the message's length. Laid out marker by marker as
+    :func:`encode_marker_array` lays out its runs (the same templates at the same offsets)."""
+    parts = [ENCAPSULATION, struct.pack("<I", sum(k[3] for k in kinds))]
+    rows: list[list[np.ndarray]] = []
+    pos, pad = 4, 0
+    for ns, kind, action, count in kinds:
+        for _ in range(count):
+            unit, offsets, size = _layout(pos % 8, frame, ns, kind, action)
+            starts = [4 + pos + (0 if key is None else offsets[key]) for key, _ in _PARTS]
+            rows.append([np.arange(at, at + width) for at, (_, width) in zip(starts, _PARTS)])
+            parts.append(unit)
+            pos, pad = pos + size, size - offsets["end"]
+    raw = b"".join(parts)
+
+    def index(lo: int, hi: int) -> np.ndarray:
+        return np.array([np.concatenate(r[lo:hi]) for r in rows], dtype=np.intp)
+
+    return (np.frombuffer(raw, dtype=np.uint8).copy(),
+            (index(0, 1), index(1, 2), index(2, 5), index(5, 6)), len(raw) - pad)
+
+
+def _planned(sec: int, nanosec: int, frame: bytes, batches: list[MarkerBatch]) -> bytes | None:
+    """The message of a few markers (at most :data:`_SMALL_MESSAGE`, one or more) written from
+    its kept plan (:func:`_plan`): the template copied and each kind of column scattered in at
+    once; None when the batches are not plain arrays of the expected sizes (then written run
+    by run, which reshapes or raises as it does)."""
+    full = [b for b in batches if len(b)]
+    total = sum(len(b) for b in full)
+    if not 0 < total <= _SMALL_MESSAGE:
+        return None
+    for b in full:
+        n = len(b)
+        if not (type(b.ids) is np.ndarray and b.ids.dtype.kind == "i" and b.ids.size == n
+                and type(b.position) is np.ndarray and b.position.size == 3 * n
+                and type(b.yaw) is np.ndarray and b.yaw.size == n
+                and type(b.scale) is np.ndarray and b.scale.size == 3 * n
+                and type(b.color) is np.ndarray and b.color.size == 4 * n
+                and all(a.dtype.kind in "fiu" for a in (b.position, b.yaw, b.scale, b.color))):
+            return None
+    template, (at_stamp, at_id, at_f8, at_f4), length = _plan(
+        frame, tuple((b.ns, int(b.type), int(b.action), len(b)) for b in full))
+    orientation = np.empty((total, 4))
+    elementary.z_rotations(np.concatenate([b.yaw for b in full], axis=None, dtype=np.float64),
+                           orientation)
+    f8 = np.concatenate((
+        np.concatenate([b.position for b in full], axis=None, dtype=np.float64).reshape(total, 3),
+        orientation,
+        np.concatenate([b.scale for b in full], axis=None, dtype=np.float64).reshape(total, 3)),
+        axis=1)
+    buf = template.copy()
+    buf[at_stamp] = np.frombuffer(_STAMP(sec, nanosec), dtype=np.uint8)
+    buf[at_id] = np.concatenate([b.ids for b in full], axis=None).astype("<i4").view(np.uint8
+                                                                                    ).reshape(total, 4)
+    buf[at_f8] = f8.view(np.uint8)
+    buf[at_f4] = np.concatenate([b.color for b in full], axis=None).astype("<f4").view(
+        np.uint8).reshape(total, 16)
+    return buf[:length].tobytes()
+
+
 def encode_marker_array(stamp_ns: int, frame_id: str, batches: list[MarkerBatch]) -> bytes:
     """CDR bytes of a ``visualization_msgs/msg/MarkerArray`` of the batches' markers in order,
     every header stamped ``stamp_ns`` (int ns) in ``frame_id``.
@@ -203,6 +278,9 @@ def encode_marker_array(stamp_ns: int, frame_id: str, batches: list[MarkerBatch]
     if not isinstance(frame_id, str) or "\x00" in frame_id:
         raise ValueError(f"frame_id: must be a str without NUL, got {frame_id!r}")
     head = (sec, nanosec, frame_id.encode("utf-8"))
+    planned = _planned(sec, nanosec, head[2], batches)
+    if planned is not None:
+        return planned
     total = sum(len(b) for b in batches)
     parts: list = [ENCAPSULATION, struct.pack("<I", total)]
     pos, pad = 4, 0
