@@ -18,6 +18,8 @@ them), agents in no group grey.
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from sweep_core.io.cdr.markers import ARROW, CUBE, CYLINDER, MarkerBatch, delete_all
@@ -49,12 +51,13 @@ def markers_every(dt: float, record_every: int, rate_hz: float = MARKER_RATE_HZ)
     return max(1, int(round(1.0 / (rate_hz * dt * record_every))))
 
 
-def agent_groups(sim: Simulator) -> np.ndarray:
+def agent_groups(sim: Simulator, state: State | None = None) -> np.ndarray:
     """The group of each present agent ((N,) int, -1 in none): the flows' groups, or the
-    members of a ``Groups`` drift of the scene."""
-    n = len(sim.state.positions)
+    members of a ``Groups`` drift of the scene; ``state``: ``sim.state``, when the caller has
+    it."""
     if sim.flows is not None:
         return np.asarray(sim.flows.group[sim.flows.ids], dtype=np.intp)
+    n = len((sim.state if state is None else state).positions)
     out = np.full(n, -1, dtype=np.intp)
     drift = sim.scene.drift
     if isinstance(drift, Groups):
@@ -71,40 +74,84 @@ def group_colors(groups: np.ndarray) -> np.ndarray:
     return out
 
 
+#: batches of at most this many agents or robots share their constant columns (colours, ids,
+#: scales: read-only arrays kept for the values they were made of) from step to step
+_KEPT_UP_TO = 256
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+@lru_cache(maxsize=16)
+def _kept_colors(groups: bytes) -> np.ndarray:
+    """:func:`group_colors` of the groups whose intp bytes are ``groups``, read-only."""
+    return _read_only(group_colors(np.frombuffer(groups, dtype=np.intp)))
+
+
+@lru_cache(maxsize=16)
+def _kept_scale(radii: bytes, height: float) -> np.ndarray:
+    """(N, 3) diameters and heights (m) of agents of float64 radii ``radii``, read-only."""
+    d = 2.0 * np.frombuffer(radii, dtype=np.float64)
+    return _read_only(np.stack([d, d, np.full(len(d), float(height))], axis=1))
+
+
+@lru_cache(maxsize=16)
+def _kept_zeros(n: int) -> np.ndarray:
+    return _read_only(np.zeros(n))
+
+
 def agent_batch(positions: np.ndarray, radii: np.ndarray, ids: np.ndarray, groups: np.ndarray,
                 height: float = 1.0) -> MarkerBatch:
-    """A CYLINDER per agent: positions (N, 2) m, radii (N,) m, ids (N,), groups (N,)."""
+    """A CYLINDER per agent: positions (N, 2) m, radii (N,) m, ids (N,), groups (N,). With at
+    most :data:`_KEPT_UP_TO` agents, the colours, scales and yaws are read-only arrays shared
+    by the batches of the same groups, radii and height."""
     q = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
     n = len(q)
-    d = 2.0 * np.asarray(radii, dtype=np.float64).reshape(n)
     position = np.empty((n, 3))
     position[:, :2], position[:, 2] = q, height / 2
+    if n <= _KEPT_UP_TO and np.ndim(groups) == 1:
+        r = np.ascontiguousarray(radii, dtype=np.float64).reshape(n)
+        g = np.ascontiguousarray(groups, dtype=np.intp)
+        return MarkerBatch("agents", CYLINDER, np.asarray(ids).reshape(n), position,
+                           _kept_zeros(n), _kept_scale(r.tobytes(), float(height)),
+                           _kept_colors(g.tobytes()))
+    d = 2.0 * np.asarray(radii, dtype=np.float64).reshape(n)
     return MarkerBatch("agents", CYLINDER, np.asarray(ids).reshape(n), position, np.zeros(n),
                        np.stack([d, d, np.full(n, float(height))], axis=1),
                        group_colors(groups))
 
 
+@lru_cache(maxsize=16)
+def _robot_columns(radii: tuple[float, ...], height: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Read-only ids, footprint and heading scales and colours of robots of radii (m)."""
+    k = len(radii)
+    return (_read_only(np.arange(k)),
+            _read_only(np.array([(2 * r, 2 * r, height) for r in radii], dtype=np.float64
+                                ).reshape(k, 3)),
+            _read_only(np.array([(2 * r, 0.2 * r, 0.2 * r) for r in radii], dtype=np.float64
+                                ).reshape(k, 3)),
+            _read_only(np.array([ROBOT_COLOR] * k)), _read_only(np.array([HEADING_COLOR] * k)))
+
+
 def robot_batches(fleet: Fleet | None, height: float = 1.0) -> list[MarkerBatch]:
-    """Each robot's footprint (CYLINDER of its radius) and heading (ARROW along its yaw)."""
+    """Each robot's footprint (CYLINDER of its radius) and heading (ARROW along its yaw); the
+    ids, scales and colours read-only arrays shared by the batches of the same radii and
+    height."""
     if fleet is None or not fleet.names:
         return []
     states = [fleet.state(name) for name in fleet.names]
     k = len(states)
-    # one (k, 11) table built from Python floats: columns x, y, yaw, then the two batches'
-    # z and scales (a few small numpy calls instead of a dozen stacks per step)
-    rows = []
-    for s in states:
-        x, y, yaw = (float(v) for v in s.pose)
-        r = float(s.robot.radius)
-        rows.append((x, y, yaw, height / 2, height, 2 * r, 2 * r, height, 2 * r, 0.2 * r,
-                     0.2 * r))
-    table = np.array(rows, dtype=np.float64).reshape(k, 11)
-    ids = np.arange(k)
-    foot, arrow = table[:, [0, 1, 3]], table[:, [0, 1, 4]]
-    return [MarkerBatch("robots", CYLINDER, ids, foot, table[:, 2], table[:, 5:8],
-                        np.array([ROBOT_COLOR] * k)),
-            MarkerBatch("robot_headings", ARROW, ids, arrow, table[:, 2], table[:, 8:11],
-                        np.array([HEADING_COLOR] * k))]
+    poses = [tuple(float(v) for v in s.pose) for s in states]
+    ids, foot_scale, arrow_scale, foot_color, arrow_color = _robot_columns(
+        tuple(float(s.robot.radius) for s in states), float(height))
+    foot = np.array([(x, y, height / 2) for x, y, _ in poses], dtype=np.float64).reshape(k, 3)
+    arrow = np.array([(x, y, height) for x, y, _ in poses], dtype=np.float64).reshape(k, 3)
+    yaw = np.array([p[2] for p in poses], dtype=np.float64)
+    return [MarkerBatch("robots", CYLINDER, ids, foot, yaw, foot_scale, foot_color),
+            MarkerBatch("robot_headings", ARROW, ids, arrow, yaw, arrow_scale, arrow_color)]
 
 
 def state_batches(sim: Simulator, groups: np.ndarray | None = None, height: float = 1.0,
@@ -113,7 +160,7 @@ def state_batches(sim: Simulator, groups: np.ndarray | None = None, height: floa
     when known) and its robots; ``state``: ``sim.state``, when the caller has it."""
     state = sim.state if state is None else state
     ids = np.arange(len(state.positions)) if state.ids is None else state.ids
-    g = agent_groups(sim) if groups is None else groups
+    g = agent_groups(sim, state) if groups is None else groups
     return [agent_batch(state.positions, state.radii, ids, g, height),
             *robot_batches(sim.robots, height)]
 
