@@ -10,9 +10,12 @@ exact). Frames: ``odom`` / ``base_link`` with one robot, ``NAME/odom`` / ``NAME/
 with several. Shared by ``sweep run`` and the node."""
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from sweep_core.io import cdr
+from sweep_core.io.cdr.wire import header_prefix
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.robots.fleet import Fleet
 from sweep_core.numerics.robots.scan import Scan
@@ -71,8 +74,26 @@ def encode_scan(stamp_ns: int, frame_id: str, scan: Scan) -> bytes:
         spec.increment, 0.0, 1.0 / spec.rate, spec.range_min, spec.range_max, scan.ranges))
 
 
+@lru_cache(maxsize=64)
+def _cloud_body(frame_id: str, values: tuple[tuple[str, tuple[float, ...]], ...]) -> bytes:
+    """A PointCloud2 of float32 columns ``values`` ((name, column) each) in ``frame_id``, from
+    the byte after its header on (the same whatever its stamp): kept for the few clouds that
+    recur (no contacts, a status that does not change)."""
+    data = cdr.encode_point_cloud2(0, frame_id, {name: np.array(column, dtype=np.float32)
+                                                 for name, column in values})
+    return data[len(header_prefix(0, frame_id)):]
+
+
+def _no_contacts(st: RobotState) -> bool:
+    return (len(st.contact_ids) == 0 and st.contact_xy.shape == (0, 2)
+            and st.contact_impulse.shape == (0, 2))
+
+
 def encode_contacts(stamp_ns: int, frame_id: str, st: RobotState) -> bytes:
     """``/NAME/contacts`` of a robot's last step (frame: the map's)."""
+    if type(frame_id) is str and _no_contacts(st):  # the empty cloud's body kept
+        return header_prefix(stamp_ns, frame_id) + _cloud_body(
+            frame_id, tuple((name, ()) for name in CONTACT_FIELDS))
     return cdr.encode_point_cloud2(stamp_ns, frame_id, {
         "id": st.contact_ids.astype(np.float32), "x": st.contact_xy[:, 0],
         "y": st.contact_xy[:, 1], "impulse_x": st.contact_impulse[:, 0],
@@ -82,6 +103,9 @@ def encode_contacts(stamp_ns: int, frame_id: str, st: RobotState) -> bytes:
 def encode_status(stamp_ns: int, frame_id: str, st: RobotState) -> bytes:
     """``/NAME/status``: one point of :data:`STATUS_FIELDS`."""
     values = (st.clipped, st.blocked, int(st.stopped), int(st.goal_reached))
+    if type(frame_id) is str and all(type(v) is int for v in values):  # its body kept
+        return header_prefix(stamp_ns, frame_id) + _cloud_body(
+            frame_id, tuple((name, (v,)) for name, v in zip(STATUS_FIELDS, values)))
     return cdr.encode_point_cloud2(stamp_ns, frame_id, {
         name: np.array([v], dtype=np.float32) for name, v in zip(STATUS_FIELDS, values)})
 

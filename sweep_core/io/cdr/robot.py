@@ -10,6 +10,7 @@ sent (a twist with linear.z or angular.x is decoded as it is; the engine decides
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -22,7 +23,8 @@ from sweep_core.io.cdr.msgdefs import (
     TF_MESSAGE,
     TWIST_STAMPED,
 )
-from sweep_core.io.cdr.stream import CdrReader, CdrWriter
+from sweep_core.io.cdr.stream import CdrReader, CdrWriter, header_tail
+from sweep_core.io.cdr.wire import ENCAPSULATION, split_stamp
 from sweep_core.model import elementary
 
 
@@ -164,6 +166,30 @@ def _pose(w: CdrWriter, pose: Sequence[float] | np.ndarray, name: str) -> None:
     w.pack("7d", x, y, 0.0, *yaw_quaternion(yaw))
 
 
+#: a header's stamp (sec int32, nanosec uint32)
+_STAMP = struct.Struct("<iI").pack
+#: an Odometry's pose, zero covariance, twist and zero covariance (from an 8-byte boundary)
+_ODOMETRY_BODY = struct.Struct("<7d288x6d288x").pack
+_SIX = struct.Struct("<6d").pack
+_SEVEN = struct.Struct("<7d").pack
+_SCAN_FIELDS = struct.Struct("<7f").pack
+_U32 = struct.Struct("<I").pack
+
+
+def _odometry_planar(stamp_ns: int, frame_id: str, child_frame_id: str,
+                     pose: Sequence[float] | np.ndarray, twist: Sequence[float] | np.ndarray
+                     ) -> bytes:
+    """:func:`encode_odometry` without covariances, its fixed layout packed at once (the same
+    checks in the same order)."""
+    sec, nanosec = split_stamp(stamp_ns, "stamp_ns")
+    tail = header_tail(((frame_id, "frame_id"), (child_frame_id, "child_frame_id")), 8)
+    x, y, yaw = _finite(pose, 3, "pose")
+    vx, vy, omega = _finite(twist, 3, "twist")
+    _, _, s, c = yaw_quaternion(yaw)
+    return b"".join((ENCAPSULATION, _STAMP(sec, nanosec), tail,
+                     _ODOMETRY_BODY(x, y, 0.0, 0.0, 0.0, s, c, vx, vy, 0.0, 0.0, 0.0, omega)))
+
+
 def encode_odometry(stamp_ns: int, frame_id: str, child_frame_id: str,
                     pose: Sequence[float] | np.ndarray, twist: Sequence[float] | np.ndarray,
                     pose_covariance: Sequence[float] | np.ndarray | None = None,
@@ -171,6 +197,9 @@ def encode_odometry(stamp_ns: int, frame_id: str, child_frame_id: str,
     """``nav_msgs/msg/Odometry`` of a planar pose (x, y, yaw) in ``frame_id`` (m, rad) and a
     planar twist (vx, vy, omega) in ``child_frame_id`` (m/s, rad/s); covariances 36 values
     (row-major 6x6), zero when None. Raises ValueError naming a bad argument."""
+    if pose_covariance is None and twist_covariance is None and type(frame_id) is str \
+            and type(child_frame_id) is str:
+        return _odometry_planar(stamp_ns, frame_id, child_frame_id, pose, twist)
     w = CdrWriter()
     w.header(stamp_ns, frame_id)
     w.string(child_frame_id, "child_frame_id")
@@ -197,6 +226,11 @@ def encode_twist_stamped(stamp_ns: int, frame_id: str,
                          twist: Sequence[float] | np.ndarray) -> bytes:
     """``geometry_msgs/msg/TwistStamped`` of a planar twist (vx, vy, omega) (m/s, rad/s)."""
     vx, vy, omega = _finite(twist, 3, "twist")
+    if type(frame_id) is str:  # the fixed layout packed at once
+        sec, nanosec = split_stamp(stamp_ns, "stamp_ns")
+        return b"".join((ENCAPSULATION, _STAMP(sec, nanosec),
+                         header_tail(((frame_id, "frame_id"),), 8),
+                         _SIX(vx, vy, 0.0, 0.0, 0.0, omega)))
     w = CdrWriter()
     w.header(stamp_ns, frame_id)
     w.pack("6d", vx, vy, 0.0, 0.0, 0.0, omega)
@@ -213,6 +247,21 @@ def decode_twist_stamped(data: bytes) -> Twist:
 def encode_laser_scan(scan: LaserScan) -> bytes:
     """``sensor_msgs/msg/LaserScan`` of a :class:`LaserScan` (ranges and intensities cast to
     float32; inf and NaN allowed there, as REP 117 uses them)."""
+    if type(scan.frame_id) is str:  # the header and angles packed at once
+        sec, nanosec = split_stamp(scan.stamp_ns, "stamp_ns")
+        parts = [ENCAPSULATION, _STAMP(sec, nanosec),
+                 header_tail(((scan.frame_id, "frame_id"),), 4),
+                 _SCAN_FIELDS(scan.angle_min, scan.angle_max, scan.angle_increment,
+                              scan.time_increment, scan.scan_time, scan.range_min,
+                              scan.range_max)]
+        for name in ("ranges", "intensities"):  # 4-byte aligned from here on
+            values = np.asarray(getattr(scan, name))
+            if values.ndim != 1 or values.dtype.kind not in "iuf":
+                raise ValueError(f"{name}: must be an (N,) array of numbers, got {values.shape}")
+            parts.append(_U32(len(values)))
+            if len(values):
+                parts.append(np.ascontiguousarray(values, dtype="<f4").tobytes())
+        return b"".join(parts)
     w = CdrWriter()
     w.header(scan.stamp_ns, scan.frame_id)
     w.pack("7f", scan.angle_min, scan.angle_max, scan.angle_increment, scan.time_increment,
@@ -234,8 +283,28 @@ def decode_laser_scan(data: bytes) -> LaserScan:
     return LaserScan(stamp, frame, a0, a1, da, dt, scan_time, r0, r1, ranges, intensities)
 
 
+def _tf_packed(transforms: Sequence[Transform]) -> bytes:
+    """:func:`encode_tf_message` with each transform's header and numbers packed at once:
+    the first transform's stamp at payload offset 4 (after the count), the others' at a
+    multiple of 8 (after the 7 float64 of the last)."""
+    parts = [ENCAPSULATION, _U32(len(transforms))]
+    for k, tf in enumerate(transforms):
+        sec, nanosec = split_stamp(tf.stamp_ns, "stamp_ns")
+        parts.append(_STAMP(sec, nanosec))
+        parts.append(header_tail(((tf.frame_id, "frame_id"),
+                                  (tf.child_frame_id, f"transforms[{k}].child_frame_id")),
+                                 8, 4 if k == 0 else 0))
+        parts.append(_SEVEN(*_finite(tf.translation, 3, f"transforms[{k}].translation"),
+                            *_finite(tf.rotation, 4, f"transforms[{k}].rotation")))
+    return b"".join(parts)
+
+
 def encode_tf_message(transforms: Sequence[Transform]) -> bytes:
     """``tf2_msgs/msg/TFMessage`` of transforms (each stamped with its own time)."""
+    try:  # each transform's fixed layout packed at once
+        return _tf_packed(transforms)
+    except (ValueError, TypeError):  # a bad transform: written field by field, which raises
+        pass                        # the error of the first bad field
     w = CdrWriter()
     w.pack("I", len(transforms))
     for k, tf in enumerate(transforms):

@@ -65,6 +65,22 @@ class CdrWriter:
         return b"".join(self.parts)
 
 
+@lru_cache(maxsize=128)
+def header_tail(strings: tuple[tuple[str, str], ...], align: int, start: int = 0) -> bytes:
+    """The bytes :class:`CdrWriter` writes after a header's stamp (at payload offset ``start``,
+    a multiple of 4) for the strings ((text, name) each: a header's ``frame_id``, then e.g. a
+    ``child_frame_id``) and the padding to the next multiple of ``align`` bytes: what a
+    message of fixed layout puts between its stamp and its first number. Raises ValueError
+    naming a bad string."""
+    w = CdrWriter()
+    w.offset = start
+    w.pack("iI", 0, 0)
+    for text, name in strings:
+        w.string(text, name)
+    w.align(align)
+    return w.bytes()[12:]
+
+
 class CdrReader:
     """Reads fields in order from a CDR buffer; a short buffer raises ValueError naming the
     message type and the part."""
