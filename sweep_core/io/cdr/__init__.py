@@ -38,7 +38,12 @@ from sweep_core.io.cdr.decode import (
                                       decode_pose_array,
                                       decode_pose_array_full,
 )
-from sweep_core.io.cdr.encode import encode_clock, encode_point_cloud2, encode_pose_array
+from sweep_core.io.cdr.encode import (
+    encode_clock,
+    encode_float32_cloud,
+    encode_point_cloud2,
+    encode_pose_array,
+)
 from sweep_core.io.cdr.msgdefs import (
                                       CLOCK,
                                       CLOCK_MSGDEF,
@@ -111,6 +116,7 @@ __all__ = [
     "decode_pose_array",
     "decode_pose_array_full",
     "encode_clock",
+    "encode_float32_cloud",
     "encode_point_cloud2",
     "encode_pose_array",
 ]
