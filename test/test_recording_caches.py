@@ -4,13 +4,14 @@ equal those made from fresh arrays written run by run, when the radii change in 
 enter and leave, robots differ, and two simulators alternate through the same encoders."""
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 import sweep_core as sc
-from sweep_core.io import cdr, markers, robot_topics
+from sweep_core.io import cdr, markers, robot_topics, topics
 from sweep_core.io.cdr import markers as cdr_markers
 from sweep_core.io.cdr.markers import MarkerBatch, encode_marker_array
 from sweep_core.model.scene import load_scene
@@ -172,3 +173,18 @@ def test_status_and_contacts_follow_their_values():
             assert robot_topics.encode_status(5, frame, st) == expected
             cloud = cdr.decode_point_cloud2(robot_topics.encode_contacts(9, frame, st))
             assert cloud.stamp_ns == 9 and cloud.frame_id == frame
+
+
+@pytest.mark.parametrize("n", [0, 1, 10, 300])
+def test_agents_cloud_block_equals_its_columns(n):
+    rng = np.random.default_rng(n)
+    sim = sc.Simulator(load_scene("crowdnav"), dt=0.1, seed=0)
+    state = dataclasses.replace(
+        sim.state, positions=rng.normal(size=(n, 2)) * 1e39, radii=rng.random(n),
+        velocities=np.where(rng.random((n, 2)) < 0.1, np.nan, rng.normal(size=(n, 2))),
+        reaction=rng.normal(size=(n, 2)), ids=rng.integers(0, 2**30, n) if n % 2 == 0 else None)
+    ns = topics.stamp_ns(state.t)
+    expected = cdr.encode_point_cloud2(ns, "map", topics.agent_fields(state))
+    assert topics.encode_state(state)[topics.AGENTS] == expected
+    with pytest.raises(ValueError, match="block"):
+        cdr.encode_float32_cloud(ns, "map", topics.AGENT_FIELDS, np.zeros((n, 8)))
