@@ -16,7 +16,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from sweep_core.io.cdr.wire import ENCAPSULATION, split_stamp
+from sweep_core.io.cdr.wire import ENCAPSULATION, pack_stamp, split_stamp
 from sweep_core.model import elementary
 
 ARROW, CUBE, SPHERE, CYLINDER = 0, 1, 2, 3
@@ -194,7 +194,6 @@ def _encode_run(start: int, head: tuple[int, int, bytes], batch: MarkerBatch,
 
 #: messages of at most this many markers are written from a kept plan (:func:`_plan`)
 _SMALL_MESSAGE = 64
-_STAMP = struct.Struct("<iI").pack
 #: (key of :func:`_layout`'s offsets, or None for the stamp at 0; width in bytes) of the parts
 #: of a marker :func:`_planned` writes: stamp, id, the float64 columns, the float32 colour
 _PARTS = ((None, 8), ("id", 4), ("position", 24), ("orientation", 32), ("scale", 24),
@@ -258,7 +257,7 @@ def _planned(sec: int, nanosec: int, frame: bytes, batches: list[MarkerBatch]) -
         np.concatenate([b.scale for b in full], axis=None, dtype=np.float64).reshape(total, 3)),
         axis=1)
     buf = template.copy()
-    buf[at_stamp] = np.frombuffer(_STAMP(sec, nanosec), dtype=np.uint8)
+    buf[at_stamp] = np.frombuffer(pack_stamp(sec, nanosec), dtype=np.uint8)
     buf[at_id] = np.concatenate([b.ids for b in full], axis=None).astype("<i4").view(np.uint8
                                                                                     ).reshape(total, 4)
     buf[at_f8] = f8.view(np.uint8)

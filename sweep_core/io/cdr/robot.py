@@ -24,7 +24,7 @@ from sweep_core.io.cdr.msgdefs import (
     TWIST_STAMPED,
 )
 from sweep_core.io.cdr.stream import CdrReader, CdrWriter, header_tail
-from sweep_core.io.cdr.wire import ENCAPSULATION, split_stamp
+from sweep_core.io.cdr.wire import ENCAPSULATION, pack_stamp, pack_u32, split_stamp
 from sweep_core.model import elementary
 
 
@@ -166,14 +166,11 @@ def _pose(w: CdrWriter, pose: Sequence[float] | np.ndarray, name: str) -> None:
     w.pack("7d", x, y, 0.0, *yaw_quaternion(yaw))
 
 
-#: a header's stamp (sec int32, nanosec uint32)
-_STAMP = struct.Struct("<iI").pack
 #: an Odometry's pose, zero covariance, twist and zero covariance (from an 8-byte boundary)
 _ODOMETRY_BODY = struct.Struct("<7d288x6d288x").pack
 _SIX = struct.Struct("<6d").pack
 _SEVEN = struct.Struct("<7d").pack
 _SCAN_FIELDS = struct.Struct("<7f").pack
-_U32 = struct.Struct("<I").pack
 
 
 def _odometry_planar(stamp_ns: int, frame_id: str, child_frame_id: str,
@@ -186,7 +183,7 @@ def _odometry_planar(stamp_ns: int, frame_id: str, child_frame_id: str,
     x, y, yaw = _finite(pose, 3, "pose")
     vx, vy, omega = _finite(twist, 3, "twist")
     _, _, s, c = yaw_quaternion(yaw)
-    return b"".join((ENCAPSULATION, _STAMP(sec, nanosec), tail,
+    return b"".join((ENCAPSULATION, pack_stamp(sec, nanosec), tail,
                      _ODOMETRY_BODY(x, y, 0.0, 0.0, 0.0, s, c, vx, vy, 0.0, 0.0, 0.0, omega)))
 
 
@@ -228,7 +225,7 @@ def encode_twist_stamped(stamp_ns: int, frame_id: str,
     vx, vy, omega = _finite(twist, 3, "twist")
     if type(frame_id) is str:  # the fixed layout packed at once
         sec, nanosec = split_stamp(stamp_ns, "stamp_ns")
-        return b"".join((ENCAPSULATION, _STAMP(sec, nanosec),
+        return b"".join((ENCAPSULATION, pack_stamp(sec, nanosec),
                          header_tail(((frame_id, "frame_id"),), 8),
                          _SIX(vx, vy, 0.0, 0.0, 0.0, omega)))
     w = CdrWriter()
@@ -249,7 +246,7 @@ def encode_laser_scan(scan: LaserScan) -> bytes:
     float32; inf and NaN allowed there, as REP 117 uses them)."""
     if type(scan.frame_id) is str:  # the header and angles packed at once
         sec, nanosec = split_stamp(scan.stamp_ns, "stamp_ns")
-        parts = [ENCAPSULATION, _STAMP(sec, nanosec),
+        parts = [ENCAPSULATION, pack_stamp(sec, nanosec),
                  header_tail(((scan.frame_id, "frame_id"),), 4),
                  _SCAN_FIELDS(scan.angle_min, scan.angle_max, scan.angle_increment,
                               scan.time_increment, scan.scan_time, scan.range_min,
@@ -258,7 +255,7 @@ def encode_laser_scan(scan: LaserScan) -> bytes:
             values = np.asarray(getattr(scan, name))
             if values.ndim != 1 or values.dtype.kind not in "iuf":
                 raise ValueError(f"{name}: must be an (N,) array of numbers, got {values.shape}")
-            parts.append(_U32(len(values)))
+            parts.append(pack_u32(len(values)))
             if len(values):
                 parts.append(np.ascontiguousarray(values, dtype="<f4").tobytes())
         return b"".join(parts)
@@ -287,10 +284,10 @@ def _tf_packed(transforms: Sequence[Transform]) -> bytes:
     """:func:`encode_tf_message` with each transform's header and numbers packed at once:
     the first transform's stamp at payload offset 4 (after the count), the others' at a
     multiple of 8 (after the 7 float64 of the last)."""
-    parts = [ENCAPSULATION, _U32(len(transforms))]
+    parts = [ENCAPSULATION, pack_u32(len(transforms))]
     for k, tf in enumerate(transforms):
         sec, nanosec = split_stamp(tf.stamp_ns, "stamp_ns")
-        parts.append(_STAMP(sec, nanosec))
+        parts.append(pack_stamp(sec, nanosec))
         parts.append(header_tail(((tf.frame_id, "frame_id"),
                                   (tf.child_frame_id, f"transforms[{k}].child_frame_id")),
                                  8, 4 if k == 0 else 0))

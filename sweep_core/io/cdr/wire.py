@@ -19,6 +19,9 @@ PAD = (b"", b"\x00", b"\x00\x00", b"\x00\x00\x00", b"\x00" * 4, b"\x00" * 5, b"\
         b"\x00" * 7)
 
 _pack_time_strlen = struct.Struct("<iII").pack
+#: a builtin_interfaces/Time (sec int32, nanosec uint32)
+pack_stamp = struct.Struct("<iI").pack
+pack_u32 = struct.Struct("<I").pack
 pack_2u32 = struct.Struct("<II").pack
 pack_3u32 = struct.Struct("<III").pack
 _unpack_time_strlen = struct.Struct("<iII").unpack_from
