@@ -114,14 +114,6 @@ def simple_step(geom: Geometry, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
     pred = np.ascontiguousarray(pred, dtype=np.float64)
     r1 = np.ascontiguousarray(r1, dtype=np.float64)
     room = rooms.get(geom, len(q))
-    if warm is None:
-        old = (_NO_INDEX, _NO_INDEX, _NO_INDEX, _NO_KIND, _NO_INDEX, _NO_MULTIPLIER,
-               _NO_MULTIPLIER, False)
-    else:
-        rows = warm.rows
-        old = (rows.pair_i, rows.pair_j, rows.single_a, rows.single_kind, rows.single_item,
-               np.ascontiguousarray(warm.lam_pair, dtype=np.float64),
-               np.ascontiguousarray(warm.lam_single, dtype=np.float64), True)
     # the simple step's questions alone first: its answer is one number, where the call
     # that goes on with the projection returns some twenty arrays (each boxed on return)
     code = clear_robot_step(q, pred, r1, start, target, radius, moving, *room)
@@ -133,6 +125,15 @@ def simple_step(geom: Geometry, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
         return proj, y.copy(), room.gaps(), bool(room.out[10]), [_NO_CONTACTS] * robots
     if code != SETTLED or not (len(q) >= 2 and opts.method == "certified"):
         return code == SETTLED
+    # the warm start the projection starts from (the simple step reads none)
+    if warm is None:
+        old = (_NO_INDEX, _NO_INDEX, _NO_INDEX, _NO_KIND, _NO_INDEX, _NO_MULTIPLIER,
+               _NO_MULTIPLIER, False)
+    else:
+        rows = warm.rows
+        old = (rows.pair_i, rows.pair_j, rows.single_a, rows.single_kind, rows.single_item,
+               np.ascontiguousarray(warm.lam_pair, dtype=np.float64),
+               np.ascontiguousarray(warm.lam_single, dtype=np.float64), True)
     (code, y, pi, pj, pe, pb, s_a, s_n, s_b, s_kind, s_item, lam, active, qp_size, solves,
      rounds, bound, ids, xy, imp, counts) = _contact_step(
         q, pred, r1, start, target, radius, *room, float(h), *old, float(opts.tol),
