@@ -1,11 +1,12 @@
-"""``noise.reseed``: a kept generator put in the state ``Generator(PCG64(key))`` starts in
-(the robots' scans seed one per robot and scan), checked against numpy's own seeding."""
+"""``noise.pcg64_start``: the state ``np.random.PCG64(key)`` starts in (numpy's SeedSequence
+and PCG64 seeding, compiled; the robots' scans seed one per robot and scan), checked against
+numpy's own seeding."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from sweep_core.numerics.noise import pcg64_state, reseed
+from sweep_core.numerics import noise
 
 
 def _keys() -> list[tuple[int, ...]]:
@@ -21,20 +22,16 @@ def _keys() -> list[tuple[int, ...]]:
 
 def test_the_state_is_numpys_for_every_key() -> None:
     for key in _keys():
-        assert pcg64_state(key) == np.random.PCG64(list(key)).state, key
-
-
-def test_a_reseeded_generator_draws_the_seeded_stream() -> None:
-    kept = np.random.Generator(np.random.PCG64(99))
-    kept.standard_normal(3)  # a used generator, as after a scan
-    for key in [(7, 0, 12), (7, 1, 12), (2**40, 3, 0)]:
-        got = reseed(kept, key).standard_normal(37)
-        want = np.random.Generator(np.random.PCG64(list(key))).standard_normal(37)
-        assert got.tobytes() == want.tobytes()
+        start = noise.pcg64_start(np.array(noise.key_words(key), dtype=np.uint64))
+        want = np.random.PCG64(list(key)).state["state"]
+        assert (int(start[0]) << 64 | int(start[1])) == want["state"], key
+        assert (int(start[2]) << 64 | int(start[3])) == want["inc"], key
 
 
 def test_a_negative_key_is_refused_as_numpy_refuses_it() -> None:
     with pytest.raises(ValueError):
         np.random.PCG64([1, -2])
     with pytest.raises(ValueError, match="non-negative"):
-        pcg64_state((1, -2))
+        noise.key_words((1, -2))
+    with pytest.raises(ValueError, match="non-negative"):
+        noise.seed_words(-2)

@@ -52,9 +52,7 @@ def test_random_keys_and_long_streams_take_every_path_with_numpys_bits() -> None
 
 def test_a_started_state_draws_numpys_stream() -> None:
     for key in ([0], [5, 0], [2**32, 1, 2**32 - 1, 0], [2**128 - 1], [3, 0, 1, 2, 3, 4, 5]):
-        words = np.array([w for n in key for w in (
-            [0] if n == 0 else [(n >> s) & 0xFFFFFFFF for s in range(0, n.bit_length(), 32)])],
-            dtype=np.uint64)
+        words = np.array(noise.key_words(tuple(key)), dtype=np.uint64)
         state = noise.pcg64_start(words)
         want = np.random.PCG64(key).state["state"]
         assert (int(state[0]) << 64 | int(state[1])) == want["state"], key

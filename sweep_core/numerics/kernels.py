@@ -257,10 +257,9 @@ def _exercise() -> None:
     # a robot's scan (the ray cast against disks, segments and half-planes)
     robot_scan.ray_cast(0.0, 0.0, np.ones(2), np.zeros(2), np.ones((1, 2)), np.ones(1),
                         np.ones((1, 2)), 2 * np.ones((1, 2)), np.ones((1, 2)), np.ones(1), 5.0)
-    # its noise and REP 117 marks, and its noise generator's seeding
+    # its noise and REP 117 marks
     ranges = np.array([1.0, np.inf])
     robot_scan.finish_ranges(ranges, np.ones(robot_scan.finite_count(ranges)), 0.01, 0.05, 5.0)
-    noise.pcg64_state((0, 0, 1))
     # a scan's noise drawn in its compiled call (numpy's PCG64 stream and ziggurat), and the
     # whole scan in one call
     noise.key_normals(noise.seed_words(0), 0, 1, 2)

@@ -25,26 +25,22 @@ def increments(rng: np.random.Generator, h: float, n: int) -> np.ndarray:
     return np.sqrt(h) * rng.standard_normal((n, 2))
 
 
-# -- a generator seeded by a key, without building a SeedSequence ---------------------------
+# -- numpy's seeding of a generator by a key, without building a SeedSequence --------------
 # numpy's SeedSequence (O'Neill's seed_seq_fe, pool of 4 32-bit words) and PCG64's seeding,
-# computed on Python integers: the state PCG64(key) starts in, set on a kept generator, is
-# the stream of np.random.Generator(np.random.PCG64(key)) at a tenth of its cost. The robots'
-# scans (one key (seed, robot, step) per robot and scan) seed and draw in compiled code
-# instead: key_normals, the state from pcg64_start and the draws of .ziggurat.
-# test_noise_keys and test_scan_noise check both against numpy.
+# compiled: the state np.random.PCG64(key) starts in (pcg64_start), from which the robots'
+# scans (one key (seed, robot, step) per robot and scan) draw numpy's normals in compiled code
+# (key_normals, with the stream and ziggurat of .ziggurat). test_noise_keys and
+# test_scan_noise check both against numpy.
 _MASK32 = 0xFFFFFFFF
-_MASK128 = (1 << 128) - 1
 _INIT_A, _MULT_A = 0x43B0D7E5, 0x931E8875
 _INIT_B, _MULT_B = 0x8B51F9DD, 0x58F38DED
 _MIX_L, _MIX_R = 0xCA01F9DD, 0x4973F715
-#: PCG64's 128-bit LCG multiplier
-_PCG_MULT = 0x2360ED051FC65DA44385DF649FCCF645
 _POOL = 4
 
 
-def _words(key: tuple[int, ...]) -> list[int]:
+def key_words(key: tuple[int, ...]) -> list[int]:
     """The key's integers as SeedSequence's entropy: each as its little-endian 32-bit words
-    (0 as one word)."""
+    (0 as one word); ValueError for a negative one, as numpy refuses it."""
     out = []
     for n in key:
         n = int(n)
@@ -96,23 +92,11 @@ def _state_words(entropy: np.ndarray) -> np.ndarray:  # pragma: no cover - compi
     return out
 
 
-def pcg64_state(key: tuple[int, ...]) -> dict:
-    """The ``bit_generator.state`` of ``np.random.PCG64(list(key))`` when built (key: the
-    non-negative integers of a seed, at least one)."""
-    u64 = _state_words(np.array(_words(key), dtype=np.uint64)).tolist()
-    seed, seq = (u64[0] << 64) | u64[1], (u64[2] << 64) | u64[3]
-    inc = ((seq << 1) | 1) & _MASK128
-    state = (((inc + seed) & _MASK128) * _PCG_MULT + inc) & _MASK128  # state 0, two steps
-    return {"bit_generator": "PCG64", "state": {"state": state, "inc": inc},
-            "has_uint32": 0, "uinteger": 0}
-
-
 @numba.njit(cache=True, nogil=True)
 def pcg64_start(entropy: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
     """The state ``np.random.PCG64(key)`` starts in, from the key's entropy words (uint64
-    holding 32-bit values, :func:`seed_words`' layout): (4,) uint64, the 128-bit state's high
-    and low halves, then the increment's (:func:`pcg64_state`'s, as :mod:`.ziggurat` steps
-    it)."""
+    holding 32-bit values, :func:`key_words`): (4,) uint64, the 128-bit state's high and low
+    halves, then the increment's (as :mod:`.ziggurat` steps them)."""
     u64 = _state_words(entropy)
     one = np.uint64(1)
     out = np.empty(4, dtype=np.uint64)
@@ -128,9 +112,9 @@ def pcg64_start(entropy: np.ndarray) -> np.ndarray:  # pragma: no cover - compil
 
 @functools.lru_cache(maxsize=16)
 def seed_words(seed: int) -> np.ndarray:
-    """A seed's SeedSequence entropy words (:func:`_words`), (W,) uint64 read-only, computed
+    """A seed's SeedSequence entropy words (:func:`key_words`), (W,) uint64 read-only, computed
     once per seed: the head of a key (seed, ...) that :func:`key_normals` completes."""
-    words = np.array(_words((seed,)), dtype=np.uint64)
+    words = np.array(key_words((seed,)), dtype=np.uint64)
     words.flags.writeable = False
     return words
 
@@ -156,10 +140,3 @@ def key_normals(head: np.ndarray, a: int, b: int, n: int) -> np.ndarray:  # prag
     out = np.empty(n)
     ziggurat.standard_normals(state, out)
     return out
-
-
-def reseed(rng: np.random.Generator, key: tuple[int, ...]) -> np.random.Generator:
-    """``rng`` (a PCG64 Generator) put in the state ``np.random.Generator(np.random.PCG64(
-    list(key)))`` starts in, so that it draws that generator's stream; returned."""
-    rng.bit_generator.state = pcg64_state(key)
-    return rng
