@@ -38,14 +38,8 @@ def bits(values: list[float]) -> bytes:
 
 def distance_to_go(env: CrowdNavEnv, x: float, y: float) -> float:
     """The goal field's distance (m) at (x, y) clamped to its grid, plus the straight line
-    from there (Python's hypot)."""
-    gx, gy = env.field.x, env.field.y
-    cx = min(max(x, float(gx[0])), float(gx[-1]))
-    cy = min(max(y, float(gy[0])), float(gy[-1]))
-    togo = float(env.field.travel_distance(np.array([[cx, cy]]))[0])
-    if cx != x or cy != y:
-        togo += math.hypot(x - cx, y - cy)
-    return togo
+    from there (Python's hypot): the environment's Python path, ``_togo``."""
+    return env._togo(x, y)
 
 
 def reference(env: CrowdNavEnv, case: dict) -> list[float]:
