@@ -347,7 +347,7 @@ class Simulator:
         if dB is None and sigma.any():
             dB = noise.increments(self._rng, h, len(self._q))
         if self.robots is not None:
-            res = self.robots.step(self.scheme, t, self._q, h, dB, drift, sigma)
+            res = self.robots.step(self.scheme, t, self._q, h, dB, drift, sigma, scene)
         else:
             res = self.scheme.step(t, self._q, h, dB, drift, sigma)
         y = res.q_new

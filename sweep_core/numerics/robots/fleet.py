@@ -201,15 +201,18 @@ class Fleet:
 
     # -- one step ----------------------------------------------------------------------------
     def step(self, scheme: Scheme, t: float, q: np.ndarray, h: float, dB: np.ndarray | None,
-             drift: object, sigma: np.ndarray) -> StepResult:
-        """People and robots from t to t + h (module docstring); the people's StepResult."""
+             drift: object, sigma: np.ndarray, present: Scene) -> StepResult:
+        """People and robots from t to t + h (module docstring); the people's StepResult.
+        ``present``: the scene of the people present (the simulator's: with flows, the present
+        agents alone, whose radii are theirs entry by entry; the scene's own are every
+        agent's, those who have left included)."""
         t1 = t + h
         states = list(self.states.values())
         for st in states:
             st.stopped = False
             wanted = st.held
             if st.robot.name in self.controllers:
-                wanted = self._ask(st.robot.name, observe(st, t, q, self.scene.radii(t), h))
+                wanted = self._ask(st.robot.name, observe(st, t, q, present.radii(t), h))
             if st.raw:
                 st.command = wanted
             else:
@@ -219,7 +222,7 @@ class Fleet:
         if self.scene.reaction.kind == "avoid" and len(q):
             pred = pred + h * avoidance(self.scene.reaction, q, states)
         pred = scheme.correct(t, q, h, dB, pred, sigma)
-        r1 = self.scene.radii(t1)
+        r1 = present.radii(t1)
         targets = [kinematics.arc(st.pose, st.command, h) for st in states]
         moving = [st.robot.prescribed and st.command != (0.0, 0.0, 0.0) for st in states]
         simple = robot_step(self.scene.geometry, t1, q, pred, r1, states, targets, moving,
