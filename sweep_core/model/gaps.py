@@ -149,15 +149,17 @@ def small_summary(i: np.ndarray, j: np.ndarray, pg: np.ndarray, near_a: np.ndarr
                   near_k: np.ndarray, out: np.ndarray, walls: bool) -> Gaps:
     """The :class:`Gaps` of what :func:`small_gaps` wrote into :func:`small_room`'s arrays
     (when it found no more pairs than i has room for and no NaN wall value)."""
-    found, w, near = int(out[6]), int(out[8]), int(out[9])
-    worst_pair = None if w < 0 else (int(i[w]), int(j[w]), float(pg[w]))
+    o = out.tolist()  # Python floats, each read once
+    found, w, near = int(o[6]), int(o[8]), int(o[9])
+    smallest = np.inf if w < 0 else float(pg[w])
+    worst_pair = None if w < 0 else (int(i[w]), int(j[w]), smallest)
     worst_single = None
-    if walls and out[3] >= 0:
-        worst_single = (int(out[4]), int(out[3]), int(out[5]), float(out[2]))
-    return Gaps(np.inf if w < 0 else float(pg[w]), float(out[2]) if walls else np.inf,
-                int(out[7]) + (int(out[1]) if walls else 0), worst_pair, worst_single,
+    if walls and o[3] >= 0:
+        worst_single = (int(o[4]), int(o[3]), int(o[5]), o[2])
+    return Gaps(smallest, o[2] if walls else np.inf,
+                int(o[7]) + (int(o[1]) if walls else 0), worst_pair, worst_single,
                 i[:found], j[:found], pg[:found], near_a[:near], near_k[:near],
-                float(out[0]) if walls else 0.0)
+                o[0] if walls else 0.0)
 
 
 @numba.njit(cache=True, nogil=True)

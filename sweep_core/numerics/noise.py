@@ -7,6 +7,7 @@ sigma -> 0 study). A scene with sigma = 0 everywhere draws nothing.
 from __future__ import annotations
 
 import functools
+import math
 
 import numba
 import numpy as np
@@ -22,7 +23,8 @@ def generator(seed: int) -> np.random.Generator:
 def increments(rng: np.random.Generator, h: float, n: int) -> np.ndarray:
     """Increments of n independent 2-D standard Brownian motions over a step h (s): shape
     (n, 2), each component N(0, h). The scheme multiplies them by sigma (m / sqrt(s))."""
-    return np.sqrt(h) * rng.standard_normal((n, 2))
+    # math.sqrt and np.sqrt are both IEEE correctly rounded: the same bits
+    return math.sqrt(h) * rng.standard_normal((n, 2))
 
 
 # -- numpy's seeding of a generator by a key, without building a SeedSequence --------------

@@ -90,6 +90,8 @@ class Population:
         #: agents due at a source by the last step that found no room yet
         self.waiting = 0
         self._view: Scene | None = None
+        #: :meth:`sigma`'s last answer: (the simulator's intensities, the ids, the answer)
+        self._sigma: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._grid: OccupancyMap | None = None  # the scene's map, read when a source needs it
         # per-id values of the agents entering in this step: (radius, group, speed, start, t)
         self._entering: list[tuple[float, int, float, float, float]] = []
@@ -120,10 +122,16 @@ class Population:
         return self._view
 
     def sigma(self, sigma: np.ndarray) -> np.ndarray:
-        """The present agents' noise intensities from the simulator's (N0,) ones."""
-        if self.flows.sources:
-            return np.full(len(self.ids), float(sigma[0]) if len(sigma) else self.sigma_new)
-        return sigma[self.ids]
+        """The present agents' noise intensities from the simulator's (N0,) ones: the same
+        (read-only) array while neither ``sigma`` (that very array) nor the agents change."""
+        kept = self._sigma
+        if kept is not None and kept[0] is sigma and kept[1] is self.ids:
+            return kept[2]
+        out = (np.full(len(self.ids), float(sigma[0]) if len(sigma) else self.sigma_new)
+               if self.flows.sources else sigma[self.ids])
+        out.flags.writeable = False
+        self._sigma = (sigma, self.ids, out)
+        return out
 
     def drift(self, base: Field) -> FlowDrift:
         return FlowDrift(self, base)

@@ -93,6 +93,9 @@ class Simulator:
         self.scheme.reset()
         self._drift: Field = self.scene.drift
         self._sigma = self.scene.sigma.copy()
+        #: the last step's noise intensities and whether any is non-zero (nothing is drawn
+        #: when none is): kept while the step's intensities are that very array
+        self._noisy: tuple[np.ndarray | None, bool] = (None, False)
         n = self.scene.n_agents
         self._k = 0
         self._q = self.scene.positions.copy()
@@ -197,7 +200,9 @@ class Simulator:
 
     def set_sigma(self, sigma: float | np.ndarray) -> None:
         """Replace the noise intensities (scalar or (N,), m/sqrt(s)) from the next step on."""
-        self._sigma = checks.per_agent(sigma, self.scene.n_agents, "noise.sigma", nonnegative=True)
+        # a copy: the simulator's own (a caller's array changed later changes nothing here)
+        self._sigma = np.array(checks.per_agent(sigma, self.scene.n_agents, "noise.sigma",
+                                                nonnegative=True), dtype=np.float64)
 
     # -- geometry ------------------------------------------------------------------------
     def set_scene(self, scene: Scene) -> None:
@@ -344,7 +349,9 @@ class Simulator:
         if self._pop is not None:
             drift, sigma = self._pop.drift(drift), self._pop.sigma(sigma)
             self.scheme.scene = scene
-        if dB is None and sigma.any():
+        if sigma is not self._noisy[0]:
+            self._noisy = (sigma, bool(sigma.any()))
+        if dB is None and self._noisy[1]:
             dB = noise.increments(self._rng, h, len(self._q))
         if self.robots is not None:
             res = self.robots.step(self.scheme, t, self._q, h, dB, drift, sigma, scene)

@@ -170,10 +170,10 @@ class Fleet:
         ``clip=False`` applies it as given (a replay of applied commands)."""
         st = self.state(name)
         try:
-            values = tuple(float(v) for v in twist)
+            values = tuple(map(float, twist))
         except (TypeError, ValueError):
             values = ()
-        if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        if len(values) != 3 or not all(map(math.isfinite, values)):
             raise SceneError(f"{name}/cmd_vel", f"must be three finite numbers (vx, vy, omega), "
                              f"got {show(list(twist) if hasattr(twist, '__len__') else twist)}",
                              "send finite m/s and rad/s values")

@@ -143,8 +143,10 @@ def simple_step(geom: Geometry, q: np.ndarray, pred: np.ndarray, r1: np.ndarray,
     m = len(pb)
     proj = Projection(y, Rows(pi, pj, pe, pb, s_a, s_n, s_b, s_kind, s_item), lam[:m],
                       lam[m:], active, qp_size, solves, 0, bound, rounds * certified.SWEEPS)
-    ends = np.cumsum(counts)
-    contacts = [(ids[e - c:e], xy[e - c:e], imp[e - c:e]) for c, e in zip(counts, ends)]
+    contacts, at = [], 0
+    for c in counts.tolist():  # robot after robot
+        contacts.append((ids[at:at + c], xy[at:at + c], imp[at:at + c]))
+        at += c
     return proj, y.copy(), room.gaps(), bool(room.out[10]), contacts
 
 
