@@ -316,3 +316,20 @@ def test_bench_accuracy_command_writes_tables_and_plots(tmp_path, capsys):
         parser.parse_args(["bench", "accuracy", "--problems", "nope"])
     from sweep_core.bench import speed
     assert parser.parse_args(["bench", "speed", "--no-baseline"]).func is speed.run
+
+
+
+def test_set_sigma_keeps_its_own_copy():
+    """The intensities set are the simulator's own: an array the caller changes after
+    set_sigma changes nothing (a run with them is the run with the values given)."""
+    from scenes import GOOD
+    scene = sc.Scene.from_dict(GOOD)
+    given = np.zeros(scene.n_agents)
+    a, b = sc.Simulator(scene, seed=4), sc.Simulator(scene, seed=4)
+    a.set_sigma(given)
+    given[:] = 0.5  # after set_sigma: the caller's array, not the simulator's
+    b.set_sigma(0.0)
+    a.step(5)
+    b.step(5)
+    assert np.all(a.sigma == 0.0)
+    assert np.array_equal(a.positions, b.positions)
