@@ -47,7 +47,7 @@ from sweep_core.envs.crowdnav import (
     seed_value,
 )
 from sweep_core.envs.memory import check_workers, memory_need, memory_refusal
-from sweep_core.envs.workers import Workers, reset_all, step_all
+from sweep_core.envs.workers import Workers, reset_all, step_share
 from sweep_core.errors import SceneError, show
 from sweep_core.model.scene import Scene, load_scene
 
@@ -250,20 +250,16 @@ class CrowdNavVectorEnv(VectorEnv):
         a = self._actions(actions)
         # next-step autoreset: an environment whose episode ended starts its next one
         try:
-            results = (self.workers.step(self._done, a) if self.workers is not None
-                       else step_all(self.envs, self._done, a))
+            stacked, rewards, terminated, truncated, each = (
+                self.workers.step(self._done, a) if self.workers is not None
+                else step_share(self.envs, self._done, a))
         except BaseException:
             self._failed = True
             raise
-        rewards = np.zeros(self.num_envs)
-        terminated = np.zeros(self.num_envs, dtype=np.bool_)
-        truncated = np.zeros(self.num_envs, dtype=np.bool_)
-        for i, (_, reward, term, trunc, _) in enumerate(results):
-            rewards[i], terminated[i], truncated[i] = reward, term, trunc
-        infos = self._combine([r[4] for r in results])
+        infos = self._combine(each)
         self._done = terminated | truncated
-        self._obs = self._stack([r[0] for r in results])
-        obs = {key: value.copy() for key, value in self._obs.items()}
+        self._obs = stacked
+        obs = {key: value.copy() for key, value in stacked.items()}
         return obs, rewards, terminated, truncated, infos
 
     def __reduce_ex__(self, protocol: Any) -> Any:

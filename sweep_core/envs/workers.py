@@ -5,10 +5,10 @@ batch at once.
 
 A worker builds its share as the in-process vector environment would (the same scene and
 arguments), resets each environment with the seed the parent computed for it and steps it with
-its row of the parent's checked actions; it returns each environment's own observation,
-reward, flags and info, which the parent stacks exactly as it stacks its in-process
-environments. So environment i's episodes are the same, bit for bit, with any number of
-workers. Workers are forked where the platform forks safely (Linux: they start at once, with
+its row of the parent's checked actions; it returns its share's step packed as the
+in-process vector environment packs all of its own (:func:`step_share`: the observations
+stacked, the rewards and flags as arrays, the infos), and the parent joins the shares in
+order. So environment i's episodes are the same, bit for bit, with any number of workers. Workers are forked where the platform forks safely (Linux: they start at once, with
 the parent's imports and compiled kernels, and a script needs no ``__main__`` guard), else
 spawned (macOS, Windows: a script must then create the vector environment under
 ``if __name__ == "__main__":``); they end with the vector environment's ``close`` or its
@@ -58,6 +58,30 @@ def step_all(envs: list[Any], done: np.ndarray, actions: np.ndarray) -> list[tup
     return out
 
 
+#: a share's step, packed (:func:`step_share`): the observations stacked per key, the rewards,
+#: terminations and truncations (n,) and the infos in order
+Packed = tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]
+
+
+def step_share(envs: list[Any], done: np.ndarray, actions: np.ndarray) -> Packed:
+    """:func:`step_all` packed for the parent: a worker sends a few arrays instead of one
+    small array per environment and key, and the parent joins the shares (:func:`join`)."""
+    results = step_all(envs, done, actions)
+    obs = {key: np.stack([r[0][key] for r in results]) for key in results[0][0]}
+    return (obs, np.array([r[1] for r in results], dtype=np.float64),
+            np.array([r[2] for r in results], dtype=np.bool_),
+            np.array([r[3] for r in results], dtype=np.bool_), [r[4] for r in results])
+
+
+def join(parts: list[Packed]) -> Packed:
+    """The packed steps of consecutive shares as one (the environments in order)."""
+    if len(parts) == 1:
+        return parts[0]
+    obs = {key: np.concatenate([p[0][key] for p in parts]) for key in parts[0][0]}
+    return (obs, np.concatenate([p[1] for p in parts]), np.concatenate([p[2] for p in parts]),
+            np.concatenate([p[3] for p in parts]), [i for p in parts for i in p[4]])
+
+
 def reset_all(envs: list[Any], seeds: list[int | None], options: dict[str, Any] | None,
               marked: list[bool]) -> list[tuple | None]:
     """(obs, info) of each environment ``marked``, reset with its seed; None for the others
@@ -99,7 +123,7 @@ def _serve(conn: Connection, scene: Any, count: int, kwargs: dict[str, Any],
             if msg[0] == "reset":
                 answer = reset_all(envs, msg[1], msg[2], msg[3])
             else:
-                answer = step_all(envs, msg[1], msg[2])
+                answer = step_share(envs, msg[1], msg[2])
             conn.send(("ok", answer))
         except BaseException as err:  # noqa: BLE001 - reported to the parent
             conn.send(("error", portable(err)))
@@ -155,11 +179,11 @@ class Workers:
                            [marked[i] for i in share]))
         return self._gather()
 
-    def step(self, done: np.ndarray, actions: np.ndarray) -> list[tuple]:
-        """:func:`step_all` over the K environments, each share in its worker."""
+    def step(self, done: np.ndarray, actions: np.ndarray) -> Packed:
+        """:func:`step_share` over the K environments, each share in its worker, joined."""
         for w, share in enumerate(self.shares):
             self._send(w, ("step", done[share.start:share.stop], actions[share.start:share.stop]))
-        return self._gather()
+        return join(self._gather(joined=False))
 
     def _send(self, w: int, msg: tuple) -> None:
         if not self.conns:
@@ -176,7 +200,9 @@ class Workers:
         return WorkerError(f"worker {w} of the vector environment has ended (exit code "
                             f"{self.procs[w].exitcode}): close it and make a new one")
 
-    def _gather(self) -> list:
+    def _gather(self, joined: bool = True) -> list:
+        """Each worker's answer, in order: their lists joined into one (``joined``), else one
+        answer per worker."""
         out: list = []
         failed: tuple | None = None
         ended: int | None = None
@@ -189,7 +215,10 @@ class Workers:
             if status == "error":
                 failed = failed or (w, answer)
             elif answer is not None:
-                out.extend(answer)
+                if joined:
+                    out.extend(answer)
+                else:
+                    out.append(answer)
         if ended is not None:
             raise self._ended(ended)
         if failed is not None:
