@@ -60,7 +60,8 @@ def set_contacts(states: list[Any], proj: Projection, n: int, n_circles: int, h:
                  ) -> None:
     """Sets each ``RobotState``'s contacts from ``proj`` (n people first in its positions,
     then the robots that are not prescribed; the prescribed ones are circle items after the
-    scene's ``n_circles``), sorted by person id; a step of h s."""
+    scene's ``n_circles``), sorted by the people's rows in ``proj`` (the simulator names
+    them by id with flows); a step of h s."""
     rows = proj.rows
     lam_p, lam_s = proj.lam_pair, proj.lam_single
     fixed = free = 0

@@ -20,9 +20,10 @@ class RobotState:
     weight: its reaction / h turned into the robot's frame); ``command`` the command applied in
     the last step (after clipping); ``held`` the command held for the next steps; ``clipped``
     commands changed by clipping so far; ``blocked`` steps its prescribed motion was refused so
-    far; ``stopped`` the last step was one; ``contact_ids`` (K,) people touching it in the last
-    step, ``contact_xy`` (K, 2) m their positions, ``contact_impulse`` (K, 2) m/s (module
-    docstring); ``scan`` the latest scan or None."""
+    far; ``stopped`` the last step was one; ``contact_ids`` (K,) the ids of the people touching
+    it in the last step (``Simulator.ids``: with flows an agent's id, not its row, which
+    changes as others leave), ``contact_xy`` (K, 2) m their positions at its end,
+    ``contact_impulse`` (K, 2) m/s (module docstring); ``scan`` the latest scan or None."""
 
     robot: Robot
     pose: tuple[float, float, float]

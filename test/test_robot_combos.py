@@ -1,0 +1,43 @@
+"""Robots among features combined (flows whose people leave, radius laws, obstacles): what a
+robot reports names the right people."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sweep_core import Scene, Simulator
+from sweep_core.model.scene import default_scene_path
+from sweep_core.model.yaml_files import load_yaml
+
+#: radii (m) that differ person by person
+RADII = [0.2, 0.25, 0.3, 0.22, 0.25, 0.28, 0.21, 0.25, 0.26, 0.24]
+
+
+def _sink_scene(weight: object) -> Scene:
+    """The bundled crowdnav corridor with a sink at its west end and a robot without a
+    controller standing in the people's way (they press on it, then pass and leave)."""
+    data = load_yaml((default_scene_path().parent / "crowdnav.yaml").read_text())
+    data["agents"]["radius"] = RADII
+    data["flows"]["sinks"] = [{"kind": "rectangle", "min": [-2.0, 0.0], "max": [2.5, 6.0]}]
+    robot = data["robots"][0]
+    del robot["controller"], robot["scan"]
+    robot["pose"], robot["weight"] = [4.0, 2.6, 0.0], weight
+    return Scene.from_dict(data)
+
+
+@pytest.mark.parametrize("weight", ["inf", 1])
+def test_contact_ids_are_the_peoples_ids_after_some_left(weight):
+    sim = Simulator(_sink_scene(weight), dt=0.05, seed=1)
+    assert sim.flows is not None
+    named = 0
+    for _ in range(200):
+        sim.step(1)
+        st = sim.robots.state("robot")
+        ids, q = sim.ids, sim.positions
+        for who, xy in zip(st.contact_ids.tolist(), st.contact_xy):
+            if who in ids:  # present: the contact's position is that person's
+                assert np.array_equal(q[np.searchsorted(ids, who)], xy)
+            else:  # left at the end of this very step
+                assert sim.flows.left_at.get(who) == sim.t
+            named += int(sim.flows.left > 0)
+    assert named > 0  # contacts after people had left were checked
