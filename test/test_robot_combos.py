@@ -41,3 +41,34 @@ def test_contact_ids_are_the_peoples_ids_after_some_left(weight):
                 assert sim.flows.left_at.get(who) == sim.t
             named += int(sim.flows.left > 0)
     assert named > 0  # contacts after people had left were checked
+
+
+def test_analyze_robot_clearance_uses_float64_radii_after_people_left(tmp_path):
+    """``sweep analyze``'s robot table: the clearance to people is computed with the scene's
+    float64 radii of the people present, by their ids, after some left (docs/social_metrics.md),
+    as the Python run sees it; not with the float32 radii of ``/agents``."""
+    from sweep_core.analysis.metrics import analyze
+    from sweep_core.cli import main
+    from sweep_core.model.yaml_files import dump_yaml
+
+    data = load_yaml((default_scene_path().parent / "crowdnav.yaml").read_text())
+    data["agents"]["radius"] = RADII
+    data["flows"]["sinks"] = [{"kind": "rectangle", "min": [-2.0, 0.0], "max": [2.5, 6.0]}]
+    path = tmp_path / "sinks.yaml"
+    path.write_text(dump_yaml(data))
+    out = tmp_path / "run.mcap"
+    assert main(["run", str(path), "--t-end", "8", "--dt", "0.05", "--seed", "2", "--out",
+                 str(out), "--quiet"]) == 0
+    sim = Simulator(Scene.from_dict(data), dt=0.05, seed=2)
+    truth = []
+    for _ in range(161):
+        st = sim.robots.state("robot")
+        q, r = sim.positions, sim.radii
+        truth.append(np.min(np.hypot(q[:, 0] - st.pose[0], q[:, 1] - st.pose[1]) - r
+                            - st.robot.radius) if len(q) else np.inf)
+        sim.step(1)
+    table = analyze(out, progress=False).robots
+    clearance = table[:, 7]
+    assert sim.flows.left > 3  # people had left while the robot was among the rest
+    # float64 throughout (rounding of the distance's terms aside); float32 radii: ~1e-8 m
+    assert np.abs(clearance - np.array(truth)[:len(clearance)]).max() <= 1e-12

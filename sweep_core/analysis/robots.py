@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from sweep_core.analysis.frames import Frame
+from sweep_core.analysis.roster import Roster
 from sweep_core.analysis.run import RunMeta
 from sweep_core.analysis.social import (
     RobotSpec,
@@ -43,18 +44,26 @@ class SocialMetrics:
         self.rows: list[list[tuple]] = [[] for _ in specs]
         self.touched: list[list[np.ndarray]] = [[] for _ in specs]
         self.t0: int | None = None
+        #: the people by id (float64 radii from the scene) when its flows' sinks take some
+        self.roster = (Roster(meta.scene, meta.path)
+                       if meta.scene is not None and meta.scene.flows is not None else None)
 
     def add(self, fr: Frame, segment: int, step: int, velocities: np.ndarray) -> None:
         """One frame (of step ``step``): people at ``fr.positions`` with the scene's radii at
-        that step (the float32 ``/agents`` radii without a scene) and ``velocities`` (N, 2)
+        that step (with flows: of the agents present, by their ``/agents`` ids; the float32
+        ``/agents`` radii without a scene) and ``velocities`` (N, 2)
         m/s, their displacements over the speed window (:mod:`sweep_core.analysis.speed`;
         NaN: none); frames after the first reset (``segment`` > 0) are not part of the
         episode."""
         if segment > 0:
             return
         scene, dt = self.meta.scene, self.meta.dt
-        if scene is not None and scene.n_agents == len(fr.positions):
-            radii = scene.radii(step * dt if dt is not None and step >= 0 else fr.stamp_ns / 1e9)
+        t_sim = step * dt if dt is not None and step >= 0 else fr.stamp_ns / 1e9
+        if self.roster is not None and fr.agents is not None:  # by id: some may have left
+            ids = self.roster.ids(fr.agents, len(fr.positions), t_sim)
+            radii = self.roster.radii(ids, fr.agents, t_sim)
+        elif scene is not None and scene.n_agents == len(fr.positions):
+            radii = scene.radii(t_sim)
         elif fr.agents is not None:
             radii = fr.agents["radius"].astype(np.float64)
         else:
