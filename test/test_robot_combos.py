@@ -72,3 +72,38 @@ def test_analyze_robot_clearance_uses_float64_radii_after_people_left(tmp_path):
     assert sim.flows.left > 3  # people had left while the robot was among the rest
     # float64 throughout (rounding of the distance's terms aside); float32 radii: ~1e-8 m
     assert np.abs(clearance - np.array(truth)[:len(clearance)]).max() <= 1e-12
+
+
+def _obstacle_scene(weight: object) -> Scene:
+    """The crowdnav corridor, a cart (a circle obstacle) driving west along y = 5.3 at
+    0.4 m/s, and a robot without a controller standing still in its path."""
+    data = load_yaml((default_scene_path().parent / "crowdnav.yaml").read_text())
+    data["obstacles"] = [{"kind": "circle", "center": [12.5, 5.3], "radius": 0.4,
+                          "velocity": [-0.4, 0.0]}]
+    robot = data["robots"][0]
+    del robot["controller"], robot["scan"]
+    robot["pose"], robot["weight"] = [8.0, 5.3, 0.0], weight
+    return Scene.from_dict(data)
+
+
+def test_a_moving_obstacle_running_into_a_prescribed_robot_is_named_with_its_fix():
+    """A robot of weight inf cannot yield: the step that the cart would push it fails, named
+    as that (not as a solver's inaccuracy, whose fix, a tighter tol or smaller dt, cannot
+    help), and leaves the simulation as before it."""
+    from sweep_core.errors import InfeasibleError
+
+    sim = Simulator(_obstacle_scene("inf"), dt=0.05, seed=1)
+    with pytest.raises(InfeasibleError) as err:
+        for _ in range(300):
+            sim.step(1)
+    text = str(err.value)
+    assert "robot robot overlaps obstacles[0] (circle)" in text
+    assert "moves" in text and "finite weight" in text and "tol" not in text
+    t, pose = sim.t, sim.robots.state("robot").pose
+    with pytest.raises(InfeasibleError):
+        sim.step(1)
+    assert sim.t == t and sim.robots.state("robot").pose == pose
+    # of weight 1 the cart pushes it along, as it pushes people
+    pushed = Simulator(_obstacle_scene(1), dt=0.05, seed=1)
+    pushed.step(300)
+    assert pushed.robots.state("robot").pose[0] < 7.0
