@@ -107,3 +107,27 @@ def test_a_moving_obstacle_running_into_a_prescribed_robot_is_named_with_its_fix
     pushed = Simulator(_obstacle_scene(1), dt=0.05, seed=1)
     pushed.step(300)
     assert pushed.robots.state("robot").pose[0] < 7.0
+
+
+@pytest.mark.parametrize("sinks", [False, True])
+def test_a_prescribed_robot_pushing_a_robot_of_finite_weight_reports_no_person(sinks):
+    """Robot ``robot`` (weight inf) drives into robot ``second`` (weight 1, a variable of the
+    projection after the people): their contact is no person's, so neither robot's
+    contact_ids names it (it had been reported as person N, the other robot's row; with
+    flows, that row has no id)."""
+    data = load_yaml((default_scene_path().parent / "crowdnav.yaml").read_text())
+    if sinks:
+        data["flows"]["sinks"] = [{"kind": "rectangle", "min": [-2.0, 0.0], "max": [0.5, 6.0]}]
+    first = data["robots"][0]
+    del first["controller"], first["scan"]
+    second = dict(first, name="second", pose=[1.8, 3.0, 0.0], weight=1)
+    data["robots"].append(second)
+    sim = Simulator(Scene.from_dict(data), dt=0.05, seed=0)
+    sim.robots.command("robot", (0.5, 0.0, 0.0))
+    for _ in range(30):
+        sim.step(1)
+        for name in ("robot", "second"):
+            st = sim.robots.state(name)
+            assert set(st.contact_ids.tolist()) <= set(sim.ids.tolist())
+            assert len(st.contact_xy) == len(st.contact_impulse) == len(st.contact_ids)
+    assert sim.robots.state("second").pose[0] > 1.9  # it was pushed: the robots touched

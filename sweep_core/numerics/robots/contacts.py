@@ -58,10 +58,10 @@ def pair_contacts(pi: np.ndarray, pj: np.ndarray, e: np.ndarray, lam: np.ndarray
 
 def set_contacts(states: list[Any], proj: Projection, n: int, n_circles: int, h: float
                  ) -> None:
-    """Sets each ``RobotState``'s contacts from ``proj`` (n people first in its positions,
-    then the robots that are not prescribed; the prescribed ones are circle items after the
-    scene's ``n_circles``), sorted by the people's rows in ``proj`` (the simulator names
-    them by id with flows); a step of h s."""
+    """Sets each ``RobotState``'s contacts with people from ``proj`` (n people first in its
+    positions, then the robots that are not prescribed, whose contacts with robots are left
+    out; the prescribed ones are circle items after the scene's ``n_circles``), sorted by the
+    people's rows in ``proj`` (the simulator names them by id with flows); a step of h s."""
     rows = proj.rows
     lam_p, lam_s = proj.lam_pair, proj.lam_single
     fixed = free = 0
@@ -73,6 +73,9 @@ def set_contacts(states: list[Any], proj: Projection, n: int, n_circles: int, h:
                                 rows.single_n, lam_s, CIRCLE, n_circles + fixed, float(h), ids,
                                 imp)
             fixed += 1
+            person = ids[:m] < n  # a robot of finite weight (a row after the people) is none
+            if not person.all():
+                ids, imp, m = ids[:m][person], imp[:m][person], int(person.sum())
         else:
             ids = np.empty(len(lam_p), dtype=np.int64)
             imp = np.empty((len(lam_p), 2))
