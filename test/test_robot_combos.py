@@ -131,3 +131,23 @@ def test_a_prescribed_robot_pushing_a_robot_of_finite_weight_reports_no_person(s
             assert set(st.contact_ids.tolist()) <= set(sim.ids.tolist())
             assert len(st.contact_xy) == len(st.contact_impulse) == len(st.contact_ids)
     assert sim.robots.state("second").pose[0] > 1.9  # it was pushed: the robots touched
+
+
+@pytest.mark.parametrize("controller", ["social_force", "window", "orca"])
+def test_a_reset_runs_the_bundled_planners_as_a_new_simulator_does(controller):
+    """Simulator.reset (the node's reset service, sweep replay's segments) is back to t = 0
+    for the robots' bundled planners too: the social force model's own velocity and the
+    window planner's last choice are forgotten, so the run after a reset is a fresh one's."""
+    data = load_yaml((default_scene_path().parent / "crowdnav.yaml").read_text())
+    data["agents"]["radius"] = RADII
+    data["flows"]["sinks"] = [{"kind": "rectangle", "min": [-2.0, 0.0], "max": [2.5, 6.0]}]
+    data["robots"][0]["controller"] = controller
+    scene = Scene.from_dict(data)
+    again = Simulator(scene, dt=0.05, seed=3)
+    again.step(150)
+    again.reset()
+    again.step(150)
+    fresh = Simulator(scene, dt=0.05, seed=3)
+    fresh.step(150)
+    assert again.robots.state("robot").pose == fresh.robots.state("robot").pose
+    assert np.array_equal(again.positions, fresh.positions)

@@ -50,7 +50,7 @@ from sweep_core.numerics.robots import kinematics
 from sweep_core.numerics.robots.clear_step import Rooms, checked_end
 from sweep_core.numerics.robots.contacts import set_contacts
 from sweep_core.numerics.robots.control import goal_field, observe
-from sweep_core.numerics.robots.planners import controllers_of
+from sweep_core.numerics.robots.planners import Planner, controllers_of
 from sweep_core.numerics.robots.reaction import avoidance
 from sweep_core.numerics.robots.refusals import geometry_problem, goal_refusal
 from sweep_core.numerics.robots.scan import scan
@@ -103,6 +103,7 @@ class Fleet:
         self.reset()
 
     def reset(self) -> None:
+        """The robots at their scene's poses, at step 0, its bundled planners as new."""
         self.states = {r.name: RobotState(r, (r.pose[0], r.pose[1], kinematics.wrap(r.pose[2])))
                        for r in self.scene.robots}
         self.step_index = 0
@@ -112,6 +113,9 @@ class Fleet:
             = None
         #: the compiled small steps' work arrays, kept from step to step
         self.rooms = Rooms()
+        for c in self.controllers.values():  # the bundled planners forget the last run
+            if isinstance(c, Planner):
+                c.reset()
 
     def snapshot(self) -> tuple:
         """What a step changes (the robots' states, the step count, the bundled planners'

@@ -157,6 +157,10 @@ class Planner:
         (:func:`.control.goal_field` of the scene and this robot)."""
         self.scene, self.field = scene, field
 
+    def reset(self) -> None:
+        """Back to before its first call (the simulator's reset): no tracks of people."""
+        self.tracker = Tracker()
+
     def state(self) -> tuple[dict, dict]:
         """What a call changes (its attributes, the tracker's), for :meth:`set_state`: every
         change is an assignment, never a write into an array held."""
@@ -296,6 +300,12 @@ class SocialForce(Planner):
 
 
     u: np.ndarray | None = None
+
+    def reset(self) -> None:
+        """Back to before its first call: no tracks, and its own velocity (m/s) taken from the
+        robot's again at the next call."""
+        super().reset()
+        self.u = None
 
     def people_force(self, obs: Observation, o: np.ndarray, v: np.ndarray,
                      v_people: np.ndarray) -> np.ndarray:

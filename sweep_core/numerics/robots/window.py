@@ -154,6 +154,11 @@ class Window(Planner):
         super().rescene(scene, field)
         self.avoid = _avoid(scene)
 
+    def reset(self) -> None:
+        """Back to before its first call: no tracks, and no last choice (m/s) to keep to."""
+        super().reset()
+        self.last = np.zeros(2)
+
     def __call__(self, obs: Observation) -> tuple[float, float, float]:
         pref = self.preferred(obs)
         v_people = self.tracker.update(obs.t, obs.people)
