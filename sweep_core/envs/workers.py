@@ -8,8 +8,9 @@ arguments), resets each environment with the seed the parent computed for it and
 its row of the parent's checked actions; it returns its share's step packed as the
 in-process vector environment packs all of its own (:func:`step_share`: the observations
 stacked, the rewards and flags as arrays, the infos), and the parent joins the shares in
-order. So environment i's episodes are the same, bit for bit, with any number of workers. Workers are forked where the platform forks safely (Linux: they start at once, with
-the parent's imports and compiled kernels, and a script needs no ``__main__`` guard), else
+order. So environment i's episodes are the same, bit for bit, with any number of workers.
+Workers are forked where the platform forks safely (Linux: they start at once, with the
+parent's imports and compiled kernels, and a script needs no ``__main__`` guard), else
 spawned (macOS, Windows: a script must then create the vector environment under
 ``if __name__ == "__main__":``); they end with the vector environment's ``close`` or its
 process.

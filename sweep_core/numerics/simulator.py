@@ -387,7 +387,8 @@ class Simulator:
             self.robots.after_step(t1, y, r1)
             if self._pop is not None:  # contacts name people by id, not by the step's row
                 for st in self.robots.states.values():
-                    st.contact_ids = self._pop.ids[st.contact_ids]
+                    if len(st.contact_ids):
+                        st.contact_ids = self._pop.ids[st.contact_ids]
         if self._pop is not None:
             changed, y, (self._v, self._reaction) = self._pop.after_step(
                 scene, t1, y, self._v, self._reaction)
