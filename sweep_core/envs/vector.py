@@ -47,7 +47,7 @@ from sweep_core.envs.crowdnav import (
     seed_value,
 )
 from sweep_core.envs.memory import check_workers, memory_need, memory_refusal
-from sweep_core.envs.workers import Workers, reset_all, step_share
+from sweep_core.envs.workers import Workers, reset_all, stack, step_share
 from sweep_core.errors import SceneError, show
 from sweep_core.model.scene import Scene, load_scene
 
@@ -210,7 +210,7 @@ class CrowdNavVectorEnv(VectorEnv):
             infos = self._combine([r[1] for r in results])
             self._failed = False
             self._done[:] = False
-            self._obs = self._stack([r[0] for r in results])
+            self._obs = stack([r[0] for r in results])
         else:
             infos = {}
             rows = np.flatnonzero(mask)
@@ -365,9 +365,6 @@ class CrowdNavVectorEnv(VectorEnv):
         for i, info in enumerate(infos):
             combined = self._add_info(combined, info, i)
         return combined
-
-    def _stack(self, obs: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
-        return {key: np.stack([o[key] for o in obs]) for key in obs[0]}
 
 
 def make(num_envs: int = 1, workers: int = 1, **kwargs: Any) -> CrowdNavVectorEnv:

@@ -64,12 +64,16 @@ def step_all(envs: list[Any], done: np.ndarray, actions: np.ndarray) -> list[tup
 Packed = tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]
 
 
+def stack(obs: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """Environments' observations (one dict each, in order) stacked key by key."""
+    return {key: np.stack([o[key] for o in obs]) for key in obs[0]}
+
+
 def step_share(envs: list[Any], done: np.ndarray, actions: np.ndarray) -> Packed:
     """:func:`step_all` packed for the parent: a worker sends a few arrays instead of one
     small array per environment and key, and the parent joins the shares (:func:`join`)."""
     results = step_all(envs, done, actions)
-    obs = {key: np.stack([r[0][key] for r in results]) for key in results[0][0]}
-    return (obs, np.array([r[1] for r in results], dtype=np.float64),
+    return (stack([r[0] for r in results]), np.array([r[1] for r in results], dtype=np.float64),
             np.array([r[2] for r in results], dtype=np.bool_),
             np.array([r[3] for r in results], dtype=np.bool_), [r[4] for r in results])
 
@@ -178,13 +182,13 @@ class Workers:
         for w, share in enumerate(self.shares):
             self._send(w, ("reset", [seeds[i] for i in share], options,
                            [marked[i] for i in share]))
-        return self._gather()
+        return [r for answer in self._gather() for r in answer]
 
     def step(self, done: np.ndarray, actions: np.ndarray) -> Packed:
         """:func:`step_share` over the K environments, each share in its worker, joined."""
         for w, share in enumerate(self.shares):
             self._send(w, ("step", done[share.start:share.stop], actions[share.start:share.stop]))
-        return join(self._gather(joined=False))
+        return join(self._gather())
 
     def _send(self, w: int, msg: tuple) -> None:
         if not self.conns:
@@ -201,9 +205,8 @@ class Workers:
         return WorkerError(f"worker {w} of the vector environment has ended (exit code "
                             f"{self.procs[w].exitcode}): close it and make a new one")
 
-    def _gather(self, joined: bool = True) -> list:
-        """Each worker's answer, in order: their lists joined into one (``joined``), else one
-        answer per worker."""
+    def _gather(self) -> list:
+        """Each worker's answer, in order (None, a started worker's, left out)."""
         out: list = []
         failed: tuple | None = None
         ended: int | None = None
@@ -216,10 +219,7 @@ class Workers:
             if status == "error":
                 failed = failed or (w, answer)
             elif answer is not None:
-                if joined:
-                    out.extend(answer)
-                else:
-                    out.append(answer)
+                out.append(answer)
         if ended is not None:
             raise self._ended(ended)
         if failed is not None:
