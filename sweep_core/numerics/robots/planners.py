@@ -150,7 +150,7 @@ class Planner:
         self.scene, self.robot = scene, robot
         self.params = robot.params
         self.field = goal_field(scene, robot)
-        self.tracker = Tracker()
+        self.reset()
 
     def rescene(self, scene: Scene, field: Any) -> None:
         """Plan in ``scene`` (new walls, obstacles or map) by its goal ``field``
@@ -158,7 +158,8 @@ class Planner:
         self.scene, self.field = scene, field
 
     def reset(self) -> None:
-        """Back to before its first call (the simulator's reset): no tracks of people."""
+        """Back to before its first call (as built, and at the simulator's reset): no tracks
+        of people."""
         self.tracker = Tracker()
 
     def state(self) -> tuple[dict, dict]:

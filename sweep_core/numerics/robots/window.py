@@ -146,9 +146,8 @@ class Window(Planner):
     """The sampling planner of the module docstring."""
 
     def __init__(self, scene: Scene, robot: Robot) -> None:
-        super().__init__(scene, robot)
+        super().__init__(scene, robot)  # its reset sets the last choice
         self.avoid = _avoid(scene)
-        self.last = np.zeros(2)
 
     def rescene(self, scene: Scene, field: Any) -> None:
         super().rescene(scene, field)
