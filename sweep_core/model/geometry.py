@@ -187,6 +187,15 @@ class Geometry:
         return not (len(self.halfplane_offset) or len(self.segment_a) or len(self.circle_radius)
                     or self.user)
 
+    def moves(self, kind: int, item: int) -> bool:
+        """Whether item ``item`` of kind ``kind`` (HALFPLANE, SEGMENT, CIRCLE) moves: a moving
+        obstacle, or a half-plane with a velocity."""
+        if kind == HALFPLANE:
+            return bool(self.halfplane_velocity[item] != 0.0)
+        if kind == SEGMENT:
+            return bool(self.segment_motion[item] >= 0)
+        return kind == CIRCLE and bool(self.circle_motion[item] >= 0)
+
     def path(self, kind: int, item: int) -> str:
         """Scene path of a wall/obstacle, e.g. ``walls[2]``."""
         return self.describe(kind, item).split(" ")[0]

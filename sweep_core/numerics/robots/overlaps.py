@@ -20,7 +20,7 @@ import numpy as np
 from sweep_core.errors import InfeasibleError
 from sweep_core.model.crossing import crossings
 from sweep_core.model.gaps import Gaps, gaps
-from sweep_core.model.geometry import CIRCLE, HALFPLANE, SEGMENT, Geometry
+from sweep_core.model.geometry import Geometry
 from sweep_core.model.wall_kernels import disk_gap, halfplane_value, segment_foot
 
 #: a gap below -TOLERANCE (m) after a step is an overlap
@@ -78,7 +78,7 @@ def check_step(geom: Geometry, states: list[Any], start: list[tuple], y: np.ndar
             i, kind, item = (int(v) for v in what)
             text = f"{who(i)} overlaps {geom.describe(kind, item)}"
             robot = who(i)
-            if i >= n and moves(geom, kind, item) and states[i - n].robot.prescribed:
+            if i >= n and geom.moves(kind, item) and states[i - n].robot.prescribed:
                 raise InfeasibleError(t1, [], f"{text} by {-gap:.3g} m", fix=(
                     f"{geom.path(kind, item)} moves into {robot}, whose motion is prescribed "
                     "(weight inf) and cannot yield: give it a finite weight (it is then "
@@ -93,16 +93,6 @@ def check_step(geom: Geometry, states: list[Any], start: list[tuple], y: np.ndar
         raise InfeasibleError(t1, [], f"robot {name} went through a wall during the step",
                               fix=f"use a smaller dt, or a lower max_speed for robot {name}")
     return people
-
-
-def moves(geom: Geometry, kind: int, item: int) -> bool:
-    """Whether item ``item`` of kind ``kind`` (HALFPLANE, SEGMENT, CIRCLE) of ``geom`` moves
-    (a moving obstacle, or a half-plane with a velocity)."""
-    if kind == HALFPLANE:
-        return bool(geom.halfplane_velocity[item] != 0.0)
-    if kind == SEGMENT:
-        return bool(geom.segment_motion[item] >= 0)
-    return kind == CIRCLE and bool(geom.circle_motion[item] >= 0)
 
 
 def _smallest(people: Gaps, value: float, kind: int, a: int, b: int, n: int
