@@ -47,12 +47,17 @@ def _reference(stamp_ns: int, batches: list[MarkerBatch], monkeypatch) -> bytes:
         return encode_marker_array(stamp_ns, "map", _fresh(batches))
 
 
-def _expected_batches(sim: sc.Simulator) -> tuple[np.ndarray, np.ndarray]:
-    """(N, 3) scales and (N, 4) colours of the people of a simulator, computed afresh."""
-    state = sim.state
-    d = 2.0 * state.radii
-    scale = np.stack([d, d, np.ones(len(d))], axis=1)
-    return scale, markers.group_colors(markers.agent_groups(sim))
+def _checked_batches(sim: sc.Simulator, monkeypatch) -> list[MarkerBatch]:
+    """The simulator's marker batches, checked: the people's scales (N, 3) and colours (N, 4)
+    those computed afresh, the message's bytes those written without a kept plan."""
+    batches = markers.state_batches(sim)
+    d = 2.0 * sim.state.radii
+    np.testing.assert_array_equal(batches[0].scale, np.stack([d, d, np.ones(len(d))], axis=1))
+    np.testing.assert_array_equal(batches[0].color,
+                                  markers.group_colors(markers.agent_groups(sim)))
+    ns = int(round(sim.t * 1e9))
+    assert encode_marker_array(ns, "map", batches) == _reference(ns, batches, monkeypatch)
+    return batches
 
 
 def test_markers_follow_radii_that_change_in_time(monkeypatch):
@@ -60,12 +65,7 @@ def test_markers_follow_radii_that_change_in_time(monkeypatch):
     seen = set()
     for _ in range(12):
         sim.step(1)
-        batches = markers.state_batches(sim)
-        scale, colors = _expected_batches(sim)
-        np.testing.assert_array_equal(batches[0].scale, scale)
-        np.testing.assert_array_equal(batches[0].color, colors)
-        ns = int(round(sim.t * 1e9))
-        assert encode_marker_array(ns, "map", batches) == _reference(ns, batches, monkeypatch)
+        _checked_batches(sim, monkeypatch)
         seen.add(float(sim.state.radii[0]))
     assert len(seen) > 5  # the radii did change
 
@@ -75,13 +75,8 @@ def test_markers_follow_agents_entering_and_leaving(monkeypatch):
     counts = set()
     for _ in range(60):
         sim.step(4)
-        batches = markers.state_batches(sim)
+        batches = _checked_batches(sim, monkeypatch)
         np.testing.assert_array_equal(batches[0].ids, sim.state.ids)
-        scale, colors = _expected_batches(sim)
-        np.testing.assert_array_equal(batches[0].scale, scale)
-        np.testing.assert_array_equal(batches[0].color, colors)
-        ns = int(round(sim.t * 1e9))
-        assert encode_marker_array(ns, "map", batches) == _reference(ns, batches, monkeypatch)
         counts.add(len(sim.state.positions))
     assert len(counts) > 3 and 0 in counts  # agents did enter and leave
 
