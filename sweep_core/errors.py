@@ -5,6 +5,7 @@ boundary can print ``str(err)`` on one line and exit non-zero.
 """
 from __future__ import annotations
 
+import re
 from typing import Any
 
 #: at most this many items of a list are shown in a message
@@ -124,7 +125,8 @@ class InfeasibleError(_Arguments, SweepError):
 
     Attributes:
         t: time (s) of the step that could not be taken (t_{n+1}).
-        agents: indices of the agents involved in the most violated constraints.
+        agents: the agents involved in the most violated constraints, by id (their indices
+            without flows).
         detail: solver status or residual.
         fix: what to do instead (default: the advice for a jam of agents).
 
@@ -150,6 +152,16 @@ class InfeasibleError(_Arguments, SweepError):
             f"no feasible configuration at t = {self.t:.6g} s: {what}; state kept at the last "
             f"accepted step (fix: {self.fix})"
         )
+
+    def by_ids(self, ids: Any) -> InfeasibleError:
+        """This error with the agents named by ``ids`` (ids[i] the id of row i of the step's
+        arrays: with flows, the rows of the people present are not their ids): its
+        ``agents`` and every "agent N" of its detail and fix."""
+        def name(text: str) -> str:
+            return re.sub(r"\bagent (\d+)\b", lambda m: f"agent {int(ids[int(m[1])])}", text)
+
+        return InfeasibleError(self.t, [int(ids[a]) for a in self.agents], name(self.detail),
+                               name(self.fix_given))
 
 
 class WorkerError(SweepError, RuntimeError):

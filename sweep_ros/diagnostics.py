@@ -82,7 +82,7 @@ class DiagnosticsMixin:
         else:
             level, message = "OK", "paused" if self.paused else "running"
         values = {
-            "sim_time_s": sim.t, "steps": sim.n_steps, "agents": self.scene.n_agents,
+            "sim_time_s": sim.t, "steps": sim.n_steps, "agents": len(sim.positions),
             "paused": self.paused,
             "step_time_ms": 1e3 * w.step_s / w.steps if w.steps else 0.0,
             "steps_per_s": w.steps / wall,

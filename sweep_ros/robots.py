@@ -204,7 +204,8 @@ class RobotsMixin:
         ``placement`` {robot, pose} before step ``step``). The state of the step before it
         is published first if it was not yet (a placement between two steps of a tick)."""
         self._publish_pending()
-        self.sim.robots.place(name, pose, self.sim.t, self.sim.positions, self.sim.radii)
+        self.sim.robots.place(name, pose, self.sim.t, self.sim.positions, self.sim.radii,
+                              self.sim.ids)
         with self._robot_lock:  # the command before the placement is not carried over
             self._robot_commands.pop(name, None)
         if self.recorder is not None:

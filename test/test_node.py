@@ -500,6 +500,26 @@ def test_infeasible_step_pauses_and_reports(installed, probe, tmp_path):
     assert "simulation paused" in node.log
 
 
+def test_diagnostics_count_the_people_present(installed, probe, tmp_path):
+    """With flows, people leave at sinks: diagnostics report how many are present, not how
+    many the scene started with (two of three start in the sink and leave at the first
+    step)."""
+    scene_path = tmp_path / "sink.yaml"
+    scene_path.write_text(yaml.safe_dump({
+        "agents": {"positions": [[0.5, 0.0], [3.0, 0.0], [3.0, 1.0]], "radius": 0.2},
+        "drift": {"kind": "uniform", "velocity": [0.5, 0.0]}, "noise": {"sigma": 0.0},
+        "flows": {"sinks": [{"kind": "rectangle", "min": [2.0, -2.0], "max": [5.0, 2.0]}]}}))
+    node = Running(installed, tmp_path, {"scene": str(scene_path), "rate_hz": 20.0,
+                                         "steps_per_tick": 1})
+    try:
+        probe.spin_until(lambda: diag_value(probe, "steps") not in (None, "0"),
+                         DISCOVERY_S + 5, "diagnostics after a step", node)
+        assert diag_value(probe, "agents") == "1"
+    finally:
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
+
+
 @pytest.mark.parametrize("overrides,names", [
     ({"dt": -1.0}, "dt"),
     ({"rate_hz": 5}, "rate_hz"),                   # an int where a double is declared

@@ -116,4 +116,4 @@ def place_recorded(sim: object, placement: dict) -> None:
                              "yaw]") from None
     if robots is None:
         raise RecordingError(f"robot_pose record for {name!r} in a run without robots")
-    robots.place(name, pose, sim.t, sim.positions, sim.radii)  # type: ignore
+    robots.place(name, pose, sim.t, sim.positions, sim.radii, sim.ids)  # type: ignore

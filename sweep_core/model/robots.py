@@ -311,10 +311,11 @@ def robots_from_spec(value: Any, geometry: Geometry, positions: np.ndarray,
 
 def overlap(robot: Robot, xy: Any, geometry: Geometry, positions: np.ndarray, radii: np.ndarray,
             others: list[tuple[float, float, float, str]], blocked: Any = None,
-            t: float = 0.0, tol: float = 1e-9) -> str:
+            t: float = 0.0, tol: float = 1e-9, ids: np.ndarray | None = None) -> str:
     """What the robot's disk at ``xy`` (m) overlaps, as a message ('' when nothing): a person,
     another robot (``others``: (x, y, radius, label)), a wall or obstacle at time t, or a
-    blocked map cell."""
+    blocked map cell. ``ids``: the people's ids, row by row of ``positions`` (None: the rows
+    are the ids)."""
     c = np.array([[float(xy[0]), float(xy[1])]])
 
     def where() -> str:  # formatted only for a message (every robot's every step asks)
@@ -324,7 +325,8 @@ def overlap(robot: Robot, xy: Any, geometry: Geometry, positions: np.ndarray, ra
         d = np.hypot(*(positions - c).T) - radii - robot.radius
         a = int(np.argmin(d))
         if d[a] < -tol:
-            return f"{where()} overlaps agent {a} at {show(positions[a])} by {-d[a]:.3g} m"
+            who = a if ids is None else int(ids[a])
+            return f"{where()} overlaps agent {who} at {show(positions[a])} by {-d[a]:.3g} m"
     for x, y, r, label in others:
         gap = math.hypot(c[0, 0] - x, c[0, 1] - y) - r - robot.radius
         if gap < -tol:

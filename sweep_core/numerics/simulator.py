@@ -240,11 +240,12 @@ class Simulator:
                                  "their goals reachable, or place the robots elsewhere first")
             fields = self.robots.fields_for(scene)  # the planners' new global plans
         live = scene if self._pop is None else self._pop.view(scene, self._q)
-        bad = violating_agents(live, self.t, self._q)
-        if bad:
+        rows = violating_agents(live, self.t, self._q)
+        if rows:  # named by id (with flows, the rows of the people present are not)
+            bad = rows if self._pop is None else self._pop.ids[rows].tolist()
             shown = ", ".join(str(a) for a in bad[:12])
             more = "" if len(bad) <= 12 else f" and {len(bad) - 12} more"
-            first = self._q[bad[0]]
+            first = self._q[rows[0]]
             raise SceneError("scene", f"agents [{shown}{more}] at t = {self.t:g} s would be "
                              f"inside the new walls, obstacles or blocked map cells (agent {bad[0]} "
                              f"at [{first[0]:g}, {first[1]:g}])",
@@ -328,12 +329,14 @@ class Simulator:
         fleet = None if self.robots is None else self.robots.snapshot()
         try:
             self._advance_once(dB)
-        except BaseException:
+        except BaseException as err:
             self._rng.bit_generator.state = rng
             self.scheme.__dict__.clear()
             self.scheme.__dict__.update(scheme)
             if fleet is not None and self.robots is not None:
                 self.robots.restore(fleet)
+            if isinstance(err, InfeasibleError) and self._pop is not None:
+                raise err.by_ids(self._pop.ids) from None  # rows named by the people's ids
             raise
 
     def _advance_once(self, dB: np.ndarray | None) -> None:

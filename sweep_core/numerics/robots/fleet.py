@@ -185,9 +185,10 @@ class Fleet:
         st.raw = not clip
 
     def place(self, name: str, pose: Command, t: float, people: np.ndarray,
-              radii: np.ndarray) -> None:
+              radii: np.ndarray, ids: np.ndarray | None = None) -> None:
         """Put robot ``name`` at ``pose`` (x, y, yaw) between steps, its commands reset to 0;
-        SceneError (field ``initialpose``) naming what it would overlap, the fleet unchanged."""
+        SceneError (field ``initialpose``) naming what it would overlap (a person by ``ids``,
+        their ids row by row: the simulator's ``ids``), the fleet unchanged."""
         st = self.state(name)
         x, y, yaw = (float(v) for v in pose)
         if not all(math.isfinite(v) for v in (x, y, yaw)):
@@ -196,7 +197,7 @@ class Fleet:
         others = [(s.pose[0], s.pose[1], s.robot.radius, f"robot {s.robot.name}")
                   for s in self.states.values() if s is not st]
         problem = overlap(st.robot, (x, y), self.scene.geometry, people, radii, others,
-                          self._blocked, t)
+                          self._blocked, t, ids=ids)
         if problem:
             raise SceneError("initialpose", problem, "place the robot in free space, clear of "
                              "people, walls and other robots")
