@@ -286,6 +286,9 @@ def _exercise() -> None:
     # the planners' safety layer
     guard.nearest_safe(np.array([1.0, 0.0]), (0.0, 0.0, 0.0), 0.3, np.ones((1, 2)),
                        np.ones(1) * 0.2, 1.0, 0.05, 0.5)
+    # and its walls (a segment and a circle obstacle ahead)
+    guard.Walls(np.zeros(2), 0.3, np.ones((1, 2)), 2 * np.ones((1, 2)), np.ones((1, 2)),
+                np.ones(1), 1.0, 0.1).speeds(np.array([[1.0, 0.0]]))
     # the social-force planner's people term
     grad = np.ones((1, 2))
     social_kernels.people_terms(np.ones((1, 2)), np.zeros((1, 2)), np.empty(1), grad,

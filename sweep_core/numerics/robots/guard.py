@@ -26,6 +26,11 @@ is the largest v with
 
 found in s = sqrt(v / a) (the left side c_j a s^4 / 2 + v_h s^2 + n s, increasing and convex
 in s >= 0) by Newton's method from above (:func:`reach_root`); n = 0 gives the closed form.
+
+Walls and obstacles stand still: along u the robot's disk can run d m before it touches one
+(:func:`free_run`), and v <= sqrt(2 a (d - g_0)) keeps it able to stop g_0 short of it
+(:class:`Walls`; the admissible velocities of the dynamic window approach, Fox, Burgard and
+Thrun 1997).
 """
 from __future__ import annotations
 
@@ -212,3 +217,103 @@ def nearest_of(along: np.ndarray, bound: np.ndarray, dirs: np.ndarray, ux: float
         s = s if s > 0.0 else 0.0
         s = s if (s != s or s < bound[best]) else bound[best]
     out[0], out[1] = s * dirs[best, 0], s * dirs[best, 1]
+
+
+class Walls:
+    """The walls and obstacles the safety layer keeps the robot able to stop short of: the
+    wall segments ``seg_a``, ``seg_b`` (S, 2) m and circle obstacles (``centres`` (C, 2),
+    ``radii`` (C,) m) a planner sees, from the robot's centre ``xy`` (2,) m with its
+    ``radius`` m, braking at ``acceleration`` m/s^2, to stop ``margin`` m short."""
+
+    def __init__(self, xy: np.ndarray, radius: float, seg_a: np.ndarray, seg_b: np.ndarray,
+                 centres: np.ndarray, radii: np.ndarray, acceleration: float,
+                 margin: float) -> None:
+        self.xy, self.radius = (float(xy[0]), float(xy[1])), float(radius)
+        self.arrays = tuple(np.ascontiguousarray(v, dtype=np.float64)
+                            for v in (seg_a, seg_b, centres, radii))
+        self.none = not (len(seg_a) or len(radii))
+        self.acceleration, self.margin = float(acceleration), float(margin)
+
+    def speeds(self, dirs: np.ndarray) -> np.ndarray:
+        """(H,) m/s: along each unit direction ``dirs`` (H, 2), the largest speed from which
+        the robot, braking at its acceleration a on a straight line, stops before its disk
+        comes within the margin g_0 of a wall or obstacle: sqrt(2 a (d - g_0)), d the free
+        run (:func:`free_run`), 0 when d <= g_0 (the admissible velocities of the dynamic
+        window approach, Fox, Burgard and Thrun 1997); inf with nothing in the way."""
+        run = np.full(len(dirs), np.inf)
+        if not self.none:
+            a, b, c, r = self.arrays
+            free_run(self.xy[0], self.xy[1], self.radius,
+                     np.ascontiguousarray(dirs, dtype=np.float64), a, b, c, r, run)
+        room = run - self.margin
+        # room > 0 only: an unbounded acceleration stops at once, but not within the margin
+        out = np.zeros(len(room))
+        ahead = room > 0.0
+        out[ahead] = np.sqrt(2.0 * self.acceleration * room[ahead])
+        return out
+
+    def __call__(self, along: np.ndarray) -> float:
+        """:meth:`speeds` along one unit direction (2,)."""
+        return math.inf if self.none else float(self.speeds(np.reshape(along, (1, 2)))[0])
+
+
+@numba.njit(cache=True)
+def free_run(x: float, y: float, radius: float, dirs: np.ndarray, seg_a: np.ndarray,
+             seg_b: np.ndarray, centres: np.ndarray, radii: np.ndarray, out: np.ndarray
+             ) -> None:  # pragma: no cover - compiled
+    """out (H,): how far (m) the robot's disk (centre (x, y) m, ``radius`` m) can move along
+    each unit direction ``dirs`` (H, 2) before it touches a wall segment (``seg_a``,
+    ``seg_b`` (S, 2) m) or a circle obstacle (``centres`` (C, 2), ``radii`` (C,) m); inf when
+    nothing is in the way. The distance from a point moving on a line to a segment or a disk is
+    convex in the distance moved, so a disk already touching something (within 1e-9 m) is
+    stopped by it only in the directions that bring it closer (0), never in the others."""
+    for h in range(dirs.shape[0]):
+        ex, ey = dirs[h, 0], dirs[h, 1]
+        best = np.inf
+        for k in range(seg_a.shape[0]):
+            ax, ay = seg_a[k, 0], seg_a[k, 1]
+            dx, dy = seg_b[k, 0] - ax, seg_b[k, 1] - ay
+            length = math.hypot(dx, dy)
+            px, py = x - ax, y - ay
+            # the nearest point of the segment, and whether the disk touches it now
+            s = 0.0 if length == 0.0 else min(max((px * dx + py * dy) / (length * length),
+                                                  0.0), 1.0)
+            nx, ny = px - s * dx, py - s * dy
+            if math.hypot(nx, ny) <= radius + 1e-9:
+                if ex * nx + ey * ny < 0.0:
+                    best = 0.0
+                continue
+            # the first touch: the disk's centre reaches the capsule of the segment (its
+            # two end circles, and its two sides offset by the radius)
+            for cx, cy in ((ax, ay), (ax + dx, ay + dy)):
+                best = min(best, _ray_circle(x - cx, y - cy, ex, ey, radius))
+            if length > 0.0:
+                ux, uy = dx / length, dy / length
+                side = px * -uy + py * ux  # signed distance from the segment's line
+                rate = ex * -uy + ey * ux
+                if rate != 0.0 and abs(side) > radius and side * rate < 0.0:
+                    t = (math.copysign(radius, side) - side) / rate
+                    along = (px + t * ex) * ux + (py + t * ey) * uy
+                    if 0.0 <= along <= length:
+                        best = min(best, t)
+        for k in range(radii.shape[0]):
+            mx, my = x - centres[k, 0], y - centres[k, 1]
+            reach = radii[k] + radius
+            if math.hypot(mx, my) <= reach + 1e-9:
+                if ex * mx + ey * my < 0.0:
+                    best = 0.0
+                continue
+            best = min(best, _ray_circle(mx, my, ex, ey, reach))
+        out[h] = best
+
+
+@numba.njit(cache=True)
+def _ray_circle(mx: float, my: float, ex: float, ey: float, reach: float
+                ) -> float:  # pragma: no cover - compiled
+    """The distance along the unit direction (ex, ey) from a point at (mx, my) m from a
+    circle's centre, outside it, to the circle of radius ``reach`` m (inf: never)."""
+    b = mx * ex + my * ey
+    disc = b * b - (mx * mx + my * my - reach * reach)
+    if b >= 0.0 or disc < 0.0:  # moving away, or passing by
+        return np.inf
+    return -b - math.sqrt(disc)

@@ -19,7 +19,9 @@ from which the robot can be at rest before any person seen ahead, closing in at
 the acceleration limit); diff_drive (turn rate ``turn_gain`` times the heading error, speed
 |u| cos(error), never backwards, 0 beyond 90 degrees of error, at most the safe speed along
 its heading), clipped to the robot's speed, angular speed and acceleration limits against its
-last command, so the fleet applies it unchanged.
+last command, so the fleet applies it unchanged. The layer also bounds the speed along the
+direction of travel by the braking distance to the wall segments and circle obstacles seen
+(:class:`.guard.Walls`), so that a robot touching a wall turns before it moves off.
 """
 from __future__ import annotations
 
@@ -39,7 +41,7 @@ from sweep_core.numerics.robots.control import (
     feasible,
     goal_field,
 )
-from sweep_core.numerics.robots.guard import nearest_safe, safe_speed
+from sweep_core.numerics.robots.guard import Walls, nearest_safe, safe_speed
 from sweep_core.numerics.robots.kinematics import wrap
 from sweep_core.numerics.robots.social_kernels import (
     near_segments,
@@ -84,11 +86,14 @@ class Tracker:
         return v
 
 
-def to_command(robot: Robot, u: np.ndarray, obs: Observation, params: dict[str, float]
+def to_command(robot: Robot, u: np.ndarray, obs: Observation, params: dict[str, float],
+               walls: Walls | None = None
                ) -> tuple[float, float, float]:
     """The command (vx, vy, omega) that follows the wished velocity ``u`` (2,) m/s (module
     docstring): the nearest safe velocity (:func:`.guard.nearest_safe`), its speed at most
-    the safe speed along the direction the robot moves in, within the robot's limits."""
+    the safe speed along the direction the robot moves in, within the robot's limits.
+    ``walls``: the largest speed (m/s) along a unit direction (2,) from which the robot can
+    stop short of the walls and obstacles (None: not limited by them)."""
     yaw = obs.pose[2]
     u = nearest_safe(u, obs.pose, obs.radius, obs.people, obs.people_radii,
                      robot.max_acceleration, params["stop_margin"], params["people_speed"],
@@ -105,18 +110,22 @@ def to_command(robot: Robot, u: np.ndarray, obs: Observation, params: dict[str, 
         along = np.array([c, s])
     speed = min(speed, safe_speed(obs.pose, along, obs.radius, obs.people, obs.people_radii,
                                   robot.max_acceleration, params["stop_margin"],
-                                  params["people_speed"], params["people_noise"]))
+                                  params["people_speed"], params["people_noise"]),
+                math.inf if walls is None else walls(along))
     if robot.kinematics == "holonomic":
-        return holonomic_command(robot, speed * along, omega, obs, params)
+        return holonomic_command(robot, speed * along, omega, obs, params, walls)
     return feasible(robot, (speed, 0.0, omega), obs)
 
 
 def holonomic_command(robot: Robot, u: np.ndarray, omega: float, obs: Observation,
-                      params: dict[str, float]) -> tuple[float, float, float]:
+                      params: dict[str, float],
+                      walls: Walls | None = None
+                      ) -> tuple[float, float, float]:
     """The holonomic command towards the safe velocity ``u`` (2,) m/s (map frame): the change
     from the last command scaled as a whole into the acceleration limit (so that, from rest,
     the command is parallel to u); when the result is still faster than the safe speed along
-    its own direction, the last command slowed as hard as the limit allows."""
+    its own direction (or than ``walls`` allows, as in :func:`to_command`), the last command
+    slowed as hard as the limit allows."""
     yaw = obs.pose[2]
     s, c = elementary.sincos(yaw)
     want = np.array([c * u[0] + s * u[1], -s * u[0] + c * u[1]])
@@ -128,9 +137,10 @@ def holonomic_command(robot: Robot, u: np.ndarray, omega: float, obs: Observatio
     speed = float(np.hypot(*v))
     if speed > 1e-12:
         world = np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]]) / speed
-        if speed > safe_speed(obs.pose, world, obs.radius, obs.people, obs.people_radii,
-                              robot.max_acceleration, params["stop_margin"],
-                              params["people_speed"], params["people_noise"]):
+        if speed > min(safe_speed(obs.pose, world, obs.radius, obs.people, obs.people_radii,
+                                  robot.max_acceleration, params["stop_margin"],
+                                  params["people_speed"], params["people_noise"]),
+                       math.inf if walls is None else walls(world)):
             big = float(np.abs(last).max())
             v = last * (max(0.0, 1.0 - step / big) if big > 0 else 0.0)
     return feasible(robot, (float(v[0]), float(v[1]), omega), obs)
@@ -194,6 +204,14 @@ class Planner:
                       np.ascontiguousarray(b), float(self.params["sensor_range"]), near)
         return a[near], b[near]
 
+    def walls(self, obs: Observation) -> Walls:
+        """The wall segments and circle obstacles seen (:meth:`segments`, :meth:`circles`) as
+        the safety layer's :class:`~.guard.Walls` (stopping ``stop_margin`` short of them)."""
+        a, b = self.segments(obs)
+        c, r = self.circles(obs)
+        return Walls(np.asarray(obs.pose[:2], dtype=np.float64), obs.radius, a, b, c, r,
+                     self.robot.max_acceleration, self.params["stop_margin"])
+
     def circles(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
         """Circle obstacles (centres (C, 2), radii (C,)) at obs.t within the sensor range."""
         g = self.scene.geometry.at(obs.t)
@@ -247,7 +265,7 @@ class Orca(Planner):
             sim.set_agent_pref_velocity(k, (float(v[0]), float(v[1])))
         sim.do_step()
         u = np.array(sim.get_agent_velocity(me).to_tuple(), dtype=np.float64)
-        return to_command(self.robot, u, obs, p)
+        return to_command(self.robot, u, obs, p, self.walls(obs))
 
 
 class SocialForce(Planner):
@@ -297,7 +315,7 @@ class SocialForce(Planner):
         if speed > self.robot.max_speed:
             u = u * (self.robot.max_speed / speed)
         self.u = u
-        return to_command(self.robot, u, obs, p)
+        return to_command(self.robot, u, obs, p, self.walls(obs))
 
 
     u: np.ndarray | None = None

@@ -3,9 +3,10 @@ among sampled velocities, scored against a Gaussian forecast of every person the
 
 What it sees: as :mod:`.planners` (its own pose and last command, the people whose disks come
 within ``sensor_range`` m of its centre, their velocities from the :class:`.planners.Tracker`,
-the walls through the goal field). It also knows the scene's ``crowd_reaction`` (how people
-step aside from a robot's commanded path: the model it plans with, as a robot's designer
-knows how people react to it).
+the walls through the goal field, and the wall segments and circle obstacles within
+``sensor_range`` through the safety layer's :class:`.guard.Walls`). It also knows the
+scene's ``crowd_reaction`` (how people step aside from a robot's commanded path: the model it
+plans with, as a robot's designer knows how people react to it).
 
 Candidates: the velocities u = s (cos phi, sin phi) with s in ``SPEEDS`` times max_speed and
 phi the goal field's heading plus each of ``HEADINGS``, and u = 0. Each is held for the
@@ -30,7 +31,8 @@ a robot that stopped in their way). The score, highest wins (the first of equals
 the chance of no contact (the hazards taken as independent rates), and a steady command
 (the crowd's avoid lane forms ahead of a robot whose command does not change). The chosen u
 becomes the command through :func:`.planners.to_command`: the safety layer of :mod:`.guard`
-and the robot's kinematic limits.
+and the robot's kinematic limits. Candidates faster than the layer's wall bound along their own
+direction (:meth:`Window.too_fast`) are never chosen.
 """
 from __future__ import annotations
 
@@ -177,6 +179,18 @@ class Window(Planner):
         ahead = u[:, 0] * pref[0] + u[:, 1] * pref[1]  # x-then-y, not BLAS
         score = ahead / (vmax * vmax) * elementary.exp_of(-p["hazard_weight"] * risk) \
             - p["steadiness"] * np.hypot(*(u - self.last).T) / vmax
+        walls = self.walls(obs)
+        score[self.too_fast(obs, u, walls)] = -np.inf
         best = u[int(np.argmax(score))]
         self.last = best
-        return to_command(self.robot, best, obs, p)
+        return to_command(self.robot, best, obs, p, walls)
+
+    def too_fast(self, obs: Observation, u: np.ndarray, walls: Any) -> np.ndarray:
+        """(K,) bool: the candidates u (K, 2) m/s faster than ``walls`` (:meth:`Planner.walls
+        <.planners.Planner.walls>`) allows along their own directions (u = 0 never is)."""
+        speed = np.hypot(*u.T)
+        moving = speed > 0.0
+        out = np.zeros(len(u), dtype=np.bool_)
+        if moving.any():
+            out[moving] = speed[moving] > walls.speeds(u[moving] / speed[moving, None])
+        return out
