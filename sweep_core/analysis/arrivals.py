@@ -171,6 +171,23 @@ class ArrivalTracker:
                 todo = todo[~hit]
         return True
 
+    def summary(self, n: int) -> dict:
+        """The arrivals of ``n`` agents in all: the radii, how many arrived and when (first,
+        mean, 50 %, 90 %, all)."""
+        radii, arrival = sorted(self.radii), self.arrival
+        return {
+            "radius_m": radii[0] if len(radii) == 1 else radii,
+            "arrived": int(np.count_nonzero(np.isfinite(arrival))),
+            "t_first_s": stats(arrival, np.min),
+            "t_mean_s": stats(arrival, np.mean),
+            "t_50_s": time_for(arrival, n, 0.5),
+            "t_90_s": time_for(arrival, n, 0.9),
+            "t_all_s": time_for(arrival, n, 1.0),
+            "precision": "float64 (/poses); first recorded frame within the radius of the "
+                         "goal (point or region) in effect (default radius: the goal's "
+                         "slow_radius)",
+        }
+
     def per_exit(self) -> dict | None:
         """Figures per exit label (None if no exits drift was in effect)."""
         if not self.labels:

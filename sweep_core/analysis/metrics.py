@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from sweep_core.analysis.arrivals import ArrivalTracker, start_exits, stats, time_for
+from sweep_core.analysis.arrivals import ArrivalTracker, start_exits, stats
 from sweep_core.analysis.crowd import FundamentalDiagram, Tracks
 from sweep_core.analysis.density import MAX_CELLS as MAX_CELLS  # re-exported for the CLI
 from sweep_core.analysis.density import Hist2D
@@ -54,7 +54,7 @@ from sweep_core.analysis.speed import (
 )
 from sweep_core.analysis.speed import SPEED_BIN as SPEED_BIN  # re-exported
 from sweep_core.errors import RecordingError, SweepError
-from sweep_core.model.gaps import gaps
+from sweep_core.model.gaps import gaps, smallest_gap
 from sweep_core.model.geometry import Geometry
 
 #: a constraint whose true value is at most this (m) counts as an active contact
@@ -130,9 +130,14 @@ class _Metrics:
         self.tracker = ArrivalTracker(0, arrive_radius)
         self._map_geometry: dict[int, Geometry] = {}
         self.tracks = Tracks(meta.frames)
-        # flows (sinks, sources): agents followed by id (roster.py)
-        flows = meta.scene is not None and meta.scene.flows is not None
-        self.roster = Roster(meta.scene, meta.path) if flows and meta.scene else None
+        # agents who enter or leave (sources, sinks) are followed by id (roster.py); a speed
+        # law, speeds or delays alone keep the scene's agents, row by row
+        flows = meta.scene.flows if meta.scene is not None else None
+        self.roster = (Roster(meta.scene, meta.path) if meta.scene is not None
+                       and flows is not None and flows.changes_population else None)
+        # journeys and exit choices send agents elsewhere than their drift's goal
+        self.drift_goals = flows is None or not (flows.journeys or flows.exit_choices)
+        self.sinks = flows is not None and bool(flows.sinks)
         self.ids = self.prev_ids = np.zeros(0, dtype=np.int64)
 
     def add(self, fr: Frame) -> list[Ready]:
@@ -159,11 +164,11 @@ class _Metrics:
         seg = meta.segment_of(fr.log_ns)
         step = meta.step_of(fr.stamp_ns) if meta.dt is not None else -1
         geometry = self._geometry_at(seg, step)
-        g = self._gaps(fr, step, geometry)
+        g, smallest, pair = self._gaps(fr, step, geometry)
         react_total = self._reaction(fr.agents)
         if self.line is not None:
             self._flow(seg, q, t)
-        if self.roster is None and self._arrivals(seg, step, q, t):
+        if self.roster is None and self.drift_goals and self._arrivals(seg, step, q, t):
             self.goal_seen = True
         self.density.add(q)
         self.tracks.add(t, q, self.ids if self.roster is not None else None)
@@ -171,20 +176,28 @@ class _Metrics:
         ids = self.ids if self.roster is not None else np.arange(len(q))
         ready = self.speeds.push(fr.stamp_ns / NS, ids, q, (self.stats.frame(), fr, seg, step),
                                  seg)
-        self.rows.append((t, step, g.min_gap, g.contacts, react_total,
+        self.rows.append((t, step, smallest, g.contacts, react_total,
                           react_total / dt if dt else math.nan, math.nan, math.nan,
                           self.net if self.line is not None else math.nan,
-                          np.count_nonzero(np.isfinite(self.arrival)) if self.goal_seen
-                          else math.nan))
-        if math.isfinite(g.min_gap) and (self.worst is None or g.min_gap < self.worst[0]):
-            if g.min_pair <= g.min_single:
-                between = f"agents {g.worst_pair[0]} and {g.worst_pair[1]}"
+                          self._arrived()))
+        if math.isfinite(smallest) and (self.worst is None or smallest < self.worst[0]):
+            if pair is not None:
+                between = f"agents {pair[0]} and {pair[1]}"
             else:
                 a, kind, item, _ = g.worst_single
                 between = f"agent {a} and {geometry.describe(kind, item)}"
-            self.worst = (g.min_gap, t, between)
+            self.worst = (smallest, t, between)
         self.stats.add(ready)
         return ready
+
+    def _arrived(self) -> float:
+        """Agents arrived by this frame: at their drift's goal, or with sinks (by id) those
+        that have left; NaN when neither applies."""
+        if self.roster is not None:
+            return (float(np.count_nonzero(np.isfinite(self.roster.left_at))) if self.sinks
+                    else math.nan)
+        return float(np.count_nonzero(np.isfinite(self.arrival))) if self.goal_seen \
+            else math.nan
 
     def finish(self) -> list[Ready]:
         """The frames still waiting for their windows (the recording ended)."""
@@ -204,18 +217,22 @@ class _Metrics:
             self._map_geometry[key] = scene_with_map(scene, packed).geometry
         return self._map_geometry[key]
 
-    def _gaps(self, fr: Frame, step: int, geometry: Geometry) -> Any:
-        """True constraint values: float64 poses and float64 radii r_i(t) from the scene."""
+    def _gaps(self, fr: Frame, step: int, geometry: Geometry
+              ) -> tuple[Any, float, tuple[int, int] | None]:
+        """True constraint values (float64 poses and float64 radii r_i(t) from the scene):
+        their :func:`gaps`, the smallest gap and the pair that gives it (None: a wall or
+        obstacle, or nothing)."""
         scene, dt = self.meta.scene, self.meta.dt
         if scene is not None:
             t_sim = step * dt if dt is not None else fr.stamp_ns / NS
             r = (scene.radii(t_sim) if self.roster is None or fr.agents is None
                  else self.roster.radii(self.ids, fr.agents, t_sim))
-            return gaps(geometry, t_sim, fr.positions, r, CONTACT_TOL)
-        # no scene in the metadata: disks only, with the float32 radii of /agents
-        r = (fr.agents["radius"].astype(np.float64) if fr.agents is not None
-             else np.zeros(len(fr.positions)))
-        return gaps(self.geometry, 0.0, fr.positions, r, CONTACT_TOL)
+            g = gaps(geometry, t_sim, fr.positions, r, CONTACT_TOL)
+        else:  # no scene in the metadata: disks only, with the float32 radii of /agents
+            r = (fr.agents["radius"].astype(np.float64) if fr.agents is not None
+                 else np.zeros(len(fr.positions)))
+            g = gaps(self.geometry, 0.0, fr.positions, r, CONTACT_TOL)
+        return (g, *smallest_gap(g, fr.positions, r, CONTACT_TOL))
 
     @staticmethod
     def _reaction(ag: dict[str, np.ndarray] | None) -> float:
@@ -321,19 +338,7 @@ class _Metrics:
             summary["flow"] = flow_summary(self.line, (self.net, self.positive, self.negative),
                                            np.array(self.crossing_times), self.evacuation, n)
         if self.goal_seen:
-            radii = sorted(self.tracker.radii)
-            summary["arrivals"] = {
-                "radius_m": radii[0] if len(radii) == 1 else radii,
-                "arrived": int(np.count_nonzero(np.isfinite(self.arrival))),
-                "t_first_s": stats(self.arrival, np.min),
-                "t_mean_s": stats(self.arrival, np.mean),
-                "t_50_s": time_for(self.arrival, n, 0.5),
-                "t_90_s": time_for(self.arrival, n, 0.9),
-                "t_all_s": time_for(self.arrival, n, 1.0),
-                "precision": "float64 (/poses); first recorded frame within the radius of the "
-                             "goal (point or region) in effect (default radius: the goal's "
-                             "slow_radius)",
-            }
+            summary["arrivals"] = self.tracker.summary(n)
             summary["per_exit"] = self.tracker.per_exit()
             summary["per_group"] = self.tracker.per_group()
             for name, idx in self.tracker.groups.items():

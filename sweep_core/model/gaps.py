@@ -7,10 +7,12 @@ Exact values (no linearisation), m; positions (N, 2). The compiled passes are
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numba
 import numpy as np
+from scipy.spatial import cKDTree
 
 from sweep_core.model.geometry import (
     DENSE_SEGMENTS,
@@ -51,6 +53,10 @@ class Gaps:
 
     @property
     def min_gap(self) -> float:
+        """The smallest of the gaps searched: every gap at most ``contact_tol`` is (all that a
+        step's check needs), so this is the smallest gap whenever it is at most that; above
+        it, a pair farther apart than 2 max(r) + contact_tol may be smaller
+        (:func:`smallest_gap` searches them)."""
         return min(self.min_pair, self.min_single)
 
 
@@ -103,6 +109,52 @@ def gaps(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray,
                     worst_single = (int(a[w]), kind, int(k[w]), min_single)
     return Gaps(min_pair, min_single, contacts, worst_pair, worst_single, i, j, pg, near[0],
                 near[1], reach)
+
+
+def smallest_gap(g: Gaps, q: np.ndarray, r: np.ndarray, contact_tol: float = 1e-6
+                 ) -> tuple[float, tuple[int, int] | None]:
+    """The smallest true gap (m) at centres q (N, 2) with radii r (N,), whose :func:`gaps` (with
+    the same ``contact_tol``) is ``g``, and the pair (i, j) that gives it (None: a wall or
+    obstacle gives it, ``g.worst_single``, or nothing does). :func:`gaps` searches the pairs
+    at most 2 max(r) + contact_tol apart, so a pair it left out has a gap above contact_tol:
+    when ``g.min_gap`` is above that, the pairs that could be smaller are searched here
+    (those closer than 2 max(r) plus it; with no gap found at all, plus the nearest centres'
+    distance less 2 min(r), which bounds the smallest pair gap)."""
+    best = g.min_gap
+    pair = (g.worst_pair[0], g.worst_pair[1]) if (g.worst_pair is not None
+                                                  and g.min_pair <= g.min_single) else None
+    if not best > contact_tol or len(q) < 2:  # NaN kept
+        return best, pair
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    r = np.ascontiguousarray(r, dtype=np.float64)
+    bound = best
+    if not np.isfinite(bound):
+        d = cKDTree(q).query(q, k=2)[0][:, 1]
+        bound = float(d.min()) - 2.0 * float(r.min())
+    i, j = pairs_within(q, 2.0 * float(r.max()) + max(bound, contact_tol))
+    if len(i):
+        pg = np.empty(len(i))
+        _, w = pair_gaps(q, r, i, j, float(contact_tol), pg)
+        if w >= 0 and pg[w] < best:
+            return float(pg[w]), (int(i[w]), int(j[w]))
+    return best, pair
+
+
+class SmallestGap:
+    """The smallest true gap (m) at centres q (N, 2) with radii r (N,): :func:`smallest_gap`
+    of their :func:`gaps` g (inf without g), found when first asked (a simulator's step never
+    needs it; its diagnostics and summaries do)."""
+
+    def __init__(self, g: Gaps | None, q: np.ndarray, r: np.ndarray) -> None:
+        self.g, self.q, self.r = g, q, r
+        self.found: float | None = None if g is not None else math.inf
+
+    def value(self) -> float:
+        """The smallest gap (m), searched at the first call."""
+        if self.found is None:
+            assert self.g is not None
+            self.found = smallest_gap(self.g, self.q, self.r)[0]
+        return self.found
 
 
 #: crowds of at most this many agents take :func:`_small`'s single compiled call

@@ -1,7 +1,6 @@
 """The simulator: a scene, a scheme, a seeded Brownian path and the current state."""
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -11,7 +10,7 @@ from sweep_core import checks
 from sweep_core.errors import InfeasibleError, SceneError
 from sweep_core.model.crossing import crossings
 from sweep_core.model.fields import Field
-from sweep_core.model.gaps import gaps
+from sweep_core.model.gaps import SmallestGap, gaps
 from sweep_core.model.geodesic import navigation_fields
 from sweep_core.model.geometry import SEGMENT, single_rows
 from sweep_core.model.maps import map_from_spec
@@ -102,8 +101,8 @@ class Simulator:
         self._v = np.zeros((n, 2))
         self._reaction = np.zeros((n, 2))
         self._contacts = 0
-        g = gaps(self.scene.geometry, 0.0, self._q, self.scene.radii(0.0))
-        self._min_gap = g.min_gap
+        r = self.scene.radii(0.0)
+        self._min_gap = SmallestGap(gaps(self.scene.geometry, 0.0, self._q, r), self._q, r)
         self.last: StepResult | None = None
         # flows (sinks, sources, speeds, delays, journeys, headway): who is present
         self._pop = Population(self.scene, self.seed) if self.scene.flows is not None else None
@@ -162,7 +161,9 @@ class Simulator:
 
     @property
     def min_gap(self) -> float:
-        return self._min_gap
+        """The smallest true gap (m) after the last step: between two people, or a person and
+        a wall or obstacle (inf with the check off)."""
+        return self._min_gap.value()
 
     @property
     def bound(self) -> float:
@@ -179,7 +180,7 @@ class Simulator:
     @property
     def state(self) -> State:
         return State(self.t, self._k, self.positions, self.radii, self.velocities,
-                     self.reaction, self._contacts, self._min_gap,
+                     self.reaction, self._contacts, self._min_gap.value(),
                      None if self._pop is None else self._pop.ids.copy())
 
     # -- commands ------------------------------------------------------------------------
@@ -272,7 +273,8 @@ class Simulator:
         if self.robots is not None:  # the robots see the new walls too, and plan round them
             self.robots.use_scene(scene, fields)
         r = live.radii(self.t)
-        self._min_gap = gaps(scene.geometry, self.t, self._q, r).min_gap if len(r) else math.inf
+        self._min_gap = SmallestGap(gaps(scene.geometry, self.t, self._q, r) if len(r) else None,
+                                  self._q, r)
 
     # -- stepping ------------------------------------------------------------------------
     def step(self, n: int = 1, dB: np.ndarray | None = None) -> None:
@@ -364,7 +366,7 @@ class Simulator:
         if not np.isfinite(y).all():
             bad = np.nonzero(~np.all(np.isfinite(y), axis=1))[0]
             raise InfeasibleError(t1, bad.tolist(), "non-finite positions")
-        min_gap = math.inf
+        min_gap = SmallestGap(None, y, r1)
         if self.check:
             # the robots' check computed the people's gaps already (the same call), and may
             # have found their paths clear of the wall segments
@@ -383,7 +385,7 @@ class Simulator:
                                       f"{int(through[0])} went through "
                                       f"{self.scene.geometry.describe(SEGMENT, int(item[0]))} "
                                       "during the step")
-            min_gap = g.min_gap
+            min_gap = SmallestGap(g, y, r1)
         self._v = (y - self._q) / h
         self._reaction = res.prediction - y
         if self.robots is not None:  # the step's agents, before any leave or enter
