@@ -141,6 +141,18 @@ def test_an_origin_that_is_not_x_y_yaw_is_refused(tmp_path: Path, origin: str, s
     assert "\n" not in str(err.value)
 
 
+def test_sweep_map_prints_the_bounding_box_of_a_rotated_map(tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture) -> None:
+    from sweep_core.cli import main
+
+    assert main(["map", str(write_map(tmp_path))]) == 0  # 8 x 6 cells of 0.5 m at (-1, 2)
+    assert re.search(r"extent_m +\[-1, 2\] to \[3, 5\]\n", capsys.readouterr().out)
+    assert main(["map", str(write_map(tmp_path, origin="[1.0, -2.0, 0.5]"))]) == 0
+    c, s = np.cos(0.5), np.sin(0.5)  # corners (0, 0), (4, 0), (4, 3), (0, 3) turned by 0.5
+    box = f"[{1 - 3 * s:g}, {-2.0:g}] to [{1 + 4 * c:g}, {-2 + 4 * s + 3 * c:g}]"
+    assert f"{box} (bounding box of the rotated map)" in capsys.readouterr().out
+
+
 def test_sweep_map_prints_draws_and_writes_a_scene(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     from sweep_core.cli import main
 
