@@ -79,20 +79,27 @@ def tour(work: Path) -> str:
     return _summary(_door_analysis(work), TOUR_KEYS)
 
 
+#: the runs of the compare example (docs/recordings.md shows these commands): dt = 0.001, and
+#: dt = 0.01 on its Brownian path and on another
+COMPARE_RUNS = (
+    ("run", "corridor_groups", "--dt", "0.001", "--seed", "3", "--t-end", "1", "--out",
+     "fine.mcap"),
+    ("run", "corridor_groups", "--dt", "0.01", "--path-dt", "0.001", "--seed", "3", "--t-end",
+     "1", "--out", "coarse.mcap"),
+    ("run", "corridor_groups", "--dt", "0.01", "--seed", "3", "--t-end", "1", "--out",
+     "other.mcap"),
+)
+#: the comparisons of the compare example: one path, two paths
+COMPARE_PAIRS = (("compare", "fine.mcap", "coarse.mcap"), ("compare", "fine.mcap", "other.mcap"))
+
+
 def compare(work: Path) -> str:
     """dt = 0.01 against dt = 0.001 on the bundled corridor_groups for 1 s, on one Brownian path
     and on two (a fine path needs a fixed crowd: the default scene's sink is refused)."""
-    scene = "corridor_groups"
-    sweep("run", scene, "--dt", "0.001", "--seed", "3", "--t-end", "1", "--out", "fine.mcap",
-          cwd=work)
-    sweep("run", scene, "--dt", "0.01", "--path-dt", "0.001", "--seed", "3", "--t-end", "1",
-          "--out", "coarse.mcap", cwd=work)
-    sweep("run", scene, "--dt", "0.01", "--seed", "3", "--t-end", "1", "--out", "other.mcap",
-          cwd=work)
-    shared = json.loads(sweep("compare", "fine.mcap", "coarse.mcap", "--no-plots", "--json",
-                              cwd=work))
-    apart = json.loads(sweep("compare", "fine.mcap", "other.mcap", "--no-plots", "--json",
-                             cwd=work))
+    for args in COMPARE_RUNS:
+        sweep(*args, cwd=work)
+    shared, apart = (json.loads(sweep(*args, "--no-plots", "--json", cwd=work))
+                     for args in COMPARE_PAIRS)
     mm = 1e3 * float(shared["sup_m"])
     cm = 1e2 * float(apart["sup_m"])
     return (f"On corridor_groups over 1 s, the largest distance between the dt = 0.01 and "

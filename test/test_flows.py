@@ -205,6 +205,17 @@ def test_analysis_counts_agents_that_left(recorded):
     assert an.summary["arrivals"]["arrived"] == p.left
 
 
+def test_analysis_agents_are_every_agent_seen_and_present_max_the_most_at_once(recorded):
+    """``agents``: the distinct agents the recording holds (the scene's and those that
+    entered); ``population.present_max``: the most in one frame (docs/recordings.md)."""
+    _, _, out, _, ids = recorded
+    summary = analyze(out).summary
+    pop = summary["population"]
+    seen = set(np.concatenate(ids).tolist())
+    assert summary["agents"] == len(seen) == pop["initial"] + pop["entered"]
+    assert pop["present_max"] == max(len(i) for i in ids)
+
+
 def test_compare_matches_agents_by_id(recorded, tmp_path):
     d, scene, out, _, _ = recorded
     other = tmp_path / "other.mcap"

@@ -130,6 +130,29 @@ def test_bad_map_files_are_refused(tmp_path: Path) -> None:
         read_map_yaml(tmp_path / "missing.yaml")
 
 
+@pytest.mark.parametrize("origin, shown", [("[0.0, 0.0]", "is [0, 0], 2 numbers"),
+                                           ("[1.0, 2.0, 0.0, 0.0]", "is [1, 2, 0, 0], 4 numbers")])
+def test_an_origin_that_is_not_x_y_yaw_is_refused(tmp_path: Path, origin: str, shown: str) -> None:
+    path = write_map(tmp_path, origin=origin)
+    with pytest.raises(SceneError) as err:
+        read_map_yaml(path)
+    assert err.value.field.endswith("origin") and "not [x, y, yaw]" in err.value.problem
+    assert shown in str(err.value) and "[0.0, 0.0, 0.0]" in err.value.fix
+    assert "\n" not in str(err.value)
+
+
+def test_sweep_map_prints_the_bounding_box_of_a_rotated_map(tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture) -> None:
+    from sweep_core.cli import main
+
+    assert main(["map", str(write_map(tmp_path))]) == 0  # 8 x 6 cells of 0.5 m at (-1, 2)
+    assert re.search(r"extent_m +\[-1, 2\] to \[3, 5\]\n", capsys.readouterr().out)
+    assert main(["map", str(write_map(tmp_path, origin="[1.0, -2.0, 0.5]"))]) == 0
+    c, s = np.cos(0.5), np.sin(0.5)  # corners (0, 0), (4, 0), (4, 3), (0, 3) turned by 0.5
+    box = f"[{1 - 3 * s:g}, {-2.0:g}] to [{1 + 4 * c:g}, {-2 + 4 * s + 3 * c:g}]"
+    assert f"{box} (bounding box of the rotated map)" in capsys.readouterr().out
+
+
 def test_sweep_map_prints_draws_and_writes_a_scene(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     from sweep_core.cli import main
 
@@ -207,7 +230,7 @@ def test_occupancy_grid_gives_the_map_files_cells_and_walls(tmp_path: Path) -> N
 
 def test_occupancy_grid_threshold_and_orientation() -> None:
     # 3 x 2, row 0 (lowest y) first: occupancy percent 24 is free, 25 (= free_thresh) blocked
-    grid = OccupancyMap.from_occupancy_grid([0, 24, 25, -1, 100, 10], 3, 2, 1.0, (0.0, 0.0))
+    grid = OccupancyMap.from_occupancy_grid([0, 24, 25, -1, 100, 10], 3, 2, 1.0, (0.0, 0.0, 0.0))
     assert grid.blocked.tolist() == [[False, False, True], [True, True, False]]
     centres = np.array([[0.5, 0.5], [2.5, 0.5], [2.5, 1.5]])
     assert grid.is_blocked(centres).tolist() == [False, True, False]

@@ -39,3 +39,20 @@ def test_the_site_lists_every_page_and_builds_nowhere_in_the_tree() -> None:
     listed = set(re.findall(r"([\w-]+\.md)", nav))
     assert pages <= listed, sorted(pages - listed)
     assert "site/" in (REPO / ".gitignore").read_text().split()
+
+
+def test_the_compare_example_shows_the_commands_its_numbers_come_from() -> None:
+    """docs/recordings.md quotes numbers docs/readme_examples.py gets from its runs: the page
+    shows those runs and comparisons, and says how long they are."""
+    sys.path.insert(0, str(REPO / "docs"))
+    try:
+        import readme_examples
+    finally:
+        sys.path.remove(str(REPO / "docs"))
+    text = (REPO / "docs" / "recordings.md").read_text()
+    shown = re.findall(r"^    (sweep (?:run corridor_groups|compare fine\.mcap) .*)$", text, re.M)
+    wanted = [" ".join(("sweep",) + args) for args in
+              readme_examples.COMPARE_RUNS + readme_examples.COMPARE_PAIRS]
+    assert shown == wanted
+    t_end = {args[args.index("--t-end") + 1] for args in readme_examples.COMPARE_RUNS}
+    assert t_end == {"1"} and "On corridor_groups over 1 s" in text

@@ -114,6 +114,15 @@ def test_bad_options_and_the_recording_as_output_are_refused(recording, capsys):
     assert recording.read_bytes() == before
 
 
+@pytest.mark.parametrize("option, value", [("--to", "nan"), ("--to", "inf"),
+                                           ("--from", "nan"), ("--from", "inf")])
+def test_a_time_that_is_not_finite_is_refused_by_name(recording, capsys, option, value):
+    assert main(["render", str(recording), option, value, "--quiet"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"sweep: error: {option} {value} is not a finite time (fix: give {option} in "
+                   "seconds since the first recorded state, e.g. 1)"]
+
+
 def test_the_recorded_navigation_field_is_read_per_group(recording):
     from sweep_core.analysis.run import load_run
     meta = load_run(recording)

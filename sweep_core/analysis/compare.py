@@ -22,7 +22,7 @@ import numpy as np
 from sweep_core.analysis.drawing import pyplot, save_figure
 from sweep_core.analysis.frames import Frame, FrameReader, progress_bar
 from sweep_core.analysis.report import OTHER, jsonable, output_paths, write_table
-from sweep_core.analysis.roster import Roster, agent_ids, id_bound
+from sweep_core.analysis.roster import Roster, agent_ids, grow, id_bound
 from sweep_core.analysis.run import NS, RunMeta, load_run
 from sweep_core.errors import RecordingError, SweepError
 from sweep_core.io.outputs import check_output
@@ -40,6 +40,9 @@ class Comparison:
     sup_agent: int
     final_max_m: float
     final_mean_m: float
+    #: by agent (id, or row without flows): the sup over the common times (NaN: never in
+    #: both runs at one time) and when; ``present_in`` says where it was seen: "A and B",
+    #: "A", "B" (in one run only) or "A and B, never at one time"
     per_agent_sup_m: list[float]
     per_agent_t_s: list[float]
     shared_path: str
@@ -50,12 +53,21 @@ class Comparison:
     truncated: list[str]
     notes: list[str]
     table: np.ndarray  # t, max over agents, mean over agents
+    present_in: list[str] = field(default_factory=list)
     #: skipped chunks and messages of either file, one line each
     problems: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         d = {k: v for k, v in self.__dict__.items() if k != "table"}
+        d["agents_compared"] = self.agents_compared
+        d["agents_in_one_run"] = {"A": self.present_in.count("A"),
+                                  "B": self.present_in.count("B")}
         return jsonable(d)
+
+    @property
+    def agents_compared(self) -> int:
+        """The agents found in both runs at some common time (the per-agent statistics)."""
+        return int(np.count_nonzero(np.isfinite(self.per_agent_sup_m)))
 
 
 #: keys of a scene that do not change its dynamics
@@ -183,12 +195,15 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
             raise RecordingError(f"{m.path}: holds no recorded state (no /poses message), so "
                                  "there is nothing to compare (fix: compare recordings of at "
                                  "least one recorded step)")
-    # with flows (agents entering, leaving) the agents two frames share are matched by id
+    # with flows the agents two frames share are matched by id
     by_id = any(m.scene is not None and m.scene.flows is not None for m in (ma, mb))
     # the ids a run of either recorded scene can give
     most = max((id_bound(m.scene) for m in (ma, mb) if m.scene is not None), default=0)
     if by_id:
-        notes.append("agents matched by their /agents ids (flows: agents enter and leave)")
+        moving = any(m.scene is not None and m.scene.flows is not None
+                     and m.scene.flows.changes_population for m in (ma, mb))
+        notes.append("agents matched by their /agents ids"
+                     + (" (flows: agents enter and leave)" if moving else ""))
     ra, rb = FrameReader(ma, agents=by_id), FrameReader(mb, agents=by_id)
     ia, ib = iter(ra), iter(rb)
     fa, fb = next(ia, None), next(ib, None)
@@ -196,6 +211,7 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
     n = None
     sup_agent = sup_t = None
     per = arg = None
+    seen = np.zeros((2, 0), dtype=bool)  # by agent: seen in A, in B (at the common times)
     last = None
     bar = progress_bar(min(ma.frames, mb.frames) or None, "frame", progress)
     with bar:
@@ -208,22 +224,25 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
                 continue
             if n is None:
                 n = len(fa.positions)
-                per, arg = np.zeros(n), np.zeros(n)
+                per, arg = np.full(n, np.nan), np.full(n, np.nan)
+                seen = np.full((2, n), not by_id)
             t = fa.log_ns / NS
             qa, qb, who = fa.positions, fb.positions, None
             if by_id:
-                who, qa, qb = Roster.common(_ids(fa, ma, t, most), qa, _ids(fb, mb, t, most), qb)
-                top = int(who.max(initial=-1)) + 1
+                ids_a, ids_b = _ids(fa, ma, t, most), _ids(fb, mb, t, most)
+                who, qa, qb = Roster.common(ids_a, qa, ids_b, qb)
+                top = max(int(ids_a.max(initial=-1)), int(ids_b.max(initial=-1))) + 1
                 if top > len(per):
-                    per = np.concatenate([per, np.zeros(top - len(per))])
-                    arg = np.concatenate([arg, np.zeros(top - len(arg))])
+                    per, arg = grow(per, top), grow(arg, top)
+                    seen = np.hstack([seen, np.zeros((2, top - seen.shape[1]), dtype=bool)])
+                seen[0, ids_a] = seen[1, ids_b] = True
                 n = len(per)
             elif len(qa) != n or len(qb) != n:
                 raise RecordingError(f"{ma.path} and {mb.path} have different agent counts "
                                      f"({len(fa.positions)} and {len(fb.positions)})")
             d = np.hypot(*(qa - qb).T)
             who = np.arange(len(d)) if who is None else who
-            worse = d > per[who]
+            worse = ~(d <= per[who])  # NaN: not yet compared
             per[who[worse]] = d[worse]
             arg[who[worse]] = t
             rows.append((t, float(d.max(initial=0.0)), float(d.mean()) if len(d) else 0.0))
@@ -239,7 +258,10 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
     table = np.array(rows)
     k = int(np.argmax(table[:, 1]))
     sup_t = float(table[k, 0])
-    sup_agent = int(np.argmax(per)) if n else -1
+    compared = np.isfinite(per)
+    sup_agent = int(np.nanargmax(per)) if np.any(compared) else -1
+    present = [("A and B" if ok else "A and B, never at one time") if a and b else
+               ("A" if a else "B" if b else "neither") for ok, a, b in zip(compared, *seen)]
     truncated = [m.path for m in (ma, mb) if m.truncated]
     return Comparison(
         a=ma.path, b=mb.path, common_frames=len(rows), t_first_s=float(table[0, 0]),
@@ -249,7 +271,7 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
         per_agent_t_s=arg.tolist(), shared_path=same.path, same_scene=same.scene_line(),
         same_seed=same.seed, pathwise=same.pathwise, distance=same.distance_line(),
         truncated=truncated,
-        notes=notes, table=table, problems=ra.problems + rb.problems)
+        notes=notes, table=table, problems=ra.problems + rb.problems, present_in=present)
 
 
 def format_comparison(c: Comparison) -> str:
@@ -265,9 +287,14 @@ def format_comparison(c: Comparison) -> str:
         f"sup distance       {c.sup_m:.6g} m (t = {c.sup_t_s:.6g} s)",
         f"final distance     max {c.final_max_m:.6g} m, mean {c.final_mean_m:.6g} m",
     ]
-    if len(per):
-        lines.append(f"per agent sup      median {np.median(per):.6g} m, max {per.max():.6g} m "
-                     f"(agent {c.sup_agent} at t = {c.per_agent_t_s[c.sup_agent]:.6g} s)")
+    only = {k: c.present_in.count(k) for k in ("A", "B")}
+    lines.append(f"agents compared    {c.agents_compared} (in both runs at a common time)"
+                 + (f"; in one run only: {only['A']} in A, {only['B']} in B, no distance"
+                    if only["A"] or only["B"] else ""))
+    if c.agents_compared:
+        lines.append(f"per agent sup      median {np.nanmedian(per):.6g} m, max "
+                     f"{np.nanmax(per):.6g} m (agent {c.sup_agent} at t = "
+                     f"{c.per_agent_t_s[c.sup_agent]:.6g} s; over the agents compared)")
     lines += [f"truncated          {p} (read up to its last complete chunk)" for p in c.truncated]
     lines += [f"note               {n}" for n in c.notes]
     return "\n".join(lines)
@@ -275,7 +302,8 @@ def format_comparison(c: Comparison) -> str:
 
 def write_comparison(c: Comparison, plots: bool = True) -> dict[str, str]:
     """``A_vs_B.compare.csv`` (t, max and mean distance over agents), ``A_vs_B.agents.csv``
-    (per agent sup), ``A_vs_B.compare.png``, next to A."""
+    (per agent sup, empty for an agent never in both runs at one time, and ``present_in``),
+    ``A_vs_B.compare.png``, next to A."""
     pa, pb = Path(c.a), Path(c.b)
     base = pa.with_name(f"{pa.stem}_vs_{pb.stem}.mcap")
     out = output_paths(base, ".compare")
@@ -284,9 +312,9 @@ def write_comparison(c: Comparison, plots: bool = True) -> dict[str, str]:
     for p in (out["csv"], agents_csv) + ((out["png"],) if plots else ()):
         check_output(p, inputs, other=OTHER)  # all checked before any is written
     write_table(out["csv"], ("t_s", "max_distance_m", "mean_distance_m"), c.table, inputs)
-    per = np.column_stack([np.arange(len(c.per_agent_sup_m)), c.per_agent_sup_m,
-                           c.per_agent_t_s])
-    write_table(agents_csv, ("agent", "sup_distance_m", "t_of_sup_s"), per, inputs)
+    per = [[k, d, t, where] for k, (d, t, where) in
+           enumerate(zip(c.per_agent_sup_m, c.per_agent_t_s, c.present_in))]
+    write_table(agents_csv, ("agent", "sup_distance_m", "t_of_sup_s", "present_in"), per, inputs)
     files = {"csv": str(out["csv"]), "agents_csv": str(agents_csv)}
     if plots:
         plt = pyplot()

@@ -90,10 +90,14 @@ class RenderOptions:
             raise SweepError(f"--fps {self.fps:g} is below {MIN_FPS:g}, a frame every "
                              f"{1 / MIN_FPS:g} s (fix: give --fps {MIN_FPS:g} or more, and "
                              "--speed to show more recorded time per frame)")
-        if not math.isfinite(self.start) or self.start < 0:
+        for name, t in (("--from", self.start), ("--to", self.end)):
+            if t is not None and not math.isfinite(t):
+                raise SweepError(f"{name} {t:g} is not a finite time (fix: give {name} in "
+                                 "seconds since the first recorded state, e.g. 1)")
+        if self.start < 0:
             raise SweepError(f"--from {self.start:g} s is not a time >= 0 (fix: give seconds "
                              "since the first recorded state)")
-        if self.end is not None and not (math.isfinite(self.end) and self.end >= self.start):
+        if self.end is not None and self.end < self.start:
             raise SweepError(f"--to {self.end:g} s is before --from {self.start:g} s (fix: give "
                              "--to after --from)")
         for name, px in (("width", self.width), ("height", self.height)):

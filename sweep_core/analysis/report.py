@@ -33,15 +33,15 @@ def _fmt(x: float) -> str:
 OTHER = "copy the recording to a writable folder and analyse the copy"
 
 
-def write_table(path: Path, header: tuple[str, ...] | list[str], rows: np.ndarray,
+def write_table(path: Path, header: tuple[str, ...] | list[str], rows: np.ndarray | list,
                 inputs: list[str] | None = None) -> None:
     """A CSV table, written to a temporary file renamed over ``path`` (never one of
-    ``inputs``; an error leaves no partial file)."""
+    ``inputs``; an error leaves no partial file); numbers as :func:`_fmt`, text as it is."""
     with replacing(path, inputs or [], other=OTHER) as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)
         for row in rows:
-            w.writerow([_fmt(float(v)) for v in row])
+            w.writerow([v if isinstance(v, str) else _fmt(float(v)) for v in row])
 
 
 def write_outputs(an: Analysis, plots: bool = True) -> dict[str, str]:

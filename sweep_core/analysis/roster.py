@@ -62,6 +62,8 @@ class Roster:
         self.entered_at = np.zeros(0)
         self.left_at = np.zeros(0)
         self.present = np.zeros(0, dtype=np.int64)
+        #: the most agents one frame holds
+        self.present_max = 0
         self.frames = 0
         flows = scene.flows
         sources = flows.sources if flows is not None else ()
@@ -84,6 +86,7 @@ class Roster:
         gone = np.setdiff1d(self.present, ids, assume_unique=True)
         self.left_at[gone] = t
         self.present = ids
+        self.present_max = max(self.present_max, len(ids))
         self.frames += 1
 
     def radii(self, ids: np.ndarray, agents: dict[str, np.ndarray], t: float) -> np.ndarray:
@@ -111,8 +114,9 @@ class Roster:
         return int(np.count_nonzero(np.isfinite(self.entered_at)))
 
     def summary(self) -> dict:
-        """Counts and times: entered, left, present at the end (N0 + entered = present + left),
-        leaving times (arrivals at the sinks) and travel times (leaving minus entry)."""
+        """Counts and times: entered, left, present at the end (N0 + entered = present + left)
+        and at most (in one frame), leaving times (arrivals at the sinks) and travel times
+        (leaving minus entry)."""
         left = self.left_at
         n = self.total
         entered = int(np.count_nonzero(np.isfinite(self.entered_at[self.n0:])))
@@ -120,7 +124,7 @@ class Roster:
         travel = left - self.entered_at
         return {
             "initial": self.n0, "entered": entered, "left": gone,
-            "present_at_end": int(len(self.present)),
+            "present_at_end": int(len(self.present)), "present_max": self.present_max,
             "conserved": self.n0 + entered == len(self.present) + gone,
             "left_t_first_s": stats(left, np.min), "left_t_50_s": time_for(left, n, 0.5),
             "left_t_90_s": time_for(left, n, 0.9), "left_t_all_s": time_for(left, n, 1.0),

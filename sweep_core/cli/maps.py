@@ -25,11 +25,13 @@ def describe(grid: OccupancyMap, walls: tuple[np.ndarray, np.ndarray]) -> list[t
     a, b = walls
     h, w = grid.shape
     free = ~grid.blocked
-    corners = grid.to_world(np.array([[0.0, 0.0], [w, h]]) * grid.resolution)
+    # the world-frame bounding box of the map's four corners (a yaw turns them)
+    corners = grid.to_world(np.array([[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]]) * grid.resolution)
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
     return [("map", grid.source), ("cells", f"{w} x {h} of {grid.resolution:g} m"),
             ("origin", ", ".join(f"{v:g}" for v in grid.origin)),
-            ("extent_m", f"[{corners[0, 0]:g}, {corners[0, 1]:g}] to "
-                         f"[{corners[1, 0]:g}, {corners[1, 1]:g}]"),
+            ("extent_m", f"[{lo[0]:g}, {lo[1]:g}] to [{hi[0]:g}, {hi[1]:g}]"
+                         + (" (bounding box of the rotated map)" if grid.origin[2] else "")),
             ("free_cells", f"{int(free.sum())} ({100.0 * free.mean():.1f} %, "
                            f"{float(free.sum()) * grid.resolution ** 2:g} m^2)"),
             ("wall_segments", str(len(a))),

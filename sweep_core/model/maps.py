@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from sweep_core import checks
-from sweep_core.errors import CostError, SceneError
+from sweep_core.errors import CostError, SceneError, show
 from sweep_core.model import elementary
 from sweep_core.model.yaml_files import YAMLError, load_yaml
 
@@ -390,8 +390,11 @@ def _resolution(value: Any, field: str) -> float:
 
 
 def _origin(value: Any, field: str) -> tuple[float, float, float]:
+    """An origin [x, y, yaw] (m, m, rad): three numbers, as the map_server format has it."""
     arr = checks.array(value, field, (None,), "as [x, y, yaw]")
-    if len(arr) not in (2, 3):
-        raise SceneError(field, f"has {len(arr)} numbers", "give [x, y, yaw] (m, m, rad)")
+    if len(arr) != 3:
+        raise SceneError(field, f"is {show(value)}, {len(arr)} numbers, not [x, y, yaw]",
+                         "give the pose of the lower-left corner as [x, y, yaw] (m, m, rad), "
+                         "e.g. [0.0, 0.0, 0.0] for no rotation")
     checks.within_bound(arr[:2], field)
-    return float(arr[0]), float(arr[1]), float(arr[2]) if len(arr) == 3 else 0.0
+    return float(arr[0]), float(arr[1]), float(arr[2])
