@@ -3,7 +3,7 @@ longer matches its data) is never read as if it were whole.
 
 mcap's own CRC check runs on every chunk sweep reads: the damaged chunk is skipped with one
 line on stderr naming the file, its byte offset and the CRC mismatch (``analyze``,
-``replay``, :func:`read_recording`), or the command refuses in one line when it cannot go on
+``replay``, ``render``, :func:`read_recording`), or the command refuses in one line when it cannot go on
 without it (``export --pedpy``); ``sweep recover`` keeps what comes before it. Without the
 check the damaged bytes were decoded: ``analyze`` blamed the writer for ids like 7.9e-31,
 ``export`` wrote ids like -9223372036854775808, ``replay`` blamed the simulation.
@@ -127,3 +127,12 @@ def test_recover_keeps_what_comes_before_the_damaged_chunk(files, tmp_path, caps
     with open(out, "rb") as f:
         kept = list(make_reader(f, validate_crcs=True).iter_messages())
     assert kept and max(m.log_time for _, _, m in kept) < 1e9
+
+
+def test_render_names_the_damaged_chunk(files, tmp_path, capsys):
+    _, bad, offset = files
+    out = tmp_path / "video.gif"
+    assert main(["render", str(bad), "--out", str(out), "--size", "160", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and out.exists(), err
+    assert any(_named(line, bad, offset) for line in err.splitlines()), err
