@@ -130,7 +130,7 @@ class Survey:
 def survey(meta: RunMeta, progress: bool, window: float | None = None,
            problems: list[str] | None = None) -> Survey:
     """The first pass: the frames' times, extents and (``window`` s) largest speed; what was
-    skipped (damaged chunks, undecodable messages) goes to ``problems``, one line each."""
+    skipped goes to ``problems``, one line each."""
     times: list[int] = []
     lo, hi, vmax = np.full(2, np.inf), np.full(2, -np.inf), 0.0
     bar = progress_bar(meta.frames or None, "frame", progress)
@@ -320,8 +320,7 @@ def render(recording: str, out: str | None = None, opts: RenderOptions | None = 
            problems: list[str] | None = None) -> tuple[str, int]:
     """Writes the animation of ``recording``; returns its path and its number of frames.
     encoder: whether MP4 can be written (None: look for imageio-ffmpeg's ffmpeg); problems:
-    gets one line per chunk or message skipped (damaged, undecodable): the video shows the
-    last state read before it."""
+    gets one line per chunk or message skipped (damaged, undecodable)."""
     from sweep_core.analysis.animation import check_memory, has_encoder, output_path
     opts = opts or RenderOptions()
     opts.check()
