@@ -52,6 +52,9 @@ class FrameReader:
         self.bad = 0
         self.missing = 0
         self.problems: list[str] = []
+        #: the chunks that could not be read and were skipped, one line each (after the
+        #: iteration)
+        self.skipped_chunks: list[str] = []
         self._bad_lines: list[str] = []
         self._last_sequence = 0
 
@@ -79,6 +82,18 @@ class FrameReader:
         missing = (msg.sequence - last - 1) & 0xFFFFFFFF
         return missing if missing < 1 << 31 else 0  # backwards: another writer, not a gap
 
+    def _lost_ids(self, key: int, done: list) -> bool:
+        """True (and a note) when the state at log time ``key`` has no ``/agents`` because
+        its message was in a skipped chunk, where agents come and go: without its ids that
+        state is left out, as the chunk's own states are."""
+        if done[1] is not None or not self.want_agents or not self.meta.changes_population:
+            return False
+        if not any(a <= key <= b for a, b in self._reader.lost_spans):
+            return False
+        self._bad_lines.append(f"{self.meta.path}: the /poses at t = {key / 1e9:g} s has no "
+                               "/agents: it was in a skipped chunk; that state is left out")
+        return True
+
     def __iter__(self) -> Iterator[Frame]:
         pending: dict[int, list] = {}
         poses_topic = self.meta.poses_topic
@@ -100,7 +115,7 @@ class FrameReader:
                 if slot[0] is not None and (slot[1] is not None or not self.want_agents):
                     for key in sorted(k for k in pending if k <= msg.log_time_ns):
                         done = pending.pop(key)
-                        if done[0] is not None:
+                        if done[0] is not None and not self._lost_ids(key, done):
                             yield Frame(key, done[0][0], done[0][1], done[1], done[2], done[3])
             # without sources or sinks the ids are 0 .. N - 1 in every state, so a last state
             # cut from its /agents is still whole; where agents come and go it is not
@@ -115,11 +130,13 @@ class FrameReader:
                                            f"{key / 1e9:g} s) has no /agents: the file was cut "
                                            "between them; that state is left out")
                     continue
-                yield Frame(key, done[0][0], done[0][1], done[1], done[2], done[3])
+                if not self._lost_ids(key, done):
+                    yield Frame(key, done[0][0], done[0][1], done[1], done[2], done[3])
         finally:
             self._reader.close()
             self.truncated = self._reader.truncated
             self.error = self._reader.error
+            self.skipped_chunks = list(self._reader.problems)
             self.problems = [f"{self.meta.path}: {p}" for p in self._reader.problems]
             self.problems += self._bad_lines
             if self.bad > len(self._bad_lines):

@@ -46,7 +46,8 @@ class Trajectories:
     (M,) int, ``xy`` (M, 2) m, and ``frame_rate`` (frames per second); frame k is the time
     k / frame_rate (s). ``resampling``: how the frames were made from uneven recorded states
     ("" when they are the recorded states); ``cut``: where a recording cut short ends (""
-    when it is whole)."""
+    when it is whole); ``damaged``: the first chunk of the recording that could not be read
+    and was skipped ("" when none was)."""
 
     ids: np.ndarray
     frames: np.ndarray
@@ -54,6 +55,7 @@ class Trajectories:
     frame_rate: float
     resampling: str = ""
     cut: str = ""
+    damaged: str = ""
 
     @classmethod
     def from_frames(cls, frames: Sequence[tuple[int, np.ndarray, np.ndarray]],
@@ -143,7 +145,8 @@ def even_frames(stamps_ns: Sequence[int], ids: Sequence[np.ndarray], xy: Sequenc
 
 def read_trajectories(path: str | os.PathLike[str]) -> Trajectories:
     """The trajectories of a recording on frames of one period (module docstring). A file
-    cut short is read up to its last complete chunk, said in ``cut``.
+    cut short is read up to its last complete chunk, said in ``cut``; a chunk that cannot be
+    read (its CRC does not match, it cannot be decompressed) is skipped, said in ``damaged``.
 
     Raises:
         RecordingError: not a recording of ``sweep run`` or the node, no dt in it, resets,
@@ -179,6 +182,8 @@ def read_trajectories(path: str | os.PathLike[str]) -> Trajectories:
                              "so it has no frame to export (fix: export a recording of at "
                              "least one recorded step)")
     traj = even_frames(stamps, ids, xy, meta.dt, meta.record_every)
+    if reader.skipped_chunks:
+        traj.damaged = reader.skipped_chunks[0]
     if reader.truncated:
         traj.cut = (f"cut short: read up to its last complete chunk (t = "
                     f"{max(stamps) / NS:g} s)")

@@ -131,13 +131,15 @@ class Survey:
     window: float | None = None
 
 
-def survey(meta: RunMeta, progress: bool, window: float | None = None) -> Survey:
-    """The first pass: the frames' times, extents and (``window`` s) largest speed."""
+def survey(meta: RunMeta, progress: bool, window: float | None = None,
+           problems: list[str] | None = None) -> Survey:
+    """The first pass: the frames' times, extents and (``window`` s) largest speed; what was
+    skipped goes to ``problems``, one line each."""
     times: list[int] = []
     lo, hi, vmax = np.full(2, np.inf), np.full(2, -np.inf), 0.0
     bar = progress_bar(meta.frames or None, "frame", progress)
     bar.set_description("reading")
-    for fr, speed in with_speeds(meta, window):
+    for fr, speed in with_speeds(meta, window, problems):
         times.append(fr.log_ns)
         q = fr.positions[np.all(np.isfinite(fr.positions), axis=1)]
         if len(q):
@@ -318,9 +320,11 @@ def _events(meta: RunMeta) -> list[tuple[int, str]]:
 
 
 def render(recording: str, out: str | None = None, opts: RenderOptions | None = None,
-           progress: bool = True, encoder: bool | None = None) -> tuple[str, int]:
+           progress: bool = True, encoder: bool | None = None,
+           problems: list[str] | None = None) -> tuple[str, int]:
     """Writes the animation of ``recording``; returns its path and its number of frames.
-    encoder: whether MP4 can be written (None: look for imageio-ffmpeg's ffmpeg)."""
+    encoder: whether MP4 can be written (None: look for imageio-ffmpeg's ffmpeg); problems:
+    gets one line per chunk or message skipped (damaged, undecodable)."""
     from sweep_core.analysis.animation import check_memory, has_encoder, output_path
     opts = opts or RenderOptions()
     opts.check()
@@ -328,7 +332,7 @@ def render(recording: str, out: str | None = None, opts: RenderOptions | None = 
     path, fmt = output_path(meta.path, out, has_encoder() if encoder is None else encoder)
     speeds = opts.colour == "speed"
     window = choose_window(opts.speed_window, meta.frame_interval) if speeds else None
-    sv = survey(meta, progress, window)
+    sv = survey(meta, progress, window, problems)
     if window is not None and opts.speed_window is not None:
         fits(window, (sv.log_ns - sv.log_ns[0]) / 1e9)
     clock = (sv.log_ns - sv.log_ns[0]) / 1e9

@@ -97,6 +97,9 @@ class ReplayResult:
     gaps: list[list[int]] = field(default_factory=list)
     #: messages skipped because they cannot be decoded (their steps were not compared)
     skipped_messages: int = 0
+    #: chunks that could not be read (damaged: CRC mismatch, ...) and were skipped: the gaps
+    #: may be their states
+    skipped_chunks: int = 0
     #: one line per skipped chunk or message and per gap
     problems: list[str] = field(default_factory=list)
     #: why the comparison stopped before the end (robots' commands lost with an unreadable
@@ -335,7 +338,7 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
         divergence=div, notes=notes, maps_applied=rep.maps_applied,
         missing_messages=finder.missing, gaps=(finder.to_dict() or {}).get("gaps", []),
         skipped_messages=reader.bad, problems=reader.problems + finder.lines(meta.path),
-        stopped=stopped)
+        stopped=stopped, skipped_chunks=len(reader.skipped_chunks))
 
 
 def format_replay(res: ReplayResult) -> str:
@@ -350,12 +353,13 @@ def format_replay(res: ReplayResult) -> str:
                  + (f", {res.maps_applied} map(s)" if res.maps_applied else ""))
     d = res.divergence
     unread = res.missing_messages + res.skipped_messages
+    missing = "missing from the file" + (" or in a skipped chunk" if res.skipped_chunks else "")
     if res.stopped is not None:
         lines.append(f"result             NOT COMPARED to the end: {res.stopped}")
     elif d is None and unread:
         lines.append(f"result             IDENTICAL on the {res.frames_compared} frames read; "
                      f"{unread} recorded states were not compared ({res.missing_messages} "
-                     f"missing from the file, {res.skipped_messages} unreadable)")
+                     f"{missing}, {res.skipped_messages} unreadable)")
     elif d is None:
         lines.append("result             IDENTICAL: every recorded pose reproduced bit for bit")
     elif d.agent < 0:
@@ -372,7 +376,7 @@ def format_replay(res: ReplayResult) -> str:
         lines.append(f"departure          over {d.frames_after} frames from there: at most "
                      f"{d.departure_max_m:.3g} m, {over}")
     lines += [f"not compared       {g[3]} states between the recorded steps {g[1]} and {g[2]}"
-              + (f" of segment {g[0]}" if g[0] else "") + " (missing from the file)"
+              + (f" of segment {g[0]}" if g[0] else "") + f" ({missing})"
               for g in res.gaps[:5]]
     if len(res.gaps) > 5:
         lines.append(f"not compared       {len(res.gaps) - 5} more gaps")

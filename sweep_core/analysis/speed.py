@@ -212,13 +212,16 @@ class WindowSpeeds:
         return p, np.where(found, other.t, cur.t)
 
 
-def with_speeds(meta: RunMeta, window: float | None
+def with_speeds(meta: RunMeta, window: float | None, problems: list[str] | None = None
                 ) -> Iterator[tuple[Frame, np.ndarray | None]]:
     """The recording's frames in order, each with its agents' speeds (N,) m/s over ``window``
-    s (:mod:`sweep_core.analysis.speed`; NaN: none), or None without a window."""
+    s (:mod:`sweep_core.analysis.speed`; NaN: none), or None without a window. Once read to
+    the end, what was skipped (chunks, messages: one line each) is added to ``problems``."""
     reader = FrameReader(meta)
     if window is None:
         yield from ((fr, None) for fr in reader)
+        if problems is not None:
+            problems += reader.problems
         return
     ws = WindowSpeeds(window)
     for fr in reader:
@@ -228,6 +231,8 @@ def with_speeds(meta: RunMeta, window: float | None
                if ag is not None and "id" in ag and len(ag["id"]) == n else np.arange(n))
         for r in ws.push(fr.stamp_ns / 1e9, ids, fr.positions, fr, meta.segment_of(fr.log_ns)):
             yield r.payload, r.speed
+    if problems is not None:
+        problems += reader.problems
     for r in ws.finish():
         yield r.payload, r.speed
 

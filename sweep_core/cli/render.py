@@ -5,6 +5,7 @@ Wired into ``sweep`` by one call, ``register(sub)``, in :func:`sweep_core.cli.bu
 from __future__ import annotations
 
 import argparse
+import sys
 
 from sweep_core.analysis import render
 from sweep_core.cli.commands import summary
@@ -30,7 +31,11 @@ def _render(args: argparse.Namespace) -> int:
     opts = render.RenderOptions(fps=args.fps, start=args.start, end=args.end, speed=args.speed,
                                 width=width, height=height, colour=args.colour,
                                 speed_window=args.speed_window)
-    path, frames = render.render(args.recording, args.out, opts, progress=not args.quiet)
+    problems: list[str] = []
+    path, frames = render.render(args.recording, args.out, opts, progress=not args.quiet,
+                                 problems=problems)
+    for line in problems:  # skipped chunks and messages: one line each
+        print(line, file=sys.stderr)
     print(f"{path}: {frames} frames at {args.fps:g} fps ({frames / args.fps:.3g} s)")
     return 0
 

@@ -74,6 +74,10 @@ def _export(args: argparse.Namespace) -> int:
         raise RecordingError(f"{args.recording}: {traj.cut}; its export would end there as if "
                              f"the run had (fix: sweep recover {args.recording}, then export "
                              "the complete copy it writes)")
+    if traj.damaged:
+        raise RecordingError(f"{args.recording}: the recording is damaged: {traj.damaged}; "
+                             "its export would pass over those states as if the run had "
+                             "them (fix: re-record it)")
     if not len(traj.ids):
         raise RecordingError(f"{args.recording}: no agent is present at any frame time, so "
                              "there is no trajectory to export (fix: export a recording with "

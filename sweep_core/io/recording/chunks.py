@@ -9,7 +9,7 @@ from typing import IO
 
 from mcap.data_stream import ReadDataStream
 from mcap.records import Channel, Chunk, Message, Schema
-from mcap.stream_reader import get_chunk_data_stream
+from mcap.stream_reader import CRCValidationError, get_chunk_data_stream
 
 #: MCAP opcodes read inside a chunk
 _SCHEMA, _CHANNEL, _MESSAGE, _CHUNK = 0x03, 0x04, 0x05, 0x06
@@ -54,12 +54,19 @@ def read_chunk_at(f: IO[bytes], offset: int, length: int) -> Chunk:
 def chunk_records(chunk: Chunk) -> Iterator[tuple[int, Schema | Channel | Message]]:
     """(offset in the chunk's uncompressed data, record) of its schemas, channels and messages.
 
+    The chunk's CRC (of its uncompressed data, when the writer stored one) is checked by mcap
+    before any record is read: a damaged chunk yields nothing.
+
     Raises:
-        ChunkError: the chunk cannot be decompressed, or a record in it is cut short (the
-            records before it have been yielded).
+        ChunkError: the chunk's CRC does not match its data (the file is damaged), it cannot
+            be decompressed, or a record in it is cut short (the records before it have been
+            yielded).
     """
     try:
-        stream, length = get_chunk_data_stream(chunk, validate_crc=False)
+        stream, length = get_chunk_data_stream(chunk, validate_crc=True)
+    except CRCValidationError:
+        raise ChunkError("has a CRC that does not match its data (the file is damaged)") \
+            from None
     except Exception as err:  # noqa: BLE001 - any decompression failure
         raise ChunkError(f"cannot be decompressed ({type(err).__name__}: "
                          f"{_first_line(err)})") from None

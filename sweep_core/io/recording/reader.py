@@ -65,7 +65,8 @@ class RecordingReader:
     not be read and were skipped (one line each: where, the time span and why), and
     ``metadata`` holds the metadata records seen (all of them for a complete file) and
     ``lost_from_ns`` the earliest log time (ns) from which a skipped chunk may have held
-    messages (None: no chunk skipped).
+    messages (None: no chunk skipped), ``lost_spans`` the log-time spans (ns, both ends
+    included) of the skipped chunks.
     """
 
     def __init__(self, path: str | os.PathLike[str], topics: Iterable[str] | None = None) -> None:
@@ -78,6 +79,7 @@ class RecordingReader:
         self.problems: list[str] = []
         self.metadata: dict[str, dict[str, str]] = {}
         self.lost_from_ns: int | None = None
+        self.lost_spans: list[tuple[int, int]] = []
         self._counts: dict[str, int] = {}
         self._it = self._generate()
 
@@ -109,7 +111,8 @@ class RecordingReader:
         return RecordedMessage(topic, channel[1], m.log_time, m.publish_time, m.data,
                                m.sequence, index, offset, inner, channel[2])
 
-    def _lost(self, log_ns: int) -> None:
+    def _lost(self, log_ns: int, span: tuple[int, int]) -> None:
+        self.lost_spans.append(span)
         if self.lost_from_ns is None or log_ns < self.lost_from_ns:
             self.lost_from_ns = log_ns
 
@@ -126,10 +129,12 @@ class RecordingReader:
                 else:
                     _declare(r, schemas, channels)
         except ChunkError as err:
-            self._lost(chunk.message_start_time if seen is None else seen)
+            self._lost(chunk.message_start_time if seen is None else seen,
+                       (chunk.message_start_time, chunk.message_end_time))
             span = chunk_span(chunk)
             self.problems.append(f"the chunk at byte {offset}{f' ({span})' if span else ''} "
-                                 f"{err}; its messages from there on are skipped")
+                                 f"{err}; its messages {'are' if seen is None else 'from there on are'} "
+                                 "skipped")
 
     def _generate(self) -> Iterator[RecordedMessage]:
         try:
@@ -151,7 +156,8 @@ class RecordingReader:
                             chunk = read_chunk_at(self._file, ci.chunk_start_offset,
                                                   ci.chunk_length)
                         except ChunkError as err:
-                            self._lost(ci.message_start_time)
+                            self._lost(ci.message_start_time,
+                                       (ci.message_start_time, ci.message_end_time))
                             span = chunk_span(None, ci.message_start_time, ci.message_end_time)
                             self.problems.append(f"{err} ({span}); its messages are skipped")
                             continue

@@ -5,10 +5,11 @@ A writer killed with SIGKILL (or a disk that filled up) leaves a file without it
 section and footer; sweep's own readers read it up to its last complete record, but rosbags
 ("File end magic is invalid"), Foxglove, rosbag2 and mcap's seeking reader refuse it.
 :func:`recover` reads it as sweep's reader does (records in file order, up to the first one
-that is incomplete or damaged) and writes everything it read (header profile, schemas,
-channels, messages with their sequence numbers and times, metadata, attachments) into a new
-file with chunk and message indexes, statistics, summary and footer, plus a metadata record
-``sweep_recover`` saying where it came from and what was lost. The source is never modified.
+that is incomplete or damaged, such as a chunk whose CRC does not match its data) and writes
+everything it read (header profile, schemas, channels, messages with their sequence numbers
+and times, metadata, attachments) into a new file with chunk and message indexes, statistics,
+summary and footer, plus a metadata record ``sweep_recover`` saying where it came from and
+what was lost. The source is never modified.
 """
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ from mcap.records import (
     Metadata,
     Schema,
 )
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
 from sweep_core.errors import RecordingError
@@ -196,11 +197,18 @@ def _copy(src: str, f: IO[bytes], o: IO[bytes], dst: str, chunk_size: int) -> Re
             counts.setdefault(r.topic, 0)
 
     records = StreamReader(f, emit_chunks=True, validate_crcs=False).records
+    damaged = ""
     while True:
         try:
             record = next(records)
-            inner = breakup_chunk(record) if isinstance(record, Chunk) else [record]
+            inner = (breakup_chunk(record, validate_crc=True) if isinstance(record, Chunk)
+                     else [record])
         except StopIteration:
+            break
+        except CRCValidationError:  # a damaged chunk: what follows it is not copied either
+            damaged = (f"the chunk at byte {kept} and everything after it: its CRC does not "
+                       "match its data (the file is damaged)")
+            error = f"chunk CRC mismatch at byte {kept}"
             break
         except Exception as err:  # noqa: BLE001 - the first incomplete or damaged record
             error = describe_stop(err, f)
@@ -229,7 +237,7 @@ def _copy(src: str, f: IO[bytes], o: IO[bytes], dst: str, chunk_size: int) -> Re
     if complete:
         kept = size
     start()
-    tail = "" if complete else _describe_tail(f, kept, size)
+    tail = "" if complete else damaged or _describe_tail(f, kept, size)
     writer.add_metadata(RECOVER_RECORD, {
         "source": src, "source_bytes": str(size), "kept_bytes": str(kept),
         "complete": str(complete).lower(), "lost": tail, "stopped": error or ""})
@@ -253,8 +261,9 @@ def format_recovery(r: Recovery, t_end: float | None = None) -> str:
         lines.append("lost       nothing (the file's data section was complete)")
         return "\n".join(lines)
     lost = [r.tail or "no partial record (the file ends at a record boundary)"]
-    lost.append("whatever the writer had not flushed when it stopped (sweep run and "
-                "sweep_node flush at least once a second)")
+    if not (r.error or "").startswith("chunk CRC mismatch"):
+        lost.append("whatever the writer had not flushed when it stopped (sweep run and "
+                    "sweep_node flush at least once a second)")
     if t_end is not None and r.end_ns is not None:
         lost.append(f"the run was to reach t = {t_end:g} s")
     for what, n in r.skipped.items():

@@ -1,0 +1,138 @@
+"""A recording with one damaged chunk (its bytes changed after it was written, so its CRC no
+longer matches its data) is never read as if it were whole.
+
+mcap's own CRC check runs on every chunk sweep reads: the damaged chunk is skipped with one
+line on stderr naming the file, its byte offset and the CRC mismatch (``analyze``,
+``replay``, ``render``, :func:`read_recording`), or the command refuses in one line when it cannot go on
+without it (``export --pedpy``); ``sweep recover`` keeps what comes before it. Without the
+check the damaged bytes were decoded: ``analyze`` blamed the writer for ids like 7.9e-31,
+``export`` wrote ids like -9223372036854775808, ``replay`` blamed the simulation.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+from mcap.writer import CompressionType, Writer
+
+from sweep_core.cli import main
+from sweep_core.io.recording import read_recording
+from sweep_core.model.yaml_files import dump_yaml
+
+ROOM = [{"kind": "polyline", "points": [[0, 0], [10, 0], [10, 4], [0, 4]], "closed": True}]
+SCENE = {"name": "corridor",
+         "agents": {"positions": [[1.0, 1.0], [1.0, 2.0], [2.0, 1.5]], "radius": 0.2},
+         "walls": ROOM, "drift": {"kind": "goal", "goal": [9.5, 2.0], "speed": 1.3},
+         "flows": {"sources": [{"region": {"kind": "rectangle", "min": [0.3, 0.3],
+                                           "max": [1.5, 3.7]}, "rate": 4.0, "count": 8}],
+                   "sinks": [{"kind": "rectangle", "min": [8.5, 0.0], "max": [10.0, 4.0]}]}}
+CRC_WORDS = ("CRC", "does not match", "damaged")
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory) -> tuple[Path, Path, int]:
+    """(the recording, a copy with one chunk in its middle damaged, that chunk's offset):
+    the run written again in small uncompressed chunks, 200 bytes of the middle one flipped."""
+    folder = tmp_path_factory.mktemp("damaged_chunks")
+    scene = folder / "corridor.yaml"
+    scene.write_text(dump_yaml(SCENE))
+    run = folder / "run.mcap"
+    assert main(["run", str(scene), "--t-end", "1.0", "--dt", "0.05", "--out", str(run),
+                 "--quiet"]) == 0
+    good = folder / "good.mcap"
+    with open(run, "rb") as f, open(good, "wb") as o:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None
+        w = Writer(o, chunk_size=2048, compression=CompressionType.NONE)
+        w.start(profile="ros2", library="test damaged")
+        sids = {k: w.register_schema(s.name, s.encoding, s.data)
+                for k, s in summary.schemas.items()}
+        cids = {k: w.register_channel(c.topic, c.message_encoding, sids[c.schema_id],
+                                      dict(c.metadata)) for k, c in summary.channels.items()}
+        for md in reader.iter_metadata():
+            w.add_metadata(md.name, dict(md.metadata))
+        for _, ch, m in reader.iter_messages(log_time_order=False):
+            w.add_message(cids[ch.id], m.log_time, m.data, m.publish_time, m.sequence)
+        w.finish()
+    with open(good, "rb") as f:
+        summary = make_reader(f).get_summary()
+        assert summary is not None
+        chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    assert len(chunks) >= 5
+    chunk = chunks[len(chunks) // 2]
+    data = bytearray(good.read_bytes())
+    middle = chunk.chunk_start_offset + chunk.chunk_length // 2
+    for i in range(middle - 100, middle + 100):
+        data[i] ^= 0xFF
+    bad = folder / "bad.mcap"
+    bad.write_bytes(bytes(data))
+    return good, bad, chunk.chunk_start_offset
+
+
+def _named(line: str, bad: Path, offset: int) -> bool:
+    return str(bad) in line and f"byte {offset}" in line and all(w in line for w in CRC_WORDS)
+
+
+def test_the_reader_skips_the_damaged_chunk_and_names_it(files):
+    good, bad, offset = files
+    whole = {(m.topic, m.sequence): m.data for m in read_recording(good)}
+    reader = read_recording(bad)
+    read = list(reader)
+    assert len(reader.problems) == 1 and f"byte {offset}" in reader.problems[0]
+    assert all(w in reader.problems[0] for w in CRC_WORDS), reader.problems
+    assert 0 < len(read) < len(whole)
+    assert all(m.offset != offset for m in read)
+    assert all(whole[(m.topic, m.sequence)] == m.data for m in read)  # nothing damaged read
+
+
+def test_analyze_skips_the_damaged_chunk_with_a_note(files, capsys):
+    _, bad, offset = files
+    code = main(["analyze", str(bad), "--no-plots", "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "Traceback" not in err and "error" not in err, err
+    assert any(_named(line, bad, offset) for line in err.splitlines()), err
+
+
+def test_export_refuses_a_damaged_recording_in_one_line(files, tmp_path, capsys):
+    _, bad, offset = files
+    out = tmp_path / "traj.txt"
+    code = main(["export", str(bad), "--pedpy", str(out)])
+    err = capsys.readouterr().err
+    errors = [ln for ln in err.splitlines() if ln.startswith("sweep: error:")]
+    assert code == 2 and len(errors) == 1 and "Traceback" not in err, err
+    assert _named(errors[0], bad, offset) and "re-record" in errors[0], errors[0]
+    assert not out.exists()
+
+
+def test_replay_does_not_compare_the_damaged_chunk(files, capsys):
+    _, bad, offset = files
+    code = main(["replay", str(bad)])
+    cap = capsys.readouterr()
+    assert code == 0, cap.out + cap.err
+    assert "DIVERGED" not in cap.out and "IDENTICAL on the" in cap.out, cap.out
+    assert "not compared" in cap.out and "in a skipped chunk" in cap.out, cap.out
+    assert any(_named(line, bad, offset) for line in cap.err.splitlines()), cap.err
+
+
+def test_recover_keeps_what_comes_before_the_damaged_chunk(files, tmp_path, capsys):
+    _, bad, offset = files
+    out = tmp_path / "copy.mcap"
+    assert main(["recover", str(bad), str(out)]) == 0
+    text = capsys.readouterr().out
+    assert f"the chunk at byte {offset}" in text and "CRC does not match" in text, text
+    assert "had not flushed" not in text, text
+    with open(out, "rb") as f:
+        kept = list(make_reader(f, validate_crcs=True).iter_messages())
+    assert kept and max(m.log_time for _, _, m in kept) < 1e9
+
+
+def test_render_names_the_damaged_chunk(files, tmp_path, capsys):
+    _, bad, offset = files
+    out = tmp_path / "video.gif"
+    assert main(["render", str(bad), "--out", str(out), "--size", "160", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and out.exists(), err
+    assert any(_named(line, bad, offset) for line in err.splitlines()), err
