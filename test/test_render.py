@@ -115,12 +115,13 @@ def test_bad_options_and_the_recording_as_output_are_refused(recording, capsys):
 
 
 @pytest.mark.parametrize("option, value", [("--to", "nan"), ("--to", "inf"),
-                                           ("--from", "nan"), ("--from", "inf")])
+                                           ("--from", "nan"), ("--from", "inf"),
+                                           ("--from", "-1")])
 def test_a_time_that_is_not_finite_is_refused_by_name(recording, capsys, option, value):
     assert main(["render", str(recording), option, value, "--quiet"]) == 2
     err = capsys.readouterr().err.splitlines()
-    assert err == [f"sweep: error: {option} {value} is not a finite time (fix: give {option} in "
-                   "seconds since the first recorded state, e.g. 1)"]
+    assert err == [f"sweep: error: {option} {value} s is not a finite time >= 0 (fix: give "
+                   f"{option} in seconds since the first recorded state, e.g. 1)"]
 
 
 def test_the_recorded_navigation_field_is_read_per_group(recording):

@@ -191,13 +191,10 @@ class _Metrics:
         return ready
 
     def _arrived(self) -> float:
-        """Agents arrived by this frame: at their drift's goal, or with sinks (by id) those
-        that have left; NaN when neither applies."""
+        """Agents arrived by now: at their drift's goal, or (by id) those that left at sinks."""
         if self.roster is not None:
-            return (float(np.count_nonzero(np.isfinite(self.roster.left_at))) if self.sinks
-                    else math.nan)
-        return float(np.count_nonzero(np.isfinite(self.arrival))) if self.goal_seen \
-            else math.nan
+            return float(np.isfinite(self.roster.left_at).sum()) if self.sinks else math.nan
+        return float(np.isfinite(self.arrival).sum()) if self.goal_seen else math.nan
 
     def finish(self) -> list[Ready]:
         """The frames still waiting for their windows (the recording ended)."""

@@ -91,12 +91,9 @@ class RenderOptions:
                              f"{1 / MIN_FPS:g} s (fix: give --fps {MIN_FPS:g} or more, and "
                              "--speed to show more recorded time per frame)")
         for name, t in (("--from", self.start), ("--to", self.end)):
-            if t is not None and not math.isfinite(t):
-                raise SweepError(f"{name} {t:g} is not a finite time (fix: give {name} in "
-                                 "seconds since the first recorded state, e.g. 1)")
-        if self.start < 0:
-            raise SweepError(f"--from {self.start:g} s is not a time >= 0 (fix: give seconds "
-                             "since the first recorded state)")
+            if t is not None and not (math.isfinite(t) and t >= 0):
+                raise SweepError(f"{name} {t:g} s is not a finite time >= 0 (fix: give {name} "
+                                 "in seconds since the first recorded state, e.g. 1)")
         if self.end is not None and self.end < self.start:
             raise SweepError(f"--to {self.end:g} s is before --from {self.start:g} s (fix: give "
                              "--to after --from)")
@@ -110,8 +107,7 @@ class RenderOptions:
 
 
 def frame_times(start: float, end: float, fps: float, speed: float) -> np.ndarray:
-    """The recording times (s) shown by the video frames: start + k speed / fps, k = 0 .. n - 1,
-    n = floor((end - start) fps / speed) + 1."""
+    """The times (s) the video frames show: start + k speed / fps, k = 0 .. n - 1 (n below)."""
     n = int(math.floor((end - start) * fps / speed + 1e-9)) + 1
     if n > MAX_FRAMES:
         raise SweepError(f"the window {start:g} .. {end:g} s at --fps {fps:g} and --speed "
@@ -133,8 +129,8 @@ class Survey:
 
 def survey(meta: RunMeta, progress: bool, window: float | None = None,
            problems: list[str] | None = None) -> Survey:
-    """The first pass: the frames' times, extents and (``window`` s) largest speed; what was
-    skipped goes to ``problems``, one line each."""
+    """The first pass: frame times, extents, largest speed (over ``window`` s); skips go to
+    ``problems``, one line each."""
     times: list[int] = []
     lo, hi, vmax = np.full(2, np.inf), np.full(2, -np.inf), 0.0
     bar = progress_bar(meta.frames or None, "frame", progress)

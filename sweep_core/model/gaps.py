@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -21,8 +22,15 @@ from sweep_core.model.geometry import (
     inside_polygons,
     single_rows,
 )
+from sweep_core.model.maps import map_from_spec
 from sweep_core.model.neighbours import pairs_into, pairs_within
 from sweep_core.model.wall_kernels import pair_gaps, single_gaps
+
+if TYPE_CHECKING:  # the scene module reads this one
+    from sweep_core.model.scene import Scene
+
+#: largest true-constraint violation (m) ever accepted after a step
+FEASIBILITY_TOLERANCE = 1e-9
 
 _NO_POLYGON = np.zeros((0, 0), dtype=np.bool_)
 _EMPTY = np.empty(0, dtype=np.intp)
@@ -274,3 +282,18 @@ def _found_rows(geom: Geometry, t: float, q: np.ndarray, r: np.ndarray, reach: f
             break
         reach *= 8.0
     return [(a, k, g) for a, k, g, _, _ in rows] + [reach]
+
+
+def violating_agents(scene: Scene, t: float, q: np.ndarray) -> list[int]:
+    """The agents (sorted indices) whose centres q (N, 2) violate a wall, obstacle or user
+    constraint of ``scene`` at time t by more than FEASIBILITY_TOLERANCE (m), or lie in a
+    blocked cell of its map (or outside the map's grid)."""
+    q = np.asarray(q, dtype=np.float64)
+    bad: set[int] = set()
+    if len(q) and not scene.geometry.is_empty:
+        for a, _, g, _, _ in single_rows(scene.geometry, t, q, scene.radii(t), 0.0):
+            bad.update(int(i) for i in a[g < -FEASIBILITY_TOLERANCE])
+    if len(q) and scene.spec.get("map") is not None:
+        grid = map_from_spec(scene.spec["map"], "map", None)
+        bad.update(int(i) for i in np.flatnonzero(grid.is_blocked(q)))
+    return sorted(bad)

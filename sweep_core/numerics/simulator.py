@@ -10,19 +10,15 @@ from sweep_core import checks
 from sweep_core.errors import InfeasibleError, SceneError
 from sweep_core.model.crossing import crossings
 from sweep_core.model.fields import Field
-from sweep_core.model.gaps import SmallestGap, gaps
+from sweep_core.model.gaps import FEASIBILITY_TOLERANCE, SmallestGap, gaps, violating_agents
 from sweep_core.model.geodesic import navigation_fields
-from sweep_core.model.geometry import SEGMENT, single_rows
-from sweep_core.model.maps import map_from_spec
+from sweep_core.model.geometry import SEGMENT
 from sweep_core.model.scene import Scene
 from sweep_core.numerics import noise
 from sweep_core.numerics.population import Population
 from sweep_core.numerics.projection import SolverOptions
 from sweep_core.numerics.robots.fleet import robot_fleet
 from sweep_core.numerics.schemes import SCHEMES, Scheme, StepResult
-
-#: largest true-constraint violation (m) ever accepted after a step
-FEASIBILITY_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -32,9 +28,9 @@ class State:
     t: time (s); step: steps taken; positions (N, 2) m; radii (N,) m at t;
     velocities (N, 2) m/s: (q_n - q_{n-1}) / h of the last step (zero before the first);
     reaction (N, 2) m: prediction minus result of the last step (the increment of K);
-    contacts: active constraints of the last step; min_gap: smallest true constraint value
-    among touching or near pairs and walls (m, inf if none is near); ids (N,) int: the
-    agents' ids with ``flows`` (None: 0 .. N - 1).
+    contacts: active constraints of the last step; min_gap: the smallest true gap over every
+    pair and every wall and obstacle (m, inf if none); ids (N,) int: the agents' ids with
+    ``flows`` (None: 0 .. N - 1).
     """
 
     t: float
@@ -408,18 +404,3 @@ class Simulator:
 
 #: no crossing (the robots' step found that no path might cross a wall)
 _NO_PATH = np.empty(0, dtype=np.intp)
-
-
-def violating_agents(scene: Scene, t: float, q: np.ndarray) -> list[int]:
-    """The agents (sorted indices) whose centres q (N, 2) violate a wall, obstacle or user
-    constraint of ``scene`` at time t by more than FEASIBILITY_TOLERANCE (m), or lie in a
-    blocked cell of its map (or outside the map's grid)."""
-    q = np.asarray(q, dtype=np.float64)
-    bad: set[int] = set()
-    if len(q) and not scene.geometry.is_empty:
-        for a, _, g, _, _ in single_rows(scene.geometry, t, q, scene.radii(t), 0.0):
-            bad.update(int(i) for i in a[g < -FEASIBILITY_TOLERANCE])
-    if len(q) and scene.spec.get("map") is not None:
-        grid = map_from_spec(scene.spec["map"], "map", None)
-        bad.update(int(i) for i in np.flatnonzero(grid.is_blocked(q)))
-    return sorted(bad)

@@ -186,9 +186,8 @@ class Fleet:
 
     def place(self, name: str, pose: Command, t: float, people: np.ndarray,
               radii: np.ndarray, ids: np.ndarray | None = None) -> None:
-        """Put robot ``name`` at ``pose`` (x, y, yaw) between steps, its commands reset to 0;
-        SceneError (field ``initialpose``) naming what it would overlap (a person by ``ids``,
-        their ids row by row: the simulator's ``ids``), the fleet unchanged."""
+        """Put robot ``name`` at ``pose`` (x, y, yaw) between steps, commands reset to 0; else
+        SceneError (``initialpose``) naming what it would overlap (a person by ``ids``)."""
         st = self.state(name)
         x, y, yaw = (float(v) for v in pose)
         if not all(math.isfinite(v) for v in (x, y, yaw)):
