@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
-from mcap.writer import CompressionType, Writer
+from mcap_copies import rewrite
 
 from sweep_core.cli import main
 from sweep_core.io.recording import read_recording
@@ -41,21 +41,7 @@ def files(tmp_path_factory) -> tuple[Path, Path, int]:
     assert main(["run", str(scene), "--t-end", "1.0", "--dt", "0.05", "--out", str(run),
                  "--quiet"]) == 0
     good = folder / "good.mcap"
-    with open(run, "rb") as f, open(good, "wb") as o:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        assert summary is not None
-        w = Writer(o, chunk_size=2048, compression=CompressionType.NONE)
-        w.start(profile="ros2", library="test damaged")
-        sids = {k: w.register_schema(s.name, s.encoding, s.data)
-                for k, s in summary.schemas.items()}
-        cids = {k: w.register_channel(c.topic, c.message_encoding, sids[c.schema_id],
-                                      dict(c.metadata)) for k, c in summary.channels.items()}
-        for md in reader.iter_metadata():
-            w.add_metadata(md.name, dict(md.metadata))
-        for _, ch, m in reader.iter_messages(log_time_order=False):
-            w.add_message(cids[ch.id], m.log_time, m.data, m.publish_time, m.sequence)
-        w.finish()
+    rewrite(run, good, chunk_size=2048, library="test damaged")
     with open(good, "rb") as f:
         summary = make_reader(f).get_summary()
         assert summary is not None

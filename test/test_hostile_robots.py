@@ -8,8 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mcap.reader import make_reader
-from mcap.writer import CompressionType, Writer
+from mcap_copies import rewrite
 from robot_scenes import small_scene, with_robot
 
 from sweep_core import Scene
@@ -90,30 +89,15 @@ def test_env_with_its_robot_disabled_is_one_line_scene_error() -> None:
 def _shift_odometry(src: Path, dst: Path, dx: float) -> int:
     """``src`` copied to ``dst`` with every /NAME/odom pose moved by dx (m) along x; the count
     of messages rewritten."""
-    rewritten = 0
-    with open(src, "rb") as f, open(dst, "wb") as o:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        w = Writer(o, compression=CompressionType.NONE)
-        w.start(profile="ros2", library="test tamper")
-        sids = {k: w.register_schema(s.name, s.encoding, s.data)
-                for k, s in summary.schemas.items()}
-        cids = {k: w.register_channel(c.topic, c.message_encoding, sids[c.schema_id],
-                                      dict(c.metadata)) for k, c in summary.channels.items()}
-        for md in reader.iter_metadata():
-            w.add_metadata(md.name, dict(md.metadata))
-        for _, ch, m in reader.iter_messages(log_time_order=False):
-            data = m.data
-            if ch.topic.endswith("/odom"):
-                od = cdr.decode_odometry(data)
-                pose = (float(od.position[0]) + dx, float(od.position[1]), od.yaw)
-                twist = (float(od.linear[0]), float(od.linear[1]), float(od.angular[2]))
-                data = cdr.encode_odometry(od.stamp_ns, od.frame_id, od.child_frame_id, pose,
-                                           twist)
-                rewritten += 1
-            w.add_message(cids[ch.id], m.log_time, data, m.publish_time, m.sequence)
-        w.finish()
-    return rewritten
+    def shift(topic: str, data: bytes) -> bytes | None:
+        if not topic.endswith("/odom"):
+            return None
+        od = cdr.decode_odometry(data)
+        pose = (float(od.position[0]) + dx, float(od.position[1]), od.yaw)
+        twist = (float(od.linear[0]), float(od.linear[1]), float(od.angular[2]))
+        return cdr.encode_odometry(od.stamp_ns, od.frame_id, od.child_frame_id, pose, twist)
+
+    return rewrite(src, dst, shift, library="test tamper")
 
 
 def test_replay_compares_the_robots_odometry(tmp_path: Path,
