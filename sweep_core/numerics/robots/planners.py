@@ -204,11 +204,13 @@ class Planner:
                       np.ascontiguousarray(b), float(self.params["sensor_range"]), near)
         return a[near], b[near]
 
-    def walls(self, obs: Observation) -> Walls:
-        """The wall segments and circle obstacles seen (:meth:`segments`, :meth:`circles`) as
-        the safety layer's :class:`~.guard.Walls` (stopping ``stop_margin`` short of them)."""
-        a, b = self.segments(obs)
-        c, r = self.circles(obs)
+    def walls(self, obs: Observation,
+              seen: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+              | None = None) -> Walls:
+        """The wall segments and circle obstacles seen (:meth:`segments`, :meth:`circles`, or
+        ``seen``, their results at this ``obs`` when the caller has them) as the safety
+        layer's :class:`~.guard.Walls` (stopping ``stop_margin`` short of them)."""
+        (a, b), (c, r) = (self.segments(obs), self.circles(obs)) if seen is None else seen
         return Walls(np.asarray(obs.pose[:2], dtype=np.float64), obs.radius, a, b, c, r,
                      self.robot.max_acceleration, self.params["stop_margin"])
 
@@ -243,9 +245,10 @@ class Orca(Planner):
         sim = pyrvo.RVOSimulator()
         sim.set_time_step(obs.dt if obs.dt > 0 else DEFAULT_STEP)
         horizon = p["time_horizon"]
-        for a, b in zip(*self.segments(obs), strict=True):
+        seen = self.segments(obs), self.circles(obs)
+        for a, b in zip(*seen[0], strict=True):
             sim.add_obstacle([tuple(a - o), tuple(b - o)])
-        for c, r in zip(*self.circles(obs), strict=True):
+        for c, r in zip(*seen[1], strict=True):
             k = np.arange(CIRCLE_SIDES) * 2 * math.pi / CIRCLE_SIDES
             big = r / elementary.cos(math.pi / CIRCLE_SIDES)
             sim.add_obstacle([(float(c[0] - o[0] + big * elementary.cos(t)),
@@ -265,7 +268,7 @@ class Orca(Planner):
             sim.set_agent_pref_velocity(k, (float(v[0]), float(v[1])))
         sim.do_step()
         u = np.array(sim.get_agent_velocity(me).to_tuple(), dtype=np.float64)
-        return to_command(self.robot, u, obs, p, self.walls(obs))
+        return to_command(self.robot, u, obs, p, self.walls(obs, seen))
 
 
 class SocialForce(Planner):
@@ -315,7 +318,7 @@ class SocialForce(Planner):
         if speed > self.robot.max_speed:
             u = u * (self.robot.max_speed / speed)
         self.u = u
-        return to_command(self.robot, u, obs, p, self.walls(obs))
+        return to_command(self.robot, u, obs, p, self.walls(obs, ((a, b), (c, r))))
 
 
     u: np.ndarray | None = None
