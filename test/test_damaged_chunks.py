@@ -14,8 +14,12 @@ from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
+from mcap.records import Channel, Chunk, Message
+from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap_copies import rewrite
 
+from sweep_core.analysis.frames import FrameReader
+from sweep_core.analysis.run import load_run
 from sweep_core.cli import main
 from sweep_core.io.recording import read_recording
 from sweep_core.model.yaml_files import dump_yaml
@@ -122,3 +126,68 @@ def test_render_names_the_damaged_chunk(files, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "Traceback" not in err and out.exists(), err
     assert any(_named(line, bad, offset) for line in err.splitlines()), err
+
+
+
+def _split_frame(run: Path, folder: Path) -> tuple[Path, int, float]:
+    """A copy of ``run`` in uncompressed chunks, one of which (after the first) ends with a
+    /poses message whose /agents opens the next chunk: (the copy, that next chunk's offset,
+    the /poses message's time (s)). The chunk size is searched for (deterministic: the
+    messages' sizes do not depend on the run's numbers)."""
+    copy = folder / "split.mcap"
+    for size in range(300, 3000, 50):
+        rewrite(run, copy, chunk_size=size, library="test split")
+        topics: dict[int, str] = {}
+        ends = []  # (chunk offset, topic and log time of its last message)
+        with open(copy, "rb") as f:
+            records = StreamReader(f, emit_chunks=True).records
+            while True:
+                offset = f.tell()
+                record = next(records, None)
+                if record is None:
+                    break
+                inner = breakup_chunk(record) if isinstance(record, Chunk) else [record]
+                for r in inner:
+                    if isinstance(r, Channel):
+                        topics[r.id] = r.topic
+                messages = [r for r in inner if isinstance(r, Message)]
+                if isinstance(record, Chunk) and messages:
+                    ends.append((offset, topics[messages[-1].channel_id],
+                                 messages[-1].log_time))
+        for (_, topic, t), (after, _, _) in zip(ends[1:], ends[2:]):
+            if topic == "/poses" and t > 0:
+                return copy, after, t / 1e9
+    raise AssertionError("no chunk size splits a state from its /agents")
+
+
+def test_a_state_the_damage_cut_from_its_agents_is_left_out_of_the_recovered_copy(
+        files, tmp_path, capsys):
+    """The recovered copy ends with a /poses whose /agents was in the damaged chunk. Before:
+    `analyze` and `export` of the copy refused it whole ("the frame at t = 0.35 s has no
+    readable /agents ids ... fix: record /agents"), though every earlier state is whole; a
+    file cut there (not recovered) already had that last state left out."""
+    good = files[0]
+    split, offset, t = _split_frame(good, tmp_path)
+    data = bytearray(split.read_bytes())
+    for i in range(offset + 40, offset + 60):  # inside the chunk's records: its CRC fails
+        data[i] ^= 0xFF
+    bad = tmp_path / "bad_split.mcap"
+    bad.write_bytes(bytes(data))
+    copy = tmp_path / "copy.mcap"
+    assert main(["recover", str(bad), str(copy)]) == 0
+    capsys.readouterr()
+    whole = [fr.stamp_ns for fr in FrameReader(load_run(good))]
+    kept = [s for s in whole if s < round(t * 1e9)]
+    reader = FrameReader(load_run(copy))
+    assert [fr.stamp_ns for fr in reader] == kept and kept
+    note = (f"the last /poses (t = {t:g} s) has no /agents: the file this copy was recovered "
+            "from was cut or damaged between them; that state is left out")
+    assert reader.problems == [f"{copy}: {note}"], reader.problems
+    assert main(["analyze", str(copy), "--no-plots", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert note in err and "error" not in err, err
+    out = tmp_path / "traj.txt"
+    assert main(["export", str(copy), "--pedpy", str(out)]) == 0
+    frames = {int(line.split()[1]) for line in out.read_text().splitlines()
+              if line and not line.startswith("#")}
+    assert len(frames) == len(kept)

@@ -56,6 +56,8 @@ class FrameReader:
         #: iteration)
         self.skipped_chunks: list[str] = []
         self._bad_lines: list[str] = []
+        #: the states left out for want of their /agents ids, one line each (without the path)
+        self.left_out: list[str] = []
         self._last_sequence = 0
 
     def _skip(self, msg: RecordedMessage, err: Exception) -> None:
@@ -90,9 +92,19 @@ class FrameReader:
             return False
         if not any(a <= key <= b for a, b in self._reader.lost_spans):
             return False
-        self._bad_lines.append(f"{self.meta.path}: the /poses at t = {key / 1e9:g} s has no "
-                               "/agents: it was in a skipped chunk; that state is left out")
+        self._leave_out(f"the /poses at t = {key / 1e9:g} s has no /agents: it was in a "
+                        "skipped chunk; that state is left out")
         return True
+
+    def _leave_out(self, why: str) -> None:
+        self.left_out.append(why)
+        self._bad_lines.append(f"{self.meta.path}: {why}")
+
+    def none_read(self) -> str:
+        """Why no state was read, for an error that there is none: the file's own error and
+        the first state left out (empty when neither)."""
+        why = [w for w in (self.error, *self.left_out[:1]) if w]
+        return f" ({'; '.join(why)})" if why else ""
 
     def __iter__(self) -> Iterator[Frame]:
         pending: dict[int, list] = {}
@@ -119,16 +131,19 @@ class FrameReader:
                             yield Frame(key, done[0][0], done[0][1], done[1], done[2], done[3])
             # without sources or sinks the ids are 0 .. N - 1 in every state, so a last state
             # cut from its /agents is still whole; where agents come and go it is not
-            cut = self._reader.truncated and self.want_agents and self.meta.changes_population
+            # (in a file cut short, or in sweep recover's copy of one, the cut may fall there)
+            short = self._reader.truncated or self.meta.recovered_short
+            cut = short and self.want_agents and self.meta.changes_population
             for key in sorted(pending):
                 done = pending[key]
                 if done[0] is None:
                     continue
                 if cut and done[1] is None and key == max(pending):
                     # the file ends between this state's /poses and its /agents: the cut
-                    self._bad_lines.append(f"{self.meta.path}: the last /poses (t = "
-                                           f"{key / 1e9:g} s) has no /agents: the file was cut "
-                                           "between them; that state is left out")
+                    where = ("the file was cut" if self._reader.truncated else "the file "
+                             "this copy was recovered from was cut or damaged")
+                    self._leave_out(f"the last /poses (t = {key / 1e9:g} s) has no /agents: "
+                                    f"{where} between them; that state is left out")
                     continue
                 if not self._lost_ids(key, done):
                     yield Frame(key, done[0][0], done[0][1], done[1], done[2], done[3])

@@ -270,7 +270,7 @@ class _Metrics:
         frames = len(table)
         if frames == 0:
             raise RecordingError(f"{meta.path}: no complete frame (poses) in the recording"
-                                 + (f" ({reader.error})" if reader.error else ""))
+                                 + reader.none_read())
         table[:, 6:8] = self.stats.table()
         n, worst = self.n or 0, self.worst
         if self.roster is not None:  # every agent seen, the scene's and the entered

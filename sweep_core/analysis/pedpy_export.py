@@ -178,9 +178,9 @@ def read_trajectories(path: str | os.PathLike[str]) -> Trajectories:
                    else np.arange(len(fr.positions)))
         xy.append(fr.positions)
     if not stamps:
-        raise RecordingError(f"{path}: holds no recorded state (no readable /poses message), "
-                             "so it has no frame to export (fix: export a recording of at "
-                             "least one recorded step)")
+        why = reader.none_read() or " (no readable /poses message)"
+        raise RecordingError(f"{path}: holds no recorded state{why}, so it has no frame to "
+                             "export (fix: export a recording of at least one recorded step)")
     traj = even_frames(stamps, ids, xy, meta.dt, meta.record_every)
     if reader.skipped_chunks:
         traj.damaged = reader.skipped_chunks[0]

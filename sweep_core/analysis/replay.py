@@ -326,7 +326,7 @@ def replay(path: str | Path, progress: bool = False) -> ReplayResult:
         reader.error = meta.error
     if compared == 0 and div is None:
         raise RecordingError(f"{meta.path}: no complete frame (poses) to replay"
-                             + (f" ({reader.error})" if reader.error else ""))
+                             + reader.none_read())
     if rep.retries:
         notes.append(f"{rep.retries} infeasible step attempts were retried, as the node does "
                      "when resumed")

@@ -14,7 +14,7 @@ from typing import Any
 
 from sweep_core.errors import CostError, RecordingError, SweepError, show
 from sweep_core.io import cdr
-from sweep_core.io.metadata import describe_status
+from sweep_core.io.metadata import RECOVER_RECORD, describe_status
 from sweep_core.io.recording import ChannelInfo, RecordingReader, scan_recording
 from sweep_core.model.maps import replace_map
 from sweep_core.model.scene import Scene, scene_data
@@ -111,6 +111,9 @@ class RunMeta:
     maps: list[MapChange] = field(default_factory=list)
     #: robots placed by the node (initialpose; ``robot_pose_NNNNNN``): spec {robot, pose}
     robot_poses: list[MapChange] = field(default_factory=list)
+    #: a copy that ``sweep recover`` made of a recording cut short or damaged (its last
+    #: state may be cut from its /agents, as in the file it was recovered from)
+    recovered_short: bool = False
 
     @property
     def dt_ns(self) -> int | None:
@@ -295,7 +298,8 @@ def load_run(path: str | Path) -> RunMeta:
         agents_topic=agents,
         frames=info.channels[poses].message_count if poses in info.channels else 0,
         truncated=info.truncated, error=info.error, problems=problems,
-        status=describe_status(info.metadata, info.truncated))
+        status=describe_status(info.metadata, info.truncated),
+        recovered_short=info.metadata.get(RECOVER_RECORD, {}).get("complete") == "false")
     meta.commands = [Command(k, topic, step, log_ns, spec, meta.segment_of(log_ns))
                      for k, topic, step, log_ns, spec
                      in _stepped(info.metadata, "command", "field", problems)]
