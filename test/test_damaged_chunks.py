@@ -191,3 +191,11 @@ def test_a_state_the_damage_cut_from_its_agents_is_left_out_of_the_recovered_cop
     frames = {int(line.split()[1]) for line in out.read_text().splitlines()
               if line and not line.startswith("#")}
     assert len(frames) == len(kept)
+    # the export says where the copy's states end (before: nothing told it from a whole run)
+    end = (f"recovered from a recording cut short or damaged: its states end at t = "
+           f"{kept[-1] / 1e9:g} s, before the run did")
+    assert f"note: {end}" in capsys.readouterr().out
+    assert f"# note: {end}" in out.read_text().splitlines()[:4]
+    whole_out = tmp_path / "whole.txt"
+    assert main(["export", str(good), "--pedpy", str(whole_out)]) == 0
+    assert "note" not in capsys.readouterr().out + whole_out.read_text()

@@ -47,7 +47,8 @@ class Trajectories:
     k / frame_rate (s). ``resampling``: how the frames were made from uneven recorded states
     ("" when they are the recorded states); ``cut``: where a recording cut short ends (""
     when it is whole); ``damaged``: the first chunk of the recording that could not be read
-    and was skipped ("" when none was)."""
+    and was skipped ("" when none was); ``recovered``: where the states of ``sweep
+    recover``'s copy of a recording cut short or damaged end ("" for any other recording)."""
 
     ids: np.ndarray
     frames: np.ndarray
@@ -56,6 +57,7 @@ class Trajectories:
     resampling: str = ""
     cut: str = ""
     damaged: str = ""
+    recovered: str = ""
 
     @classmethod
     def from_frames(cls, frames: Sequence[tuple[int, np.ndarray, np.ndarray]],
@@ -187,6 +189,9 @@ def read_trajectories(path: str | os.PathLike[str]) -> Trajectories:
     if reader.truncated:
         traj.cut = (f"cut short: read up to its last complete chunk (t = "
                     f"{max(stamps) / NS:g} s)")
+    if meta.recovered_short:
+        traj.recovered = (f"recovered from a recording cut short or damaged: its states end "
+                          f"at t = {max(stamps) / NS:g} s, before the run did")
     return traj
 
 
@@ -197,6 +202,7 @@ def write_pedpy_txt(traj: Trajectories, out: str | os.PathLike[str],
     ``id frame x y z`` per agent and frame."""
     order = np.lexsort((traj.frames, traj.ids))
     made = f"# frames: {traj.resampling}\n" if traj.resampling else ""
+    made += f"# note: {traj.recovered}\n" if traj.recovered else ""
     header = (f"# sweep_ros trajectories for PedPy\n# framerate: {traj.frame_rate:.10g}\n"
               f"{made}# x/m y/m z/m\n# id frame x y z\n")
     table = np.column_stack([traj.ids[order], traj.frames[order], traj.xy[order],

@@ -87,6 +87,8 @@ def _export(args: argparse.Namespace) -> int:
           f"{traj.frame_rate:g} frames/s (pedpy.load_trajectory_from_txt reads it)")
     if traj.resampling:
         print(f"frames: {traj.resampling}")
+    if traj.recovered:
+        print(f"note: {traj.recovered}")
     return 0
 
 
