@@ -44,6 +44,17 @@ class SocialMetrics:
         self.rows: list[list[tuple]] = [[] for _ in specs]
         self.touched: list[list[np.ndarray]] = [[] for _ in specs]
         self.t0: int | None = None
+        #: per robot, the log time (ns) of its first placement by the node (initialpose) in the
+        #: first segment: its episode ends there (a placement is not motion), None: never placed
+        self.placed_ns: list[int | None] = [
+            min((p.log_time_ns for p in meta.robot_poses
+                 if p.segment == 0 and p.spec.get("robot") == s.name), default=None)
+            for s in specs]
+        for s, ns in zip(specs, self.placed_ns, strict=True):
+            if ns is not None:
+                self.problems.append(
+                    f"{meta.path}: robot {s.name} was placed by the node (initialpose) at "
+                    f"t = {ns / 1e9:g} s: its episode is measured up to there")
         #: the people by id (float64 radii from the scene) when its flows' sinks take some
         self.roster = (Roster(meta.scene, meta.path)
                        if meta.scene is not None and meta.scene.flows is not None else None)
@@ -53,8 +64,8 @@ class SocialMetrics:
         that step (with flows: of the agents present, by their ``/agents`` ids; the float32
         ``/agents`` radii without a scene) and ``velocities`` (N, 2)
         m/s, their displacements over the speed window (:mod:`sweep_core.analysis.speed`;
-        NaN: none); frames after the first reset (``segment`` > 0) are not part of the
-        episode."""
+        NaN: none); frames after the first reset (``segment`` > 0), and a robot's frames
+        after its first placement, are not part of the episode."""
         if segment > 0:
             return
         scene, dt = self.meta.scene, self.meta.dt
@@ -74,7 +85,8 @@ class SocialMetrics:
         q, v = fr.positions, velocities
         for k, spec in enumerate(self.specs):
             state = self.odom[k].get(fr.log_ns)
-            if state is None:
+            placed = self.placed_ns[k]
+            if state is None or (placed is not None and fr.log_ns > placed):
                 continue
             x, y, yaw, vx, vy = state
             near, ttc = nearest(np.array([x, y]), np.array([vx, vy]), spec.radius, q, radii, v)
