@@ -1,6 +1,7 @@
-"""``sweep analyze`` of a node recording in which the robot was placed (``NAME/initialpose``):
-the placement is not motion of the robot, so its episode is measured up to its first
-placement, as a run is up to its first reset (docs/social_metrics.md)."""
+"""``sweep analyze`` of the robot in node recordings (docs/social_metrics.md): a robot placed
+by ``NAME/initialpose`` is measured up to its first placement (the jump is no motion of the
+robot), as a run is up to its first reset; its geodesic distance goes round the map the node
+took from its map topic."""
 from __future__ import annotations
 
 import math
@@ -12,6 +13,7 @@ rclpy = pytest.importorskip("rclpy")
 import yaml  # noqa: E402
 from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped  # noqa: E402
 from mcap_ros2.reader import read_ros2_messages  # noqa: E402
+from nav_msgs.msg import OccupancyGrid  # noqa: E402
 from node_process import node_in_process  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.serialization import serialize_message  # noqa: E402
@@ -58,3 +60,31 @@ def test_a_placement_ends_the_robots_episode(tmp_path: Path) -> None:
     assert m["reached_goal"] is False and m["time_to_goal_s"] is None
     assert m["frames"] == len(driven)
     assert m["path_length_m"] == pytest.approx(length, rel=1e-9)
+
+
+def test_the_geodesic_goes_round_the_map_from_the_topic(tmp_path: Path) -> None:
+    """A map from the node's map topic puts a pillar (x 2-2.5 m, y 1-2 m) on the straight
+    4.5 m line from the robot's start [0.5, 1.5] to its goal [5, 1.5]: the geodesic distance
+    analyze reports goes round it (> 4.7 m), not through it (4.5 m)."""
+    scene = dict(small_scene(), noise={"sigma": 0.0})
+    path, rec = tmp_path / "scene.yaml", tmp_path / "run.mcap"
+    path.write_text(yaml.safe_dump(scene))
+    grid = OccupancyGrid()
+    grid.header.frame_id = "map"
+    grid.info.width, grid.info.height, grid.info.resolution = 20, 10, 0.5
+    grid.info.origin.position.x, grid.info.origin.position.y = -2.0, -1.0  # x -2..8, y -1..4
+    grid.info.origin.orientation.w = 1.0
+    cells = [0] * 200
+    for i, j in ((8, 4), (8, 5)):  # the cells [2, 2.5] x [1, 1.5] and [2, 2.5] x [1.5, 2]
+        cells[j * 20 + i] = 100
+    grid.data = cells
+    with node_in_process([Parameter("scene", value=str(path)), Parameter("dt", value=0.05),
+                          Parameter("record", value=str(rec)),
+                          Parameter("map_topic", value="map")]) as n:
+        n._on_pause(SetBool.Request(data=True), SetBool.Response())
+        n._on_map(bytes(serialize_message(grid)))
+        assert n._maps_applied == 1
+        for _ in range(5):
+            assert n._on_step(Trigger.Request(), Trigger.Response()).success
+    m = metrics.analyze(rec).summary["robots"]["bot"]
+    assert m["geodesic_m"] > 4.7
