@@ -168,3 +168,20 @@ def test_sweep_run_refuses_a_horizon_shorter_than_half_a_step(capsys: pytest.Cap
     assert err.startswith("sweep: error: --t-end: 0.002 s at dt = 0.01 s is no step: "), err
     assert "the scene's horizon, 0.002 s" in err and "(fix: --t-end 0.01 or more)" in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("command", ["analyze", "replay"])
+def test_a_missing_recording_is_refused_before_the_kernels_are_compiled(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+        command: str) -> None:
+    """A recording that cannot be opened is said at once, in one line, exit 2: not after
+    compiling the engine's kernels (minutes on a machine's first run)."""
+    from sweep_core.numerics import kernels
+
+    warmed: list[bool] = []
+    monkeypatch.setattr(kernels, "warm_up", lambda *a, **k: warmed.append(True))
+    missing = tmp_path / "missing.mcap"
+    assert main([command, str(missing), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(missing) in err[0] and "cannot open" in err[0]
+    assert warmed == []

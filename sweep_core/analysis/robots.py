@@ -12,7 +12,7 @@ import numpy as np
 
 from sweep_core.analysis.frames import Frame
 from sweep_core.analysis.roster import Roster
-from sweep_core.analysis.run import RunMeta
+from sweep_core.analysis.run import RunMeta, Schedule, scene_with_map
 from sweep_core.analysis.social import (
     RobotSpec,
     Series,
@@ -43,7 +43,19 @@ class SocialMetrics:
         self.odom, self.touch = read_robot_topics(meta, [s.name for s in specs], self.problems)
         self.rows: list[list[tuple]] = [[] for _ in specs]
         self.touched: list[list[np.ndarray]] = [[] for _ in specs]
+        self.steps: list[list[int]] = [[] for _ in specs]  # each row's step
         self.t0: int | None = None
+        #: per robot, the log time (ns) of its first placement by the node (initialpose) in the
+        #: first segment: its episode ends there (a placement is not motion), None: never placed
+        self.placed_ns: list[int | None] = [
+            min((p.log_time_ns for p in meta.robot_poses
+                 if p.segment == 0 and p.spec.get("robot") == s.name), default=None)
+            for s in specs]
+        for s, ns in zip(specs, self.placed_ns, strict=True):
+            if ns is not None:
+                self.problems.append(
+                    f"{meta.path}: robot {s.name} was placed by the node (initialpose) at "
+                    f"t = {ns / 1e9:g} s: its episode is measured up to there")
         #: the people by id (float64 radii from the scene) when its flows' sinks take some
         self.roster = (Roster(meta.scene, meta.path)
                        if meta.scene is not None and meta.scene.flows is not None else None)
@@ -53,8 +65,8 @@ class SocialMetrics:
         that step (with flows: of the agents present, by their ``/agents`` ids; the float32
         ``/agents`` radii without a scene) and ``velocities`` (N, 2)
         m/s, their displacements over the speed window (:mod:`sweep_core.analysis.speed`;
-        NaN: none); frames after the first reset (``segment`` > 0) are not part of the
-        episode."""
+        NaN: none); frames after the first reset (``segment`` > 0), and a robot's frames
+        after its first placement, are not part of the episode."""
         if segment > 0:
             return
         scene, dt = self.meta.scene, self.meta.dt
@@ -74,7 +86,8 @@ class SocialMetrics:
         q, v = fr.positions, velocities
         for k, spec in enumerate(self.specs):
             state = self.odom[k].get(fr.log_ns)
-            if state is None:
+            placed = self.placed_ns[k]
+            if state is None or (placed is not None and fr.log_ns > placed):
                 continue
             x, y, yaw, vx, vy = state
             near, ttc = nearest(np.array([x, y]), np.array([vx, vy]), spec.radius, q, radii, v)
@@ -82,6 +95,7 @@ class SocialMetrics:
             self.rows[k].append((k, t, x, y, yaw, vx, vy, near, ttc, len(ids),
                                  float(imp.sum()), float(imp.max()) if len(imp) else 0.0))
             self.touched[k].append(ids)
+            self.steps[k].append(step)
 
     def series(self, k: int) -> Series:
         """Robot k's series so far."""
@@ -103,12 +117,20 @@ class SocialMetrics:
                 continue
             geo = None
             if spec.goal is not None and scene is not None:
-                geo, why = geodesic_distance(scene, s.pose[0, :2], spec.goal, spec.radius)
+                geo, why = geodesic_distance(self._scene_at(k, spec, s), s.pose[0, :2],
+                                             spec.goal, spec.radius)
                 if why:
                     self.problems.append(f"{self.meta.path}: robot {spec.name}: no geodesic "
                                          f"distance to its goal ({why})")
             out[spec.name] = episode_metrics(spec, s, geo)
         return out
+
+    def _scene_at(self, k: int, spec: RobotSpec, s: Series) -> Any:
+        """The scene with the map in effect at the end of robot k's episode: the last map the
+        node took from its map topic by then (``map_NNNNNN``), else the scene's own."""
+        end = self.steps[k][episode_end(spec, s)[0]]
+        packed = Schedule(self.meta).map_at(0, end) if end >= 0 else None
+        return self.meta.scene if packed is None else scene_with_map(self.meta.scene, packed)
 
     def table(self) -> np.ndarray:
         """(rows, len(COLUMNS)): every robot's frames of its episode, robot by robot."""

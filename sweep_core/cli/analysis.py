@@ -12,6 +12,7 @@ from sweep_core.analysis import compare, metrics, replay, report
 from sweep_core.analysis.speed import DEFAULT_WINDOW_S
 from sweep_core.cli.commands import summary
 from sweep_core.cli.run import start_live
+from sweep_core.io.recording.format import open_for_reading
 from sweep_core.io.recording.recover import hint
 from sweep_core.numerics import kernels
 
@@ -24,7 +25,14 @@ def _kernels() -> None:
     kernels.warm_up(lambda line: print(f"sweep: {line}", file=sys.stderr))
 
 
+def _openable(path: str) -> None:
+    """RecordingError (one line) when ``path`` cannot be opened as a recording: said before
+    the kernels are compiled, not minutes after."""
+    open_for_reading(path)[1].close()
+
+
 def _analyze(args: argparse.Namespace) -> int:
+    _openable(args.recording)
     _kernels()
     line = metrics.parse_line(args.line) if args.line else None
     an = metrics.analyze(args.recording, line=line, arrive_radius=args.arrive_radius,
@@ -48,6 +56,7 @@ def _analyze(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
+    _openable(args.recording)
     live = start_live(args)  # a port in use is said before any work
     if live is not None:
         from sweep_core.io.live import serve_recording
