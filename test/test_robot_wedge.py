@@ -234,6 +234,28 @@ def test_a_placement_is_checked_against_the_map_of_the_new_scene():
     assert sim.robots.state("bot").pose == (8.0, 2.0, 0.0)
 
 
+
+def test_a_placement_that_leaves_the_goal_out_of_reach_is_refused():
+    """Outside the closed box, or walled off from the goal, the robot could never reach it:
+    refused in one line (it used to be taken, the goal then out of reach for good). A robot
+    without a goal may go anywhere free; one placed inside its goal radius needs no way."""
+    goal = {"agents": {"positions": [[8.0, 5.0]], "radius": 0.25}, "walls": BOX,
+            "robots": [{"name": "bot", "radius": 0.3, "pose": [1.0, 1.0, 0.0],
+                        "goal": [9.0, 1.0]}]}
+    sim = Simulator(Scene.from_dict(goal), dt=0.05, seed=0)
+    for outside in ((20.0, 3.0, 0.0), (-5.0, -5.0, 1.0)):
+        with pytest.raises(SceneError, match=r"robot bot at \[.*\] would have no way to its "
+                           r"goal \[9, 1\] .*where its goal can be reached"):
+            sim.robots.place("bot", outside, sim.t, sim.positions, sim.radii)
+        assert sim.robots.state("bot").pose == (1.0, 1.0, 0.0)
+    sim.robots.place("bot", (5.0, 3.0, 0.0), sim.t, sim.positions, sim.radii)
+    assert sim.robots.state("bot").pose == (5.0, 3.0, 0.0)
+    sim.step(2)
+    free = {**goal, "robots": [{"name": "bot", "radius": 0.3, "pose": [1.0, 1.0, 0.0]}]}
+    sim = Simulator(Scene.from_dict(free), dt=0.05, seed=0)
+    sim.robots.place("bot", (20.0, 3.0, 0.0), sim.t, sim.positions, sim.radii)
+    assert sim.robots.state("bot").pose == (20.0, 3.0, 0.0)
+
 CORRIDOR = [{"kind": "segment", "a": [-2.0, 0.0], "b": [14.0, 0.0]},
             {"kind": "segment", "a": [-2.0, 6.0], "b": [14.0, 6.0]}]
 

@@ -42,7 +42,6 @@ from sweep_core.errors import InfeasibleError, SceneError, show
 from sweep_core.model import elementary
 from sweep_core.model.gaps import Gaps
 from sweep_core.model.geometry import Geometry
-from sweep_core.model.maps import map_from_spec
 from sweep_core.model.robots import overlap
 from sweep_core.model.scene import Scene
 from sweep_core.numerics.projection import Projection, project
@@ -52,7 +51,7 @@ from sweep_core.numerics.robots.contacts import set_contacts
 from sweep_core.numerics.robots.control import goal_field, observe
 from sweep_core.numerics.robots.planners import Planner, controllers_of
 from sweep_core.numerics.robots.reaction import avoidance
-from sweep_core.numerics.robots.refusals import geometry_problem, goal_refusal
+from sweep_core.numerics.robots.refusals import geometry_problem, goal_refusal, no_way, scene_map
 from sweep_core.numerics.robots.scan import scan
 from sweep_core.numerics.robots.small_step import robot_step
 from sweep_core.numerics.robots.state import Command, RobotState
@@ -63,7 +62,7 @@ from sweep_core.numerics.schemes import Scheme, StepResult
 def blocked_cells(scene: Scene) -> Callable[[np.ndarray], np.ndarray] | None:
     """The test of whether points (N, 2) (m) lie in a blocked cell of ``scene``'s map (None
     without a map): what placements and the robots' targets are checked against."""
-    grid = map_from_spec(scene.spec["map"], "map", None) if scene.spec.get("map") else None
+    grid = scene_map(scene)
     return None if grid is None else grid.is_blocked
 
 
@@ -196,10 +195,11 @@ class Fleet:
         others = [(s.pose[0], s.pose[1], s.robot.radius, f"robot {s.robot.name}")
                   for s in self.states.values() if s is not st]
         problem = overlap(st.robot, (x, y), self.scene.geometry, people, radii, others,
-                          self._blocked, t, ids=ids)
+                          self._blocked, t, ids=ids) or no_way(  # outside a closed hall, say
+            st.robot, (x, y), self.scene, scene_map(self.scene))
         if problem:
             raise SceneError("initialpose", problem, "place the robot in free space, clear of "
-                             "people, walls and other robots")
+                             "people, walls and other robots, where its goal can be reached")
         st.pose = (x, y, kinematics.wrap(yaw))
         st.twist, st.command, st.held, st.raw = (0.0,) * 3, (0.0,) * 3, (0.0,) * 3, False
 

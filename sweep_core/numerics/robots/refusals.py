@@ -56,12 +56,18 @@ def goal_refusal(scene: Scene, err: SceneError) -> SceneError:
                       f"for its controller {robot.controller}: {problem}", fix)
 
 
+def scene_map(scene: Scene) -> Any:
+    """``scene``'s map as its occupancy grid (:func:`~sweep_core.model.maps.map_from_spec`),
+    None without one."""
+    return map_from_spec(scene.spec["map"], "map", None) if scene.spec.get("map") else None
+
+
 def geometry_problem(states: list[Any], scene: Scene, t: float) -> str:
     """What a robot's current disk (``states``: the fleet's ``RobotState`` objects) would
     overlap in ``scene``'s walls, obstacles and blocked map cells at time t, or, for a robot
     with a goal it has not reached, that they would leave it no way there (a geodesic field
     round them for its disk, as ``pursuit`` plans); '' when nothing."""
-    grid = map_from_spec(scene.spec["map"], "map", None) if scene.spec.get("map") else None
+    grid = scene_map(scene)
     blocked = None if grid is None else grid.is_blocked
     for st in states:
         problem = overlap(st.robot, st.pose[:2], scene.geometry, np.empty((0, 2)),
@@ -69,15 +75,26 @@ def geometry_problem(states: list[Any], scene: Scene, t: float) -> str:
         if problem:
             return problem
     for st in states:  # enclosed: no way left to its goal
-        goal = st.robot.goal
-        if goal is None or st.goal_reached:
-            continue
-        spec = {"kind": "geodesic", "goal": list(goal), "speed": 1.0,
-                "wall_buffer": max(st.robot.radius, buffer_cells(NEIGHBOURS) * CELL)}
-        try:
-            navigation_from_spec(spec, "goal", scene.geometry, grid,
-                                 np.array([st.pose[:2]]))
-        except SceneError:
-            return (f"robot {st.robot.name} at {show(list(st.pose[:2]))} would have no way to "
-                    f"its goal {show(list(goal))} for its disk (radius {st.robot.radius:g} m)")
+        problem = no_way(st.robot, st.pose[:2], scene, grid)
+        if problem:
+            return problem
+    return ""
+
+
+def no_way(robot: Any, xy: Any, scene: Scene, grid: Any = None) -> str:
+    """That ``robot`` at ``xy`` (m) would have no way to its goal round ``scene``'s walls,
+    obstacles and the blocked cells of ``grid`` (its map, None without one) for its disk (a
+    geodesic field, as ``pursuit`` plans); '' when it has one, has no goal or is within its
+    goal radius."""
+    goal = robot.goal
+    if goal is None or math.hypot(xy[0] - goal[0], xy[1] - goal[1]) <= robot.goal_radius:
+        return ""
+    spec = {"kind": "geodesic", "goal": list(goal), "speed": 1.0,
+            "wall_buffer": max(robot.radius, buffer_cells(NEIGHBOURS) * CELL)}
+    try:
+        navigation_from_spec(spec, "goal", scene.geometry, grid,
+                             np.array([[float(xy[0]), float(xy[1])]]))
+    except SceneError:
+        return (f"robot {robot.name} at {show([float(xy[0]), float(xy[1])])} would have no way "
+                f"to its goal {show(list(goal))} for its disk (radius {robot.radius:g} m)")
     return ""
