@@ -92,6 +92,8 @@ SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("record", "", "MCAP file to record every published and received message to; "
               "empty = no recording. Relative paths are relative to the working directory.",
               False, constraints="its folder must exist"),
+    ParamSpec("record_overwrite", False, "Replace the record file when it exists (false: the "
+              "node refuses to start rather than replace a recording).", False),
     ParamSpec("record_flush_interval_s", 1.0, "Close an MCAP chunk and flush it to disk at least "
               "this often, s (what a SIGKILL can lose).", False, 0.05, 60.0),
     ParamSpec("publish_markers", True, "Publish the markers topic (one cylinder per agent).",

@@ -65,13 +65,22 @@ class RecordingMixin:
             "log_time": "simulation time (ns) of the state or of the step a command applies to; "
                         "after a reset log times go on from the last one (records reset_*)",
         })
+        record = os.path.expanduser(self._p["record"])
+        scene_file = os.path.expanduser(self._p["scene"]) if self._p["scene"] else None
+        map_file = (self.scene.spec.get("map") or {}).get("source")
+        inputs = [scene_file, map_file if map_file and os.path.isfile(map_file) else None]
+        if (os.path.isfile(record) and not self._p["record_overwrite"]
+                and not any(f and os.path.samefile(f, record) for f in inputs)):
+            # a recording is never replaced unasked (as sweep run's --out without --overwrite);
+            # an input named as the record file is refused as such by the recorder
+            raise StartError([f"parameter record: {record}: exists, and the node does not "
+                              "replace a recording unasked (fix: -p record:=OTHER.mcap, or "
+                              "-p record_overwrite:=true to replace it)"])
         try:
-            scene_file = os.path.expanduser(self._p["scene"]) if self._p["scene"] else None
-            map_file = (self.scene.spec.get("map") or {}).get("source")
             self.recorder = BackgroundRecorder(
-                os.path.expanduser(self._p["record"]), metadata=meta,
+                record, metadata=meta,
                 flush_interval_s=self._p["record_flush_interval_s"],
-                inputs=[scene_file, map_file if map_file and os.path.isfile(map_file) else None],
+                inputs=inputs,
                 other="-p record:=OTHER.mcap", on_error=self._recording_failed)
             for topic, msgtype in names.items():
                 definition = None if msgtype in cdr.SCHEMAS else msgdefs.definition(msgtype)

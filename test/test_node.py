@@ -1225,6 +1225,36 @@ def test_record_may_not_be_the_scene(installed, tmp_path):
     assert victim.read_bytes() == before
 
 
+def test_an_existing_recording_is_not_replaced_unasked(installed, tmp_path):
+    """Before: a node started again with the same `record` replaced the last run's recording
+    without a word (`sweep run --out` refuses unless --overwrite). It refuses to start,
+    naming the file and both fixes; with record_overwrite:=true it replaces it."""
+    scene_path = tmp_path / "scene.yaml"
+    scene_path.write_text(yaml.safe_dump(SCENE))
+    old = tmp_path / "run.mcap"
+    old.write_bytes(b"the last run's recording")
+    node = Running(installed, tmp_path, {"scene": str(scene_path), "record": str(old)})
+    try:
+        code = node.proc.wait(timeout=60)
+    finally:
+        node.stop(signal.SIGKILL)
+    assert code == 2, node.log
+    assert (f"parameter record: {old}: exists, and the node does not replace a recording "
+            "unasked") in node.log and "record_overwrite:=true" in node.log, node.log
+    assert "Traceback" not in node.log and old.read_bytes() == b"the last run's recording"
+    node = Running(installed, tmp_path, {"scene": str(scene_path), "record": str(old),
+                                         "record_overwrite": True, "dt": DT})
+    try:
+        deadline = time.monotonic() + 120
+        while not old.read_bytes().startswith(b"\x89MCAP"):  # the recorder has begun
+            assert node.alive() and time.monotonic() < deadline, node.log
+            time.sleep(0.1)
+    finally:
+        code = node.stop(signal.SIGINT)
+    assert code == 0, node.log
+    assert read_standard(old)[1]["sweep_status"]["status"] == "interrupted"
+
+
 def test_a_full_disk_is_logged_at_once_and_once(installed, tmp_path):
     """Before: a node recording onto a full disk said nothing in its log until shutdown."""
     small = tmp_path / "small"
