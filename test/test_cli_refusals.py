@@ -168,3 +168,16 @@ def test_sweep_run_refuses_a_horizon_shorter_than_half_a_step(capsys: pytest.Cap
     assert err.startswith("sweep: error: --t-end: 0.002 s at dt = 0.01 s is no step: "), err
     assert "the scene's horizon, 0.002 s" in err and "(fix: --t-end 0.01 or more)" in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("study", [["accuracy", "--quick", "--problems", "rbm_wall", "--out"],
+                                   ["walking", "--agents", "2", "--t-end", "2", "--csv"]])
+def test_bench_seed_below_zero_refused_naming_the_option(capsys: pytest.CaptureFixture[str],
+                                                         tmp_path: Path,
+                                                         study: list[str]) -> None:
+    """`sweep bench accuracy` and `walking` refuse a negative --seed in one line naming the
+    option, before any run (numpy's generators take seeds >= 0 only)."""
+    err = _refused(capsys, ["bench", *study, str(tmp_path / "b"), "--seed", "-1"])
+    assert err.startswith("sweep: error: --seed: ") and ">= 0" in err and "-1" in err, err
+    assert "--seed 0" in err, err
+    assert not (tmp_path / "b").exists()

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from sweep_core import checks
 from sweep_core.bench.accuracy import (
     PROBLEMS,
     Measurement,
@@ -158,6 +159,8 @@ def run_study(cfg: StudyConfig, out: Path, problems: tuple[str, ...] = PROBLEMS,
 
 
 def _accuracy(args: argparse.Namespace) -> int:
+    # numpy's generators take seeds >= 0 only: refused here, before any problem runs
+    checks.integer(args.seed, "--seed", fix="e.g. --seed 0")
     cfg = StudyConfig.make(args.quick, args.seed)
     if args.crowd_paths is not None:
         if args.crowd_paths < 2:
