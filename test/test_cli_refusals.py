@@ -185,3 +185,29 @@ def test_a_missing_recording_is_refused_before_the_kernels_are_compiled(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(missing) in err[0] and "cannot open" in err[0]
     assert warmed == []
+
+
+@pytest.mark.parametrize("study", [["accuracy", "--quick", "--problems", "rbm_wall", "--out"],
+                                   ["walking", "--agents", "2", "--t-end", "2", "--csv"]])
+def test_bench_seed_below_zero_refused_naming_the_option(capsys: pytest.CaptureFixture[str],
+                                                         tmp_path: Path,
+                                                         study: list[str]) -> None:
+    """`sweep bench accuracy` and `walking` refuse a negative --seed in one line naming the
+    option, before any run (numpy's generators take seeds >= 0 only)."""
+    err = _refused(capsys, ["bench", *study, str(tmp_path / "b"), "--seed", "-1"])
+    assert err.startswith("sweep: error: --seed: ") and ">= 0" in err and "-1" in err, err
+    assert "--seed 0" in err, err
+    assert not (tmp_path / "b").exists()
+
+
+def test_bench_accuracy_out_that_is_a_file_refused_before_the_study(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """--out names the folder of the CSVs and plots: a file there is refused in one line
+    before any problem runs (not a traceback from mkdir after the study)."""
+    taken = tmp_path / "taken"
+    taken.write_text("mine\n")
+    err = _refused(capsys, ["bench", "accuracy", "--quick", "--problems", "moving_wall",
+                            "--out", str(taken)])
+    assert err.startswith(f"sweep: error: {taken}: exists and is a regular file"), err
+    assert "--out OTHERDIR" in err, err
+    assert taken.read_text() == "mine\n"

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from sweep_core import checks
 from sweep_core.bench.accuracy import (
     PROBLEMS,
     Measurement,
@@ -21,6 +22,7 @@ from sweep_core.bench.accuracy import (
 from sweep_core.bench.accuracy_problems import STUDIES, study_crowd, study_features
 from sweep_core.bench.tables import write_csv
 from sweep_core.errors import SweepError
+from sweep_core.io.outputs import check_folder
 from sweep_core.numerics.schemes import SCHEMES
 from sweep_core.text import text_table
 
@@ -158,6 +160,9 @@ def run_study(cfg: StudyConfig, out: Path, problems: tuple[str, ...] = PROBLEMS,
 
 
 def _accuracy(args: argparse.Namespace) -> int:
+    # numpy's generators take seeds >= 0 only: refused here, before any problem runs
+    checks.integer(args.seed, "--seed", fix="e.g. --seed 0")
+    out = check_folder(args.out, "--out OTHERDIR")  # before the study, not after it
     cfg = StudyConfig.make(args.quick, args.seed)
     if args.crowd_paths is not None:
         if args.crowd_paths < 2:
@@ -172,13 +177,13 @@ def _accuracy(args: argparse.Namespace) -> int:
         print(text, flush=True)
 
     if args.workers is None and args.scheduler is None:
-        run_study(cfg, Path(args.out), tuple(args.problems), log=log)
+        run_study(cfg, out, tuple(args.problems), log=log)
         return 0
     from sweep_core.ensemble.cluster import check_workers, connect
 
     workers = check_workers(args.workers) if args.scheduler is None else None
     with connect(scheduler=args.scheduler, workers=workers, log=log) as client:
-        run_study(cfg, Path(args.out), tuple(args.problems), log=log, client=client)
+        run_study(cfg, out, tuple(args.problems), log=log, client=client)
     return 0
 
 

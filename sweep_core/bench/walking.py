@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sweep_core import checks
 from sweep_core.analysis import metrics
 from sweep_core.analysis.pedpy_export import check_pedpy, read_trajectories
 from sweep_core.analysis.speed import DEFAULT_WINDOW_S
@@ -98,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
         if not lo <= value <= hi or not math.isfinite(value):
             raise SweepError(f"{name}: {value!r} is outside {lo:g}-{hi:g} (fix: give a value "
                              "in that range)")
+    checks.integer(args.seed, "--seed", fix="e.g. --seed 0")
     check_pedpy()
     with tempfile.TemporaryDirectory() as tmp:
         rows = measure(args.agents, args.t_end, 0.01, args.seed, Path(tmp))

@@ -15,6 +15,8 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+import numpy as np
+
 from sweep_core.ensemble import paired
 from sweep_core.errors import SceneError
 from sweep_core.io import limits
@@ -84,7 +86,10 @@ def check_key(key: str, spec: dict) -> None:
 
 
 def check_value(key: str, value: Any) -> Value:
-    """A value of ``key``: a finite number or a string; dt > 0, scheme a known name."""
+    """A value of ``key``: a finite number (numpy's as Python's) or a string; dt > 0, scheme
+    a known name."""
+    if isinstance(value, (np.integer, np.floating)):
+        value = value.item()
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
         raise SceneError("--vary", f"{key}: value {value!r} is not a number or a name",
                          "give scalars, e.g. noise.sigma=0.05,0.1")
@@ -163,13 +168,17 @@ def grid(vary: Mapping[str, Sequence[Any]] | None, spec: dict) -> list[Point]:
     for key in keys:
         check_key(key, spec)
         values = vary[key]
+        if isinstance(values, np.ndarray) and values.ndim == 1:  # e.g. np.linspace(...)
+            values = values.tolist()
         if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
             raise SceneError("--vary", f"{key}: {values!r} is not a non-empty list of values",
                              f"e.g. {key}=0.05,0.1")
-        if len(set(map(repr, values))) != len(values):
-            raise SceneError("--vary", f"{key}: repeated value in {list(values)!r}",
+        checked = [check_value(key, v) for v in values]
+        # by value: 1 and 1.0 (or 0.1 and 1e-1) are one grid point, not two of the same runs
+        if len(set(checked)) != len(checked):
+            raise SceneError("--vary", f"{key}: repeated value in {checked!r}",
                              "give each value once")
-        lists.append([check_value(key, v) for v in values])
+        lists.append(checked)
         if key not in RUN_OPTIONS:
             _check_kind(key, spec, lists[-1])
     return [dict(zip(keys, combo)) for combo in itertools.product(*lists)]
