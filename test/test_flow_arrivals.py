@@ -71,3 +71,22 @@ def test_arrived_with_sinks_counts_the_agents_that_left_by_each_frame(tmp_path):
     arrived = an.table[:, list(an.COLUMNS).index("arrived")]
     np.testing.assert_array_equal(arrived, counts[0] - counts)
     assert an.summary["arrivals"]["arrived"] == counts[0] - counts[-1]
+
+
+def test_a_line_that_meets_a_sink_is_refused_and_one_before_it_counts_every_leaver(
+        tmp_path, capsys):
+    """An agent leaves as its centre enters a sink, so a line on the sink's edge (or in it)
+    is never crossed in the recorded frames: its flow would read 0 while agents leave across
+    it. Such a line is refused naming the sink; one just before the sink counts every agent
+    that left."""
+    sink = {"kind": "rectangle", "min": [7.5, 0.0], "max": [10.0, 4.0]}
+    out, frames = _record(tmp_path, _scene({"sinks": [sink], "headway": {}}))
+    left = len(frames[0].positions) - len(frames[-1].positions)
+    assert left > 0
+    for line in ("7.5,0,7.5,4", "8,1,9,1", "7,2,7.5,2"):  # on its edge, inside, touching
+        assert main(["analyze", str(out), "--line", line, "--no-plots", "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and f"--line {line}: meets the recorded scene's " \
+            "flows.sinks[0] (rectangle [7.5, 0.0] to [10.0, 4.0])" in err and "(fix: " in err
+    before = analyze(out, line=(7.4, 0.0, 7.4, 4.0))
+    assert before.summary["flow"]["positive"] == left

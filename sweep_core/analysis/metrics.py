@@ -37,7 +37,7 @@ from sweep_core.analysis.crowd import FundamentalDiagram, Tracks
 from sweep_core.analysis.density import MAX_CELLS as MAX_CELLS  # re-exported for the CLI
 from sweep_core.analysis.density import Hist2D
 from sweep_core.analysis.frames import Frame, FrameReader, GapFinder, progress_bar
-from sweep_core.analysis.lines import flow_summary
+from sweep_core.analysis.lines import flow_summary, line_outside_sinks
 from sweep_core.analysis.lines import line_crossings as line_crossings  # re-exported
 from sweep_core.analysis.lines import parse_line as parse_line  # re-exported for the CLI
 from sweep_core.analysis.robots import for_run as robot_metrics
@@ -388,7 +388,8 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
         check_window(speed_window)
     meta = load_run(path)
     window = choose_window(speed_window, meta.frame_interval)
-    metrics = _Metrics(meta, line, arrive_radius, float(cell), window)
+    metrics = _Metrics(meta, line_outside_sinks(line, meta.scene), arrive_radius, float(cell),
+                       window)
     robots = robot_metrics(meta, goal_radius, time_limit)
     reader, finder = FrameReader(meta), GapFinder(meta.record_every)
     with progress_bar(meta.frames or None, "frame", progress) as bar:
