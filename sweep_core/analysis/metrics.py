@@ -403,9 +403,9 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
     for r in metrics.finish():
         if robots is not None:
             robots.add(r.payload[1], r.payload[2], r.payload[3], r.v)
-    if given and metrics.rows:
-        fits(window, np.array([row[0] for row in metrics.rows]))
+    note = fits(window, np.array([row[0] for row in metrics.rows]), given=given) if metrics.rows else None
     an = metrics.result(reader)
+    an.summary["speed"].update({"note": note} if note else {})
     if robots is not None:
         an.summary["robots"], an.robots = robots.summary(), robots.table()
         for entry in an.summary["robots"].values():
