@@ -86,7 +86,24 @@ def test_a_line_that_meets_a_sink_is_refused_and_one_before_it_counts_every_leav
     for line in ("7.5,0,7.5,4", "8,1,9,1", "7,2,7.5,2"):  # on its edge, inside, touching
         assert main(["analyze", str(out), "--line", line, "--no-plots", "--quiet"]) == 2
         err = capsys.readouterr().err.strip()
-        assert err.count("\n") == 0 and f"--line {line}: meets the recorded scene's " \
+        assert err.count("\n") == 0 and f"--line {line}: meets the scene's " \
             "flows.sinks[0] (rectangle [7.5, 0.0] to [10.0, 4.0])" in err and "(fix: " in err
     before = analyze(out, line=(7.4, 0.0, 7.4, 4.0))
     assert before.summary["flow"]["positive"] == left
+
+
+@pytest.mark.parametrize("flows, words", [
+    ({"sinks": [{"kind": "rectangle", "min": [7.5, 0.0], "max": [10.0, 4.0]}]},
+     "has sinks or sources: an arrival is an agent leaving at a sink"),
+    ({"journeys": [{"legs": [{"goal": [5.0, 2.0]}, {"goal": GOAL.tolist()}]}]},
+     "has journeys or exit choices"),
+])
+def test_an_arrive_radius_that_would_be_ignored_is_refused(tmp_path, capsys, flows, words):
+    """With sinks an arrival is leaving at a sink, and with journeys no arrivals are
+    reported: a given --arrive-radius would change nothing, so it is refused in one line."""
+    out, _ = _record(tmp_path, _scene(flows))
+    assert main(["analyze", str(out), "--arrive-radius", "3", "--no-plots", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--arrive-radius 3: the scene " + words in err
+    assert "(fix: leave out --arrive-radius)" in err
+    assert main(["analyze", str(out), "--no-plots", "--quiet"]) == 0

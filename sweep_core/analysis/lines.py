@@ -45,7 +45,7 @@ def line_outside_sinks(line: tuple[float, float, float, float] | None, scene: An
             shown = ",".join(f"{v:g}" for v in line)
             where = (f"(rectangle {sink.lo.tolist()} to {sink.hi.tolist()})" if sink.is_rectangle
                      else f"(polygon of {len(sink.points)} points)")
-            raise SweepError(f"--line {shown}: meets the recorded scene's flows.sinks[{k}] "
+            raise SweepError(f"--line {shown}: meets the scene's flows.sinks[{k}] "
                              f"{where}; an agent leaves as its centre enters a sink, so "
                              "no frame holds it past the line and its crossing would not be "
                              "counted (fix: put the line outside every sink, before it)")
