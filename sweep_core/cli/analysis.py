@@ -117,7 +117,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "scene's goal_radius; docs/social_metrics.md)")
     p.add_argument("--time-limit", type=float, default=None, metavar="S",
                    help="a robot's episode ends S s after the first frame (default: the "
-                        "scene's time_limit, else the whole recording)")
+                        "scene's time_limit, else the whole recording; refused, as "
+                        "--goal-radius is, when the scene has no robot)")
     p.add_argument("--speed-window", type=float, default=None, metavar="S",
                    help="every speed is an agent's displacement over S s centred on the frame "
                         f"(default {DEFAULT_WINDOW_S:g}: JPSreport's 10 frames at the Jülich "
