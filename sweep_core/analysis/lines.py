@@ -137,4 +137,8 @@ def flow_summary(line: tuple[float, float, float, float], counts: tuple[int, int
                      "the crossings at 10 % and 90 % of them (sweep verify's bottleneck flow); "
                      "specific: steady (else per_s) / width",
         "reference": flow_reference(width, rate),
-    }
+    } | ({"note": f"{negative} of the {positive + negative} crossings are negative (right to "
+                  "left): per_s, steady_per_s and the evacuation times count the positive ones "
+                  "only (fix: for the other direction give the ends swapped, --line "
+                  + ",".join(f"{v:g}" for v in (*line[2:], *line[:2])) + ")"}
+         if negative > positive else {})
