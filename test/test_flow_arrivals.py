@@ -107,3 +107,19 @@ def test_an_arrive_radius_that_would_be_ignored_is_refused(tmp_path, capsys, flo
     assert err.count("\n") == 0 and "--arrive-radius 3: the scene " + words in err
     assert "(fix: leave out --arrive-radius)" in err
     assert main(["analyze", str(out), "--no-plots", "--quiet"]) == 0
+
+
+def test_population_says_how_many_source_agents_were_due_and_still_wait(tmp_path):
+    """A source of 60 agents at 50 per second into a 0.6 m square: all are due by 1.2 s, but
+    one disk fits at a time, so most wait. The population gives the due count from the
+    recorded scene's schedule and the ones still waiting (due minus entered)."""
+    source = {"region": {"kind": "rectangle", "min": [0.3, 0.3], "max": [0.9, 0.9]},
+              "rate": 50, "count": 60, "radius": 0.2}
+    out, frames = _record(tmp_path, _scene({"sources": [source]}))
+    seen = set()
+    for fr in frames:
+        seen.update(int(i) for i in fr.agents["id"])
+    entered = len([i for i in seen if i >= 4])
+    pop = analyze(out).summary["population"]
+    assert pop["entered"] == entered and 0 < entered < 60
+    assert pop["due"] == 60 and pop["waiting_at_end"] == 60 - entered
