@@ -77,3 +77,26 @@ def test_the_id_note_says_agents_enter_and_leave_only_with_sources_or_sinks(runs
     fixed = compare.compare(runs["headway"], runs["headway2"])
     assert fixed.notes == ["agents matched by their /agents ids"]
     assert fixed.sup_m == 0.0 and fixed.present_in == ["A and B"] * 3
+
+
+def test_a_time_with_no_agent_in_both_runs_has_no_distance(tmp_path, capsys):
+    """Once every agent has left at the sink, no distance is measured: the final distance is
+    none (not 0 m), the CSV's rows are empty there, and the sup is over the times with
+    agents."""
+    near = [[8.3, 1.0], [8.3, 2.5]]  # 0.2 m from the sink: both leave within the 0.5 s
+    a = run(tmp_path, "leave_a", {"sinks": [SINK]}, near)
+    b = run(tmp_path, "leave_b", {"sinks": [SINK]}, near)
+    c = compare.compare(a, b)
+    assert np.isnan(c.final_max_m) and np.isnan(c.final_mean_m)
+    held = np.isfinite(c.table[:, 1])
+    assert held[0] and not held[-1]
+    assert c.sup_m == np.nanmax(c.table[:, 1]) and np.isfinite(c.sup_t_s)
+    text = compare.format_comparison(c)
+    assert f"final distance     none: no agent is in both runs at t = {c.t_last_s:.6g} s" \
+        in text
+    assert main(["compare", str(a), str(b), "--no-plots", "--quiet"]) == 0
+    capsys.readouterr()
+    with open(a.with_name("leave_a_vs_leave_b.compare.csv"), newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert rows[-1]["max_distance_m"] == "" and rows[-1]["mean_distance_m"] == ""
+    assert rows[0]["max_distance_m"] != ""

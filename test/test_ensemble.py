@@ -21,7 +21,7 @@ from sweep_core.analysis.run import load_run  # noqa: E402
 from sweep_core.cli import main  # noqa: E402
 from sweep_core.ensemble import cluster, run, store  # noqa: E402
 from sweep_core.ensemble.task import Task, digest, flatten, simulate  # noqa: E402
-from sweep_core.errors import SceneError  # noqa: E402
+from sweep_core.errors import SceneError, SweepError  # noqa: E402
 from sweep_core.io.recording import read_metadata
 
 SCENE = """
@@ -346,3 +346,18 @@ def test_a_workers_memory_is_what_the_worker_bound_assumes(client):
     peaks = client.run(_worker_memory).values()
     for peak in peaks:
         assert 1 / 1.5 <= cluster.WORKER_BYTES / peak <= 1.5, (cluster.WORKER_BYTES, peaks)
+
+
+@pytest.mark.parametrize("options, words", [
+    ({"line": "13,4,13,6"}, r"^--line 13,4,13,6: meets the scene's flows.sinks\[0\] "),
+    ({"arrive_radius": 1.0}, r"^--arrive-radius 1: the scene has sinks or sources"),
+])
+def test_a_line_in_a_sink_or_an_unused_arrive_radius_is_refused_before_any_run(
+        tmp_path, options, words):
+    """The bundled room's agents leave at a sink (x 12-15, y 3-7): a line in it would count
+    nobody and a radius would not change its arrivals (leaving at the sink). Both are refused
+    as sweep analyze refuses them, before a cluster is asked for anything (the client here
+    answers nothing) or the folder is made."""
+    with pytest.raises(SweepError, match=words):
+        run(None, runs=1, t_end=1.0, client=object(), out=tmp_path / "o", **options)
+    assert not (tmp_path / "o").exists()

@@ -71,3 +71,55 @@ def test_arrived_with_sinks_counts_the_agents_that_left_by_each_frame(tmp_path):
     arrived = an.table[:, list(an.COLUMNS).index("arrived")]
     np.testing.assert_array_equal(arrived, counts[0] - counts)
     assert an.summary["arrivals"]["arrived"] == counts[0] - counts[-1]
+
+
+def test_a_line_that_meets_a_sink_is_refused_and_one_before_it_counts_every_leaver(
+        tmp_path, capsys):
+    """An agent leaves as its centre enters a sink, so a line on the sink's edge (or in it)
+    is never crossed in the recorded frames: its flow would read 0 while agents leave across
+    it. Such a line is refused naming the sink; one just before the sink counts every agent
+    that left."""
+    sink = {"kind": "rectangle", "min": [7.5, 0.0], "max": [10.0, 4.0]}
+    out, frames = _record(tmp_path, _scene({"sinks": [sink], "headway": {}}))
+    left = len(frames[0].positions) - len(frames[-1].positions)
+    assert left > 0
+    for line in ("7.5,0,7.5,4", "8,1,9,1", "7,2,7.5,2"):  # on its edge, inside, touching
+        assert main(["analyze", str(out), "--line", line, "--no-plots", "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and f"--line {line}: meets the scene's " \
+            "flows.sinks[0] (rectangle [7.5, 0.0] to [10.0, 4.0])" in err and "(fix: " in err
+    before = analyze(out, line=(7.4, 0.0, 7.4, 4.0))
+    assert before.summary["flow"]["positive"] == left
+
+
+@pytest.mark.parametrize("flows, words", [
+    ({"sinks": [{"kind": "rectangle", "min": [7.5, 0.0], "max": [10.0, 4.0]}]},
+     "has sinks or sources: an arrival is an agent leaving at a sink"),
+    ({"journeys": [{"legs": [{"goal": [5.0, 2.0]}, {"goal": GOAL.tolist()}]}]},
+     "has journeys or exit choices"),
+])
+def test_an_arrive_radius_that_would_be_ignored_is_refused(tmp_path, capsys, flows, words):
+    """With sinks an arrival is leaving at a sink, and with journeys no arrivals are
+    reported: a given --arrive-radius would change nothing, so it is refused in one line."""
+    out, _ = _record(tmp_path, _scene(flows))
+    assert main(["analyze", str(out), "--arrive-radius", "3", "--no-plots", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--arrive-radius 3: the scene " + words in err
+    assert "(fix: leave out --arrive-radius)" in err
+    assert main(["analyze", str(out), "--no-plots", "--quiet"]) == 0
+
+
+def test_population_says_how_many_source_agents_were_due_and_still_wait(tmp_path):
+    """A source of 60 agents at 50 per second into a 0.6 m square: all are due by 1.2 s, but
+    one disk fits at a time, so most wait. The population gives the due count from the
+    recorded scene's schedule and the ones still waiting (due minus entered)."""
+    source = {"region": {"kind": "rectangle", "min": [0.3, 0.3], "max": [0.9, 0.9]},
+              "rate": 50, "count": 60, "radius": 0.2}
+    out, frames = _record(tmp_path, _scene({"sources": [source]}))
+    seen = set()
+    for fr in frames:
+        seen.update(int(i) for i in fr.agents["id"])
+    entered = len([i for i in seen if i >= 4])
+    pop = analyze(out).summary["population"]
+    assert pop["entered"] == entered and 0 < entered < 60
+    assert pop["due"] == 60 and pop["waiting_at_end"] == 60 - entered

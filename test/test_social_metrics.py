@@ -321,3 +321,27 @@ def test_cli_refuses_a_goal_radius_beyond_a_scenes_bound(tmp_path, capsys) -> No
                                               ), err
     assert "(fix: --goal-radius 10000 or less)" in err, err
     assert main(["analyze", str(path), "--quiet", "--no-plots", "--goal-radius", "1e4"]) == 0
+
+
+@pytest.mark.parametrize("option", ["--time-limit", "--goal-radius"])
+def test_cli_refuses_a_robot_option_for_a_recording_without_robots(tmp_path, capsys, option):
+    """--time-limit and --goal-radius set a robot's episode; on a crowd without robots they
+    would change nothing (a --time-limit 2 does not cut the crowd's metrics to 2 s), so they
+    are refused in one line with the fix."""
+    from sweep_core.cli import main
+    from sweep_core.model.scene import Scene
+
+    scene = tmp_path / "crowd.yaml"
+    scene.write_text(Scene.from_dict({"name": "crowd", "agents": {
+        "positions": [[0.0, 0.0], [2.0, 0.0]], "radius": 0.2},
+        "drift": {"kind": "uniform", "velocity": [1.0, 0.0]}}).to_yaml())
+    out = tmp_path / "crowd.mcap"
+    assert main(["run", str(scene), "--t-end", "1", "--dt", "0.05", "--out", str(out),
+                 "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["analyze", str(out), "--quiet", "--no-plots", option, "2"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith(f"sweep: error: {option} 2: the recording's "
+                                              "scene has no robot"), err
+    assert "(fix: leave it out" in err, err
+    assert main(["analyze", str(out), "--quiet", "--no-plots"]) == 0

@@ -148,3 +148,41 @@ def test_a_line_of_zero_length_is_refused(drifting, capsys):
     err = [ln for ln in text.splitlines() if "--line" in ln]
     assert len(err) == 1 and "'1,2,1,2'" in err[0], text
     assert "zero length" in err[0] and "fix:" in err[0] and "Traceback" not in text
+
+
+def test_a_recording_shorter_than_the_default_window_says_so(tmp_path, capsys):
+    """A 0.3 s run against the default 0.625 s window: no frame has a recorded frame on both
+    sides, so no speed; the summary says why and how to get one (a given window that long is
+    refused; a recording longer than the window carries no note)."""
+    scene = tmp_path / "drifting.yaml"
+    scene.write_text(yaml.safe_dump(DRIFTING))
+    out = tmp_path / "short.mcap"
+    assert main(["run", str(scene), "--t-end", "0.3", "--dt", str(DT), "--seed", str(SEED),
+                 "--out", str(out), "--quiet"]) == 0
+    speed = metrics.analyze(out).summary["speed"]
+    assert speed["samples"] == 0 and speed["window_s"] == 0.625
+    assert speed["note"] == ("the default window 0.625 s is longer than the recording (0.3 s "
+                             "from its first to its last frame): every speed is one-sided or "
+                             "missing (fix: give --speed-window of at most 0.3 s)")
+    assert main(["analyze", str(out), "--no-plots", "--quiet"]) == 0
+    assert "speed.note" in capsys.readouterr().out
+    given = metrics.analyze(out, speed_window=0.3).summary["speed"]
+    assert given["samples"] > 0 and "note" not in given
+
+
+def test_a_line_crossed_mostly_backwards_says_so_and_how_to_turn_it():
+    """A line drawn the other way round: every crossing negative, so no flow and no evacuation
+    time; the summary says why, with the line's ends swapped. A line crossed mostly forwards
+    has no note."""
+    from sweep_core.analysis.lines import flow_summary
+
+    times = np.array([1.0, 2.0])
+    back = flow_summary((10.0, 3.0, 10.0, 0.0), (-16, 0, 16), np.zeros(0),
+                        np.full(16, np.nan), 16)
+    assert back["per_s"] is None and back["evacuated"] == 0
+    assert back["note"] == ("16 of the 16 crossings are negative (right to left): per_s, "
+                            "steady_per_s and the evacuation times count the positive ones "
+                            "only (fix: for the other direction give the ends swapped, --line "
+                            "10,0,10,3)")
+    ahead = flow_summary((10.0, 0.0, 10.0, 3.0), (1, 2, 1), times, np.array([1.0, 2.0]), 2)
+    assert "note" not in ahead and ahead["per_s"] == pytest.approx(1.0)

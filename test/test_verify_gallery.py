@@ -81,3 +81,13 @@ def test_the_verdict_judges_each_seed_and_says_why() -> None:
     assert verdict.values[0] < 0.05 and verdict.values[1] > g.TARGET
     assert "seed 4: room_door: flow" in verdict.notes and "seed 3:" not in verdict.notes
     assert TESTS["gallery"] is g.TEST_GALLERY and g.TEST_GALLERY.slow
+
+
+def test_the_verdict_says_how_long_the_runs_were() -> None:
+    """--quick runs the gallery for 25 s instead of 40 s: the verdict says which, and the
+    measured quantity names both (it used to say 40 s for the quick runs too)."""
+    good = line_flow_at(1.2)
+    traces = {"headway/room_door": [crossing_trace(2.0 + np.arange(60) / good, seed=3)]}
+    assert g._judge(traces, True).notes.startswith(f"runs of {g.QUICK_T_END:g} s: ")
+    assert g._judge(traces, False).notes.startswith(f"runs of {g.T_END:g} s: ")
+    assert f"in a {g.T_END:g} s run, {g.QUICK_T_END:g} s with --quick" in g.TEST_GALLERY.measures

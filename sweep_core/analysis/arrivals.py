@@ -26,11 +26,34 @@ from typing import Any
 
 import numpy as np
 
+from sweep_core.errors import SweepError
 from sweep_core.model.fields import Field, Groups
 from sweep_core.model.geodesic import Exits, Target, navigation_targets
 
 #: drift kinds with a goal to arrive at
 GOAL_KINDS = ("goal", "geodesic", "exits")
+
+
+def arrive_radius_for(arrive_radius: float | None, scene: Any) -> float | None:
+    """``--arrive-radius`` (m) checked: a positive number, and given only when the recorded
+    ``scene`` (a Scene or None) measures arrivals by distance. With sinks or sources an arrival
+    is leaving at a sink, and with journeys or exit choices arrivals are not reported, so a
+    radius would be ignored: it is refused (SweepError naming the value and the fix)."""
+    if arrive_radius is None:
+        return None
+    if not (arrive_radius > 0 and math.isfinite(arrive_radius)):
+        raise SweepError(f"--arrive-radius: must be a positive number of metres, "
+                         f"got {arrive_radius!r}")
+    flows = getattr(scene, "flows", None)
+    if flows is not None and (flows.changes_population or flows.journeys
+                              or flows.exit_choices):
+        why = ("has sinks or sources: an arrival is an agent leaving at a sink, timed by the "
+               "frames, with no radius" if flows.changes_population else "has journeys or "
+               "exit choices: agents head elsewhere than their drift's goal and arrivals are "
+               "not reported")
+        raise SweepError(f"--arrive-radius {arrive_radius:g}: the scene {why} "
+                         "(fix: leave out --arrive-radius)")
+    return arrive_radius
 
 
 def time_for(times: np.ndarray, n_agents: int, fraction: float) -> float | None:

@@ -212,7 +212,6 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
     sup_agent = sup_t = None
     per = arg = None
     seen = np.zeros((2, 0), dtype=bool)  # by agent: seen in A, in B (at the common times)
-    last = None
     bar = progress_bar(min(ma.frames, mb.frames) or None, "frame", progress)
     with bar:
         while fa is not None and fb is not None:
@@ -245,8 +244,9 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
             worse = ~(d <= per[who])  # NaN: not yet compared
             per[who[worse]] = d[worse]
             arg[who[worse]] = t
-            rows.append((t, float(d.max(initial=0.0)), float(d.mean()) if len(d) else 0.0))
-            last = d
+            # no agent in both runs at t: no distance (NaN, empty in the CSV), never 0 m
+            rows.append((t, float(d.max()) if len(d) else math.nan,
+                         float(d.mean()) if len(d) else math.nan))
             bar.update()
             fa, fb = next(ia, None), next(ib, None)
     ia.close()  # type: ignore[attr-defined]  # generators: closing one fills its problems
@@ -256,8 +256,9 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
                          "(fix: compare runs of the same scene whose recorded times overlap, "
                          "e.g. dt = 0.01 and dt = 0.001)")
     table = np.array(rows)
-    k = int(np.argmax(table[:, 1]))
-    sup_t = float(table[k, 0])
+    held = np.isfinite(table[:, 1])  # the common times with an agent in both runs
+    k = int(np.nanargmax(table[:, 1])) if held.any() else 0
+    sup_t = float(table[k, 0]) if held.any() else math.nan
     compared = np.isfinite(per)
     sup_agent = int(np.nanargmax(per)) if np.any(compared) else -1
     present = [("A and B" if ok else "A and B, never at one time") if a and b else
@@ -265,9 +266,9 @@ def compare(a: str | Path, b: str | Path, progress: bool = False) -> Comparison:
     truncated = [m.path for m in (ma, mb) if m.truncated]
     return Comparison(
         a=ma.path, b=mb.path, common_frames=len(rows), t_first_s=float(table[0, 0]),
-        t_last_s=float(table[-1, 0]), sup_m=float(table[:, 1].max()), sup_t_s=sup_t,
-        sup_agent=sup_agent, final_max_m=float(last.max(initial=0.0)),
-        final_mean_m=float(last.mean()) if len(last) else 0.0, per_agent_sup_m=per.tolist(),
+        t_last_s=float(table[-1, 0]), sup_m=float(table[k, 1]), sup_t_s=sup_t,
+        sup_agent=sup_agent, final_max_m=float(table[-1, 1]),
+        final_mean_m=float(table[-1, 2]), per_agent_sup_m=per.tolist(),
         per_agent_t_s=arg.tolist(), shared_path=same.path, same_scene=same.scene_line(),
         same_seed=same.seed, pathwise=same.pathwise, distance=same.distance_line(),
         truncated=truncated,
@@ -284,8 +285,11 @@ def format_comparison(c: Comparison) -> str:
         f"noise path         {c.shared_path}",
         f"distance           {c.distance}",
         f"common times       {c.common_frames} (t = {c.t_first_s:.6g} .. {c.t_last_s:.6g} s)",
-        f"sup distance       {c.sup_m:.6g} m (t = {c.sup_t_s:.6g} s)",
-        f"final distance     max {c.final_max_m:.6g} m, mean {c.final_mean_m:.6g} m",
+        f"sup distance       {c.sup_m:.6g} m (t = {c.sup_t_s:.6g} s)" if math.isfinite(c.sup_m)
+        else "sup distance       none: no agent is in both runs at a common time",
+        f"final distance     max {c.final_max_m:.6g} m, mean {c.final_mean_m:.6g} m"
+        if math.isfinite(c.final_max_m) else
+        f"final distance     none: no agent is in both runs at t = {c.t_last_s:.6g} s",
     ]
     only = {k: c.present_in.count(k) for k in ("A", "B")}
     lines.append(f"agents compared    {c.agents_compared} (in both runs at a common time)"

@@ -10,8 +10,10 @@ import numpy as np
 from sweep_core.analysis.arrivals import stats, time_for
 from sweep_core.analysis.references import flow_reference
 from sweep_core.errors import SweepError
+from sweep_core.model.outlines import segments_meet
 
-__all__ = ["crossing_flows", "flow_summary", "line_crossings", "line_width", "parse_line"]
+__all__ = ["crossing_flows", "flow_summary", "line_crossings", "line_outside_sinks",
+           "line_width", "parse_line"]
 
 
 def parse_line(text: str) -> tuple[float, float, float, float]:
@@ -26,6 +28,28 @@ def parse_line(text: str) -> tuple[float, float, float, float]:
         raise SweepError(f"--line: {text!r} has zero length: both ends are the same point "
                          "(fix: give two different ends x0,y0,x1,y1, e.g. 10,4.4,10,5.6)")
     return vals  # type: ignore[return-value]
+
+
+def line_outside_sinks(line: tuple[float, float, float, float] | None, scene: Any
+                       ) -> tuple[float, float, float, float] | None:
+    """The line, or a SweepError when it meets a sink of the recorded scene (``scene``, a
+    :class:`~sweep_core.model.scene.Scene` or None): an agent leaves as its centre enters a
+    sink, so no frame holds it past a line there and its crossing is never counted."""
+    flows = getattr(scene, "flows", None)
+    if line is None or flows is None:
+        return line
+    a, b = np.array(line[:2]), np.array(line[2:])
+    for k, sink in enumerate(flows.sinks):
+        edges = segments_meet(a, b, sink.points, np.roll(sink.points, -1, axis=0))
+        if edges.any() or sink.contains(np.array([a, b])).any():
+            shown = ",".join(f"{v:g}" for v in line)
+            where = (f"(rectangle {sink.lo.tolist()} to {sink.hi.tolist()})" if sink.is_rectangle
+                     else f"(polygon of {len(sink.points)} points)")
+            raise SweepError(f"--line {shown}: meets the scene's flows.sinks[{k}] "
+                             f"{where}; an agent leaves as its centre enters a sink, so "
+                             "no frame holds it past the line and its crossing would not be "
+                             "counted (fix: put the line outside every sink, before it)")
+    return line
 
 
 def line_crossings(p0: np.ndarray, p1: np.ndarray, line: tuple[float, float, float, float]
@@ -113,4 +137,8 @@ def flow_summary(line: tuple[float, float, float, float], counts: tuple[int, int
                      "the crossings at 10 % and 90 % of them (sweep verify's bottleneck flow); "
                      "specific: steady (else per_s) / width",
         "reference": flow_reference(width, rate),
-    }
+    } | ({"note": f"{negative} of the {positive + negative} crossings are negative (right to "
+                  "left): per_s, steady_per_s and the evacuation times count the positive ones "
+                  "only (fix: for the other direction give the ends swapped, --line "
+                  + ",".join(f"{v:g}" for v in (*line[2:], *line[:2])) + ")"}
+         if negative > positive else {})

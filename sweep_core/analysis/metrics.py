@@ -32,12 +32,12 @@ from typing import Any
 
 import numpy as np
 
-from sweep_core.analysis.arrivals import ArrivalTracker, start_exits, stats
+from sweep_core.analysis.arrivals import ArrivalTracker, arrive_radius_for, start_exits, stats
 from sweep_core.analysis.crowd import FundamentalDiagram, Tracks
 from sweep_core.analysis.density import MAX_CELLS as MAX_CELLS  # re-exported for the CLI
 from sweep_core.analysis.density import Hist2D
 from sweep_core.analysis.frames import Frame, FrameReader, GapFinder, progress_bar
-from sweep_core.analysis.lines import flow_summary
+from sweep_core.analysis.lines import flow_summary, line_outside_sinks
 from sweep_core.analysis.lines import line_crossings as line_crossings  # re-exported
 from sweep_core.analysis.lines import parse_line as parse_line  # re-exported for the CLI
 from sweep_core.analysis.robots import for_run as robot_metrics
@@ -366,7 +366,7 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
             first positive crossing, at the time of the first frame past the line).
         arrive_radius: an agent has arrived when its centre is within this distance (m) of
             the goal in effect (goal scenes and goal commands); default: the goal's
-            slow_radius.
+            slow_radius; refused with sinks, sources, journeys or exit choices.
         cell: side of the density map cells (m).
         progress: a progress bar on stderr (shown on a terminal only).
         goal_radius, time_limit: a robot has reached its goal within this distance (m; default
@@ -380,15 +380,13 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
     if isinstance(cell, bool) or not isinstance(cell, (int, float)) or not (
             cell > 0 and math.isfinite(cell)):
         raise SweepError(f"--cell: must be a positive number of metres, got {cell!r}")
-    if arrive_radius is not None and not (arrive_radius > 0 and math.isfinite(arrive_radius)):
-        raise SweepError(f"--arrive-radius: must be a positive number of metres, "
-                         f"got {arrive_radius!r}")
     given = speed_window is not None
     if given:
         check_window(speed_window)
     meta = load_run(path)
     window = choose_window(speed_window, meta.frame_interval)
-    metrics = _Metrics(meta, line, arrive_radius, float(cell), window)
+    metrics = _Metrics(meta, line_outside_sinks(line, meta.scene),
+                       arrive_radius_for(arrive_radius, meta.scene), float(cell), window)
     robots = robot_metrics(meta, goal_radius, time_limit)
     reader, finder = FrameReader(meta), GapFinder(meta.record_every)
     with progress_bar(meta.frames or None, "frame", progress) as bar:
@@ -402,9 +400,9 @@ def analyze(path: str | Path, line: tuple[float, float, float, float] | None = N
     for r in metrics.finish():
         if robots is not None:
             robots.add(r.payload[1], r.payload[2], r.payload[3], r.v)
-    if given and metrics.rows:
-        fits(window, np.array([row[0] for row in metrics.rows]))
+    note = fits(window, np.array([row[0] for row in metrics.rows]), given=given) if metrics.rows else None
     an = metrics.result(reader)
+    an.summary["speed"].update({"note": note} if note else {})
     if robots is not None:
         an.summary["robots"], an.robots = robots.summary(), robots.table()
         for entry in an.summary["robots"].values():

@@ -212,4 +212,10 @@ def for_run(meta: RunMeta, goal_radius: float | None = None,
                          f"{COORDINATE_BOUND:g} m of a scene's goal_radius (fix: "
                          f"--goal-radius {COORDINATE_BOUND:g} or less)")
     specs = robot_specs(meta.scene, goal_radius, time_limit)
+    unused = [(n, v) for n, v in (("--goal-radius", goal_radius), ("--time-limit", time_limit))
+              if v is not None]
+    if not specs and unused:  # options of a robot's episode, which would change nothing
+        raise SweepError(f"{unused[0][0]} {unused[0][1]:g}: the recording's scene has no robot, "
+                         "and the option only sets a robot's goal radius or episode (fix: "
+                         "leave it out; the crowd's metrics cover the whole recording)")
     return SocialMetrics(meta, specs) if specs else None

@@ -65,6 +65,7 @@ class Roster:
         #: the most agents one frame holds
         self.present_max = 0
         self.frames = 0
+        self.t_last = 0.0  # the last frame's time (s)
         flows = scene.flows
         sources = flows.sources if flows is not None else ()
         fixed = {s.r_low for s in sources if s.r_low == s.r_high}
@@ -88,6 +89,7 @@ class Roster:
         self.present = ids
         self.present_max = max(self.present_max, len(ids))
         self.frames += 1
+        self.t_last = t
 
     def radii(self, ids: np.ndarray, agents: dict[str, np.ndarray], t: float) -> np.ndarray:
         """Radii (n,) m of the agents ``ids`` at t (s): float64 from the scene for its own
@@ -122,8 +124,14 @@ class Roster:
         entered = int(np.count_nonzero(np.isfinite(self.entered_at[self.n0:])))
         gone = int(np.count_nonzero(np.isfinite(left)))
         travel = left - self.entered_at
+        # the sources' agents due by the last frame (an agent enters at the end of the step
+        # it is due in, when its region has room; else it waits, and those behind it too)
+        flows = self.scene.flows
+        due = sum(int(np.count_nonzero(src.times <= self.t_last + 1e-9))
+                  for src in (flows.sources if flows is not None else ()))
         return {
-            "initial": self.n0, "entered": entered, "left": gone,
+            "initial": self.n0, "entered": entered, "due": due,
+            "waiting_at_end": max(due - entered, 0), "left": gone,
             "present_at_end": int(len(self.present)), "present_max": self.present_max,
             "conserved": self.n0 + entered == len(self.present) + gone,
             "left_t_first_s": stats(left, np.min), "left_t_50_s": time_for(left, n, 0.5),

@@ -68,10 +68,18 @@ def check_spacing(window: float, interval: float, option: str = "--speed-window"
                          f"{2.0 * interval:g} s)")
 
 
-def fits(window: float, times: np.ndarray, option: str = "--speed-window") -> None:
+def fits(window: float, times: np.ndarray, option: str = "--speed-window",
+         given: bool = True) -> str | None:
     """Refuses a window longer than the recording (its frame times ``times`` (K,) s) or shorter
-    than two of its (median) frame intervals."""
+    than two of its (median) frame intervals. The default window (``given`` False) is not
+    refused: when it is longer than the recording, the note the summary carries says so (its
+    speeds are one-sided or missing); else None."""
     span = float(times[-1] - times[0]) if len(times) else 0.0
+    if not given:
+        return None if window <= span else (
+            f"the default window {window:g} s is longer than the recording ({span:g} s from "
+            "its first to its last frame): every speed is one-sided or missing (fix: give "
+            f"--speed-window of at most {span:g} s)")
     if window > span:
         raise SweepError(f"{option}: {window:g} s is longer than the recording ({span:g} s "
                          f"from its first to its last frame) (fix: give a window of at most "
@@ -79,6 +87,7 @@ def fits(window: float, times: np.ndarray, option: str = "--speed-window") -> No
     steps = np.diff(times)
     steps = steps[steps > 0]
     check_spacing(window, float(np.median(steps)) if len(steps) else 0.0, option)
+    return None
 
 
 def choose_window(given: Any, interval: float | None, option: str = "--speed-window"

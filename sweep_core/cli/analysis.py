@@ -115,7 +115,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="counting line (m): flow through it, positive from left to right "
                         "looking from (x0, y0) to (x1, y1), and evacuation times")
     p.add_argument("--arrive-radius", type=float, default=None, metavar="R",
-                   help="arrived = within R m of the goal in effect (default: its slow_radius)")
+                   help="arrived = within R m of the goal in effect (default: its slow_radius); "
+                   "refused when the scene has sinks or sources (an arrival is leaving at a "
+                   "sink), journeys or exit choices (no arrivals)")
     p.add_argument("--cell", type=float, default=0.5,
                    help=f"density map cell, m (default 0.5; the map has at most "
                         f"{metrics.MAX_CELLS:g} cells)")
@@ -124,7 +126,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "scene's goal_radius; docs/social_metrics.md)")
     p.add_argument("--time-limit", type=float, default=None, metavar="S",
                    help="a robot's episode ends S s after the first frame (default: the "
-                        "scene's time_limit, else the whole recording)")
+                        "scene's time_limit, else the whole recording; refused, as "
+                        "--goal-radius is, when the scene has no robot)")
     p.add_argument("--speed-window", type=float, default=None, metavar="S",
                    help="every speed is an agent's displacement over S s centred on the frame "
                         f"(default {DEFAULT_WINDOW_S:g}: JPSreport's 10 frames at the Jülich "

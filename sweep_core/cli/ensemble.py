@@ -88,7 +88,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--line", metavar="x0,y0,x1,y1", default=None,
                    help="counting line (m) as in sweep analyze: flow and evacuation times")
     p.add_argument("--arrive-radius", type=float, default=None, metavar="R",
-                   help="arrived = within R m of the goal (default: its slow_radius)")
+                   help="arrived = within R m of the goal (default: its slow_radius; refused "
+                   "as by sweep analyze)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     p.add_argument("--no-plots", action="store_true", help="no PNG")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

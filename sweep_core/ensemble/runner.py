@@ -19,7 +19,8 @@ import numpy as np
 import pandas as pd
 
 from sweep_core import checks
-from sweep_core.analysis.lines import parse_line
+from sweep_core.analysis.arrivals import arrive_radius_for
+from sweep_core.analysis.lines import line_outside_sinks, parse_line
 from sweep_core.ensemble import cluster, grid, paired, store
 from sweep_core.ensemble.task import RECORD, Task, simulate
 from sweep_core.errors import SceneError
@@ -197,6 +198,8 @@ def run(scene: Scene | dict | str | Path | None = None, *, runs: int = 1, seed0:
         if "dt" in point:
             check_steps(t_end, float(point["dt"]), "--vary dt")
     check_recording(base, t_end, min(float(p.get("dt", dt)) for p in points))
+    # a line in a sink, a radius arrivals would not use: refused before any run, as analyze does
+    line, arrive_radius = line_outside_sinks(line, base), arrive_radius_for(arrive_radius, base)
     keys = list(points[0])
     out_dir = Path(out).resolve() if out is not None else None
     held = None  # DIR/.lock, held while this ensemble writes DIR

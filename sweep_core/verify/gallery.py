@@ -169,7 +169,7 @@ def _judge(traces: dict[str, list[Trace]], quick: bool) -> Verdict:
             f"{name} J {' '.join(f'{j:.2f}' for j, _ in s)} /s, median speed "
             f"{np.nanmedian([v for _, v in s]):.2f} m/s" for name, s in m[law].items())
 
-    notes = (f"{row('headway')}; the experiments' line " + ", ".join(
+    notes = (f"runs of {t_end:g} s: {row('headway')}; the experiments' line " + ", ".join(
         f"{name} ({w:g} m) {line_flow_at(w):.2f} /s (Seyfried 2009 {seyfried(w):.2f})"
         for name, (_, w) in LINES.items()))
     if reasons:
@@ -208,9 +208,9 @@ def _plot(traces: dict[str, list[Trace]], verdict: Verdict, folder: Path) -> lis
 
 TEST_GALLERY = Test(
     "gallery", "Gallery flows against the experiments",
-    f"largest relative departure of the flow (speed law, {SKIP}th crossing to the last in "
-    f"{T_END:g} s) through room_door's 1.2 m door and bottleneck's 1 m corridor from the "
-    "experiments' line; median speed over 1 s windows",
+    f"largest relative departure of the flow (speed law, {SKIP}th crossing to the last in a "
+    f"{T_END:g} s run, {QUICK_T_END:g} s with --quick) through room_door's 1.2 m door and "
+    "bottleneck's 1 m corridor from the experiments' line; median speed over 1 s windows",
     f"<= {TARGET:.0%} (target), median speed <= {MAX_MEDIAN_SPEED:g} m/s", _cases, _judge,
     _plot, source="the bundled room_door and bottleneck; Seyfried et al. 2009, Kretz et al. "
     "2006", slow=True)
