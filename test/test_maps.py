@@ -273,3 +273,25 @@ def test_sweep_map_refuses_a_starter_count_that_cannot_be_spawned(
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err, err
     assert not scene_file.exists()
+
+
+@pytest.mark.parametrize("mode, shown, fix", [
+    ("raw", "raw", "trinary"),       # raw pixels are occupancies 0..100: read as trinary, the
+    ("trinry", "'trinry'", "trinary"),  # free cells became walls and unknown ones free
+])
+def test_a_mode_other_than_trinary_or_scale_is_refused(tmp_path: Path, mode: str, shown: str,
+                                                       fix: str) -> None:
+    path = write_map(tmp_path)
+    path.write_text(path.read_text() + f"mode: {mode}\n")
+    with pytest.raises(SceneError) as err:
+        read_map_yaml(path)
+    assert err.value.field.endswith("(room.yaml).mode") and shown in err.value.problem
+    assert fix in err.value.fix and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("mode", ["trinary", "scale"])
+def test_trinary_and_scale_modes_give_the_same_cells(tmp_path: Path, mode: str) -> None:
+    plain = read_map_yaml(write_map(tmp_path)).blocked.copy()
+    path = write_map(tmp_path)
+    path.write_text(path.read_text() + f"mode: {mode}\n")
+    assert np.array_equal(read_map_yaml(path).blocked, plain)
