@@ -315,7 +315,7 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
                for k, s in enumerate(_listed(raw, "sources", MAX_SOURCES))]
     spec["sources"] = [s.spec for s in sources]
     if not recorded:
-        check_sources(sources, sinks, geometry)
+        check_sources(sources, sinks, geometry, grid)
     journeys: list[Journey] = []
     seen: dict[int, int] = {}
     for k, j in enumerate(_listed(raw, "journeys")):
