@@ -1,8 +1,8 @@
 """What a scene's sources can never do, refused when the scene is built: a source whose region
 has no point where its largest disk is clear of the walls and obstacles, outside blocked map
 cells (that agent, and every one due after it, would wait for ever), a source whose region
-lies inside a sink (every agent it emits would leave at once), and a source none of whose points has a way round the
-walls to the first target its agents head for (every agent it emits would walk into the walls
+lies inside a sink (every agent it emits would leave at once), and a source none of whose
+points has a way round the walls to the first target its agents head for (every agent it emits would walk into the walls
 between them and stay there).
 :mod:`sweep_core.model.flows` calls :func:`check_sources` and :func:`check_source_ways`.
 
