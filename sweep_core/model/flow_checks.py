@@ -2,8 +2,8 @@
 has no point where its largest disk is clear of the walls and obstacles, outside blocked map
 cells (that agent, and every one due after it, would wait for ever), a source whose region
 lies inside a sink (every agent it emits would leave at once), and a source none of whose
-points has a way round the walls to the first target its agents head for (every agent it emits would walk into the walls
-between them and stay there).
+points has a way round the walls to the first target its agents head for (every agent it
+emits would walk into the walls between them and stay there).
 :mod:`sweep_core.model.flows` calls :func:`check_sources` and :func:`check_source_ways`.
 
 The room test is a proof, never a guess: the clearance c(q) (m) of a centre q, its distance to

@@ -18,7 +18,8 @@ Map files (map_server's YAML): ``image`` (PGM or PNG, relative to the YAML file)
 lower-left pixel), ``negate`` (0/1), ``occupied_thresh``, ``free_thresh`` (probabilities),
 ``mode`` (trinary, the default, or scale: read the same way, since only free cells matter;
 raw, whose pixels are occupancies 0..100, is refused). A pixel of value v (0..255) has
-occupancy p = (255 - v) / 255 (v / 255 when negate); p > occupied_thresh: occupied; p < free_thresh: free; otherwise unknown.
+occupancy p = (255 - v) / 255 (v / 255 when negate); p > occupied_thresh: occupied;
+p < free_thresh: free; otherwise unknown.
 """
 from __future__ import annotations
 
