@@ -98,6 +98,13 @@ def test_a_preferred_speed_beyond_the_bound_is_refused(flow, field):
     (lambda d: d.update(drift={"kind": "groups", "groups": [
         {"name": "a", "agents": [0, 1, 2], "speed": 1e20,
          "drift": {"kind": "goal", "goal": [9.5, 2.0]}}]}), "drift.groups[0].speed"),
+    # a uniform or per-agent velocity is a drift speed too (before: accepted; at 1e20 m/s the
+    # first step stopped with 'cannot be placed without overlap, fix: smaller radii')
+    (lambda d: d.update(drift={"kind": "uniform", "velocity": [1e20, 0.0]}), "drift.velocity"),
+    (lambda d: d.update(drift={"kind": "uniform", "velocity": [8e3, 8e3]}), "drift.velocity"),
+    (lambda d: d.update(drift={"kind": "per_agent", "velocities": [[1.0, 0.0], [0.0, 0.0],
+                                                                   [0.0, -1e300]]}),
+     "drift.velocities[2]"),
 ])
 def test_a_drift_speed_beyond_the_bound_is_refused(edit, field):
     """Before: accepted; a goal drift at 1e20 m/s stopped at its first step with 'agents
