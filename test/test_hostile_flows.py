@@ -105,6 +105,14 @@ def test_a_preferred_speed_beyond_the_bound_is_refused(flow, field):
     (lambda d: d.update(drift={"kind": "per_agent", "velocities": [[1.0, 0.0], [0.0, 0.0],
                                                                    [0.0, -1e300]]}),
      "drift.velocities[2]"),
+    # a moving wall or obstacle too (before: a half-plane at 1e20 m/s "completed" its run
+    # with the agents pushed to y = 1e19 m, far beyond the position bound)
+    (lambda d: d["walls"].append({"kind": "halfplane", "normal": [0, 1], "offset": -5.0,
+                                  "velocity": 1e20}), "walls[1].velocity"),
+    (lambda d: d["walls"].append({"kind": "halfplane", "normal": [0, 1], "offset": -5.0,
+                                  "velocity": -2e4}), "walls[1].velocity"),
+    (lambda d: d.update(obstacles=[{"kind": "circle", "center": [5, 3], "radius": 0.3,
+                                    "velocity": [0.0, 1e20]}]), "obstacles[0].velocity"),
 ])
 def test_a_drift_speed_beyond_the_bound_is_refused(edit, field):
     """Before: accepted; a goal drift at 1e20 m/s stopped at its first step with 'agents

@@ -301,8 +301,8 @@ def plain_field_from_spec(spec: dict, kind: str, n_agents: int, field: str = "dr
     checks.mapping(spec, field, allowed={"kind"} | _KEYS[kind] | _OPTIONAL.get(kind, set()),
                    required=_KEYS[kind])
     if kind == "uniform":
-        return Uniform(velocity=_bounded(checks.vec2(spec["velocity"], f"{field}.velocity")[None],
-                                         f"{field}.velocity")[0])
+        velocity = checks.vec2(spec["velocity"], f"{field}.velocity")
+        return Uniform(velocity=checks.velocities(velocity[None], f"{field}.velocity")[0])
     if kind == "goal":
         return Goal(goal=checks.point(spec["goal"], f"{field}.goal"),
                     speed=checks.speed(spec["speed"], f"{field}.speed"),
@@ -314,7 +314,7 @@ def plain_field_from_spec(spec: dict, kind: str, n_agents: int, field: str = "dr
                                           f"write {field}.matrix as [[a, b], [c, d]] (1/s)"),
                       offset=checks.vec2(spec.get("offset", [0.0, 0.0]), f"{field}.offset"))
     if kind == "per_agent":
-        return PerAgent(velocities=_bounded(checks.array(
+        return PerAgent(velocities=checks.velocities(checks.array(
             spec["velocities"], f"{field}.velocities", (n_agents, 2), "(one [vx, vy] per agent)",
             f"give {field}.velocities one [vx, vy] (m/s) for each of the {n_agents} agents"),
             f"{field}.velocities", each=True))
@@ -322,17 +322,3 @@ def plain_field_from_spec(spec: dict, kind: str, n_agents: int, field: str = "dr
         return grid_field(spec["x"], spec["y"], spec["vx"], spec["vy"], field)
     return NoDrift()
 
-
-def _bounded(v: np.ndarray, field: str, each: bool = False) -> np.ndarray:
-    """The velocities v (K, 2) m/s, refused naming ``field`` (``field[k]`` when ``each``) when
-    one is faster than checks.MAX_SPEED, as every drift speed is."""
-    fast = np.flatnonzero(np.hypot(v[:, 0], v[:, 1]) > checks.MAX_SPEED)
-    if len(fast):
-        k = int(fast[0])
-        name = f"{field}[{k}]" if each else field
-        raise SceneError(name, f"{show(v[k])} is {show(float(np.hypot(*v[k])))} m/s, above "
-                         f"{checks.MAX_SPEED:g} m/s, where a step of 1 s would leave the "
-                         "scene's coordinate bound",
-                         f"give {name} a speed of at most {checks.MAX_SPEED:g} m/s (walking: "
-                         "about 1.3)")
-    return v
