@@ -525,3 +525,17 @@ def test_an_ensemble_folder_inside_the_package_is_refused():
     with pytest.raises(OutputError, match="inside the installed sweep_core package"):
         store.lock(inside)
     assert not inside.exists()
+
+
+@pytest.mark.parametrize("flow, words", [
+    ({"journeys": [{"legs": [{"goal": [5, 2]}]}, {"legs": [{"goal": [6, 2]}]}]},
+     "flows.journeys[1].group: gives the agents in no group a second journey"),
+    ({"exit_choice": [{"exits": [{"goal": [9, 2]}, {"goal": [1, 3]}]}] * 2},
+     "flows.exit_choice[1].group: gives the agents in no group a second exit choice"),
+    ({"journeys": [{"legs": [{"goal": [5, 2]}]}],
+      "exit_choice": [{"exits": [{"goal": [9, 2]}, {"goal": [1, 3]}]}]},
+     "flows.exit_choice[0].group: gives the agents in no group an exit choice and a journey"),
+])
+def test_a_second_plan_for_the_agents_in_no_group_names_them(flow, words):
+    """Before: 'gives group null a second ...', naming a group the scene does not have."""
+    assert str(refused(corridor(flow))).startswith(words)
