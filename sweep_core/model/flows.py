@@ -335,9 +335,11 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
         field = f"flows.exit_choice[{k}]"
         g = _group(c.get("group") if isinstance(c, dict) else None, f"{field}.group", names)
         if g in seen:
-            raise SceneError(f"{field}.group", f"gives {_who(c)} an exit choice and a journey", "give a group a journey or an exit choice")
+            raise SceneError(f"{field}.group", f"gives {_who(c)} an exit choice and a journey",
+                             "give a group a journey or an exit choice")
         if any(o.group == g for o in choices):
-            raise SceneError(f"{field}.group", f"gives {_who(c)} a second exit choice", "give each group one exit choice")
+            raise SceneError(f"{field}.group", f"gives {_who(c)} a second exit choice",
+                             "give each group one exit choice")
         choices.append(exit_choice_from_spec(c, field, g, names[g] if g >= 0 else None,
                                              float(gspeed[g]), geometry, grid,
                                              members(drift, g, n_agents,
