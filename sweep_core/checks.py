@@ -113,6 +113,20 @@ def speed(value: Any, field: str, *, positive: bool = False, fix: str = "") -> f
     return v
 
 
+def velocities(v: np.ndarray, field: str, each: bool = False) -> np.ndarray:
+    """The velocities v (K, 2) m/s, refused naming ``field`` (``field[k]`` when ``each``) when
+    one is faster than MAX_SPEED, as every speed is."""
+    fast = np.flatnonzero(np.hypot(v[:, 0], v[:, 1]) > MAX_SPEED)
+    if len(fast):
+        k = int(fast[0])
+        name = f"{field}[{k}]" if each else field
+        raise SceneError(name, f"{show(v[k])} is {show(float(np.hypot(*v[k])))} m/s, above "
+                         f"{MAX_SPEED:g} m/s, where a step of 1 s would leave the "
+                         "scene's coordinate bound",
+                         f"give {name} a speed of at most {MAX_SPEED:g} m/s")
+    return v
+
+
 def within_bound(arr: np.ndarray, field: str, what: str = "coordinate",
                  bound: float = COORDINATE_BOUND, magnitude: bool = False) -> np.ndarray:
     """``arr`` (finite floats) unchanged, or SceneError naming the first entry whose

@@ -98,6 +98,21 @@ def test_a_preferred_speed_beyond_the_bound_is_refused(flow, field):
     (lambda d: d.update(drift={"kind": "groups", "groups": [
         {"name": "a", "agents": [0, 1, 2], "speed": 1e20,
          "drift": {"kind": "goal", "goal": [9.5, 2.0]}}]}), "drift.groups[0].speed"),
+    # a uniform or per-agent velocity is a drift speed too (before: accepted; at 1e20 m/s the
+    # first step stopped with 'cannot be placed without overlap, fix: smaller radii')
+    (lambda d: d.update(drift={"kind": "uniform", "velocity": [1e20, 0.0]}), "drift.velocity"),
+    (lambda d: d.update(drift={"kind": "uniform", "velocity": [8e3, 8e3]}), "drift.velocity"),
+    (lambda d: d.update(drift={"kind": "per_agent", "velocities": [[1.0, 0.0], [0.0, 0.0],
+                                                                   [0.0, -1e300]]}),
+     "drift.velocities[2]"),
+    # a moving wall or obstacle too (before: a half-plane at 1e20 m/s "completed" its run
+    # with the agents pushed to y = 1e19 m, far beyond the position bound)
+    (lambda d: d["walls"].append({"kind": "halfplane", "normal": [0, 1], "offset": -5.0,
+                                  "velocity": 1e20}), "walls[1].velocity"),
+    (lambda d: d["walls"].append({"kind": "halfplane", "normal": [0, 1], "offset": -5.0,
+                                  "velocity": -2e4}), "walls[1].velocity"),
+    (lambda d: d.update(obstacles=[{"kind": "circle", "center": [5, 3], "radius": 0.3,
+                                    "velocity": [0.0, 1e20]}]), "obstacles[0].velocity"),
 ])
 def test_a_drift_speed_beyond_the_bound_is_refused(edit, field):
     """Before: accepted; a goal drift at 1e20 m/s stopped at its first step with 'agents
@@ -510,3 +525,17 @@ def test_an_ensemble_folder_inside_the_package_is_refused():
     with pytest.raises(OutputError, match="inside the installed sweep_core package"):
         store.lock(inside)
     assert not inside.exists()
+
+
+@pytest.mark.parametrize("flow, words", [
+    ({"journeys": [{"legs": [{"goal": [5, 2]}]}, {"legs": [{"goal": [6, 2]}]}]},
+     "flows.journeys[1].group: gives the agents in no group a second journey"),
+    ({"exit_choice": [{"exits": [{"goal": [9, 2]}, {"goal": [1, 3]}]}] * 2},
+     "flows.exit_choice[1].group: gives the agents in no group a second exit choice"),
+    ({"journeys": [{"legs": [{"goal": [5, 2]}]}],
+      "exit_choice": [{"exits": [{"goal": [9, 2]}, {"goal": [1, 3]}]}]},
+     "flows.exit_choice[0].group: gives the agents in no group an exit choice and a journey"),
+])
+def test_a_second_plan_for_the_agents_in_no_group_names_them(flow, words):
+    """Before: 'gives group null a second ...', naming a group the scene does not have."""
+    assert str(refused(corridor(flow))).startswith(words)

@@ -273,3 +273,42 @@ def test_sweep_map_refuses_a_starter_count_that_cannot_be_spawned(
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err, err
     assert not scene_file.exists()
+
+
+@pytest.mark.parametrize("mode, shown, fix", [
+    ("raw", "raw", "trinary"),       # raw pixels are occupancies 0..100: read as trinary, the
+    ("trinry", "'trinry'", "trinary"),  # free cells became walls and unknown ones free
+])
+def test_a_mode_other_than_trinary_or_scale_is_refused(tmp_path: Path, mode: str, shown: str,
+                                                       fix: str) -> None:
+    path = write_map(tmp_path)
+    path.write_text(path.read_text() + f"mode: {mode}\n")
+    with pytest.raises(SceneError) as err:
+        read_map_yaml(path)
+    assert err.value.field.endswith("(room.yaml).mode") and shown in err.value.problem
+    assert fix in err.value.fix and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("mode", ["trinary", "scale"])
+def test_trinary_and_scale_modes_give_the_same_cells(tmp_path: Path, mode: str) -> None:
+    plain = read_map_yaml(write_map(tmp_path)).blocked.copy()
+    path = write_map(tmp_path)
+    path.write_text(path.read_text() + f"mode: {mode}\n")
+    assert np.array_equal(read_map_yaml(path).blocked, plain)
+
+
+@pytest.mark.parametrize("region", [{"kind": "rectangle", "min": [9, 9], "max": [10, 10]},
+                                    {"kind": "rectangle", "min": [1.6, 3.1], "max": [1.9, 3.4]}])
+def test_a_source_in_blocked_map_cells_only_is_refused(tmp_path: Path, region: dict) -> None:
+    # outside the image (blocked) or inside the pillar's cells: no entering agent could ever
+    # be placed there, and the source used to be accepted and wait for ever
+    path = write_map(tmp_path)
+    spec = {"map": {"yaml": str(path)}, "agents": {"positions": [[0.0, 3.0]], "radius": 0.2},
+            "flows": {"sources": [{"region": region, "rate": 1.0, "count": 3, "radius": 0.1}]}}
+    with pytest.raises(SceneError) as err:
+        sc.Scene.from_dict(spec)
+    assert str(err.value).startswith("flows.sources[0].region: has no point 0.1 m")
+    assert "blocked map cells" in str(err.value) and "\n" not in str(err.value)
+    spec["flows"]["sources"][0]["region"] = {"kind": "rectangle", "min": [0, 2.6],
+                                             "max": [1, 4.4]}
+    assert sc.Scene.from_dict(spec).flows.sources  # free cells: taken

@@ -123,3 +123,19 @@ def test_a_count_that_passes_the_bound_but_does_not_fit_ends_after_bounded_draws
     assert "only " in str(err.value) and "of 150 agents" in str(err.value)
     # positions (2 per candidate) and nothing else: equal radii are not drawn
     assert sum(drawn) <= 2 * spawn_module.DRAWS * 150
+
+
+@pytest.mark.parametrize("region", [
+    {"kind": "rectangle", "min": [-3, 1], "max": [2, 5]},           # partly outside the room
+    {"kind": "polygon", "points": [[1, 1], [9, 1], [9, 5], [1, 5]]},  # over a closed pillar
+])
+def test_a_region_crossed_by_a_closed_outline_is_refused(region: dict) -> None:
+    # without the check, some of the 10 agents were placed outside the room or inside the
+    # closed outline of the pillar, where they stay (a silent wrong crowd)
+    pillar = {"kind": "polyline", "points": [[4, 2], [6, 2], [6, 4], [4, 4]], "closed": True}
+    with pytest.raises(SceneError) as err:
+        sc.Scene.from_dict({"walls": [ROOM, pillar],
+                            "agents": {"spawn": {"region": region, "count": 10, "radius": 0.2}}})
+    msg = str(err.value)
+    assert msg.startswith("agents.spawn.region: is crossed by walls[") and "\n" not in msg
+    assert "fix: keep agents.spawn.region on one side of walls[" in msg

@@ -301,7 +301,8 @@ def plain_field_from_spec(spec: dict, kind: str, n_agents: int, field: str = "dr
     checks.mapping(spec, field, allowed={"kind"} | _KEYS[kind] | _OPTIONAL.get(kind, set()),
                    required=_KEYS[kind])
     if kind == "uniform":
-        return Uniform(velocity=checks.vec2(spec["velocity"], f"{field}.velocity"))
+        velocity = checks.vec2(spec["velocity"], f"{field}.velocity")
+        return Uniform(velocity=checks.velocities(velocity[None], f"{field}.velocity")[0])
     if kind == "goal":
         return Goal(goal=checks.point(spec["goal"], f"{field}.goal"),
                     speed=checks.speed(spec["speed"], f"{field}.speed"),
@@ -313,9 +314,11 @@ def plain_field_from_spec(spec: dict, kind: str, n_agents: int, field: str = "dr
                                           f"write {field}.matrix as [[a, b], [c, d]] (1/s)"),
                       offset=checks.vec2(spec.get("offset", [0.0, 0.0]), f"{field}.offset"))
     if kind == "per_agent":
-        return PerAgent(velocities=checks.array(
+        return PerAgent(velocities=checks.velocities(checks.array(
             spec["velocities"], f"{field}.velocities", (n_agents, 2), "(one [vx, vy] per agent)",
-            f"give {field}.velocities one [vx, vy] (m/s) for each of the {n_agents} agents"))
+            f"give {field}.velocities one [vx, vy] (m/s) for each of the {n_agents} agents"),
+            f"{field}.velocities", each=True))
     if kind == "grid":
         return grid_field(spec["x"], spec["y"], spec["vx"], spec["vy"], field)
     return NoDrift()
+

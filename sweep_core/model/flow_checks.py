@@ -1,9 +1,9 @@
 """What a scene's sources can never do, refused when the scene is built: a source whose region
-has no point where its largest disk is clear of the walls and obstacles (that agent, and every
-one due after it, would wait for ever), a source whose region lies inside a sink (every
-agent it emits would leave at once), and a source none of whose points has a way round the
-walls to the first target its agents head for (every agent it emits would walk into the walls
-between them and stay there).
+has no point where its largest disk is clear of the walls and obstacles, outside blocked map
+cells (that agent, and every one due after it, would wait for ever), a source whose region
+lies inside a sink (every agent it emits would leave at once), and a source none of whose
+points has a way round the walls to the first target its agents head for (every agent it
+emits would walk into the walls between them and stay there).
 :mod:`sweep_core.model.flows` calls :func:`check_sources` and :func:`check_source_ways`.
 
 The room test is a proof, never a guess: the clearance c(q) (m) of a centre q, its distance to
@@ -43,12 +43,14 @@ FINE = 8 * math.sqrt(2.0)
 ROOM_SLACK = 1e-9
 
 
-def has_room(region: Region, r: float, geometry: Any) -> bool | None:
+def has_room(region: Region, r: float, geometry: Any, grid: Any = None) -> bool | None:
     """Whether some centre in ``region`` has clearance >= r (m) from the static walls and
-    obstacles of ``geometry``: True (a node shows it), False (proven: none has), or None
-    (untested: moving geometry, user constraints, or a region too large; module
-    docstring)."""
-    if geometry.is_empty:
+    obstacles of ``geometry``, in a free cell of the map ``grid`` (an
+    :class:`~sweep_core.model.maps.OccupancyMap` or None): True (a node shows it), False
+    (proven: none has), or None (untested: moving geometry, user constraints, or a region
+    too large; module docstring). A node within delta < r of such a centre lies in its disk,
+    clear of the map's walls, so in a free cell too: blocked nodes are left out."""
+    if geometry.is_empty and grid is None:
         return True
     if geometry.is_moving or len(geometry.user) or np.any(geometry.halfplane_velocity != 0):
         return None
@@ -64,7 +66,7 @@ def has_room(region: Region, r: float, geometry: Any) -> bool | None:
     nodes = nodes[region.distance(nodes) <= delta + ROOM_SLACK]
     if not len(nodes):
         return None
-    ok = np.ones(len(nodes), dtype=bool)
+    ok = np.ones(len(nodes), dtype=bool) if grid is None else ~grid.is_blocked(nodes)
     rr = np.full(len(nodes), r - delta - ROOM_SLACK)
     for a, _, _, _, _ in single_rows(geometry, 0.0, nodes, rr, 0.0):
         ok[a] = False
@@ -84,9 +86,11 @@ def inside(region: Region, sink: Region) -> bool:
     return bool(np.all(sink.contains(region.points)))
 
 
-def check_sources(sources: Sequence[Any], sinks: Sequence[Region], geometry: Any) -> None:
-    """Refuse a source (``flows.sources[k]``) with no room for its largest disk, or inside a
-    sink (module docstring)."""
+def check_sources(sources: Sequence[Any], sinks: Sequence[Region], geometry: Any,
+                  grid: Any = None) -> None:
+    """Refuse a source (``flows.sources[k]``) with no room for its largest disk (clear of the
+    walls and obstacles, in a free cell of the map ``grid``), or inside a sink (module
+    docstring)."""
     for k, src in enumerate(sources):
         field = f"flows.sources[{k}]"
         for m, sink in enumerate(sinks):
@@ -102,11 +106,12 @@ def check_sources(sources: Sequence[Any], sinks: Sequence[Region], geometry: Any
                              "place agents that stay there",
                              f"keep {field}.region on one side of {geometry.path(SEGMENT, wall)}"
                              ", inside the room")
-        if has_room(src.region, src.r_high, geometry) is False:
+        if has_room(src.region, src.r_high, geometry, grid) is False:
             big = "radius" if src.r_high == src.r_low else "largest radius"
+            maps = "" if grid is None else ", outside blocked map cells"
             raise SceneError(f"{field}.region", f"has no point {show(src.r_high)} m (the "
-                             f"source's {big}) clear of the walls and obstacles: an agent of "
-                             "that radius could never enter there, nor any after it",
+                             f"source's {big}) clear of the walls and obstacles{maps}: an agent "
+                             "of that radius could never enter there, nor any after it",
                              f"move {field}.region into the free space, make it larger, or "
                              f"make {field}.radius smaller")
 

@@ -315,15 +315,15 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
                for k, s in enumerate(_listed(raw, "sources", MAX_SOURCES))]
     spec["sources"] = [s.spec for s in sources]
     if not recorded:
-        check_sources(sources, sinks, geometry)
+        check_sources(sources, sinks, geometry, grid)
     journeys: list[Journey] = []
     seen: dict[int, int] = {}
     for k, j in enumerate(_listed(raw, "journeys")):
         g = _group(j.get("group") if isinstance(j, dict) else None, f"flows.journeys[{k}].group",
                    names)
         if g in seen:
-            raise SceneError(f"flows.journeys[{k}].group", f"gives group {show(j.get('group'))}"
-                             f" a second journey (journeys[{seen[g]}] is its first)",
+            raise SceneError(f"flows.journeys[{k}].group", f"gives {_who(j)} a second journey"
+                             f" (journeys[{seen[g]}] is its first)",
                              "give each group one journey")
         seen[g] = k
         first = members(drift, g, n_agents, None if recorded else positions)
@@ -335,11 +335,11 @@ def flows_from_spec(raw: Any, n_agents: int, drift: Field, speed: float, sigma: 
         field = f"flows.exit_choice[{k}]"
         g = _group(c.get("group") if isinstance(c, dict) else None, f"{field}.group", names)
         if g in seen:
-            raise SceneError(f"{field}.group", f"gives group {show(c.get('group'))} an exit "
-                             "choice and a journey", "give a group a journey or an exit choice")
+            raise SceneError(f"{field}.group", f"gives {_who(c)} an exit choice and a journey",
+                             "give a group a journey or an exit choice")
         if any(o.group == g for o in choices):
-            raise SceneError(f"{field}.group", f"gives group {show(c.get('group'))} a second "
-                             "exit choice", "give each group one exit choice")
+            raise SceneError(f"{field}.group", f"gives {_who(c)} a second exit choice",
+                             "give each group one exit choice")
         choices.append(exit_choice_from_spec(c, field, g, names[g] if g >= 0 else None,
                                              float(gspeed[g]), geometry, grid,
                                              members(drift, g, n_agents,
@@ -408,3 +408,9 @@ def _check_changing(flows: Flows, drift: Field, sigma: np.ndarray) -> None:
     if not all(math.isfinite(float(t)) for s in flows.sources for t in s.times[-1:]):
         raise SceneError("flows.sources", "has a time that is not finite",
                          "give finite times (s)")
+
+
+def _who(item: Any) -> str:
+    """Whom a journey or an exit choice is for: its group, or the agents in no group."""
+    group = item.get("group") if isinstance(item, dict) else None
+    return "the agents in no group" if group is None else f"group {show(group)}"

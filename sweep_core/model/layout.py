@@ -60,6 +60,11 @@ def geometry_from_spec(data: dict, grid: OccupancyMap | None = None
                                  "give the direction pointing into the free side, e.g. [1, 0]")
             offset = checks.length(wall["offset"], f"{field}.offset", what="offset")
             velocity = checks.number(wall.get("velocity", 0.0), f"{field}.velocity")
+            if abs(velocity) > checks.MAX_SPEED:
+                raise SceneError(f"{field}.velocity", f"{show(velocity)} m/s is above "
+                                 f"{checks.MAX_SPEED:g} m/s in magnitude, where a step of 1 s "
+                                 "would leave the scene's coordinate bound",
+                                 f"set {field}.velocity within ±{checks.MAX_SPEED:g} m/s")
             hp_n.append(normal / norm)
             hp_c.append(offset)
             hp_v.append(velocity)
@@ -83,7 +88,8 @@ def geometry_from_spec(data: dict, grid: OccupancyMap | None = None
         """The obstacle's rigid motion row (-1: static) and its normalised keys."""
         if not any(key in obs for key in ("velocity", "angular_velocity", "pivot")):
             return -1, {}
-        v = checks.vec2(obs.get("velocity", [0.0, 0.0]), f"{field}.velocity")
+        v = checks.velocities(checks.vec2(obs.get("velocity", [0.0, 0.0]),
+                                          f"{field}.velocity")[None], f"{field}.velocity")[0]
         w = checks.number(obs.get("angular_velocity", 0.0), f"{field}.angular_velocity")
         pivot = checks.point(obs["pivot"], f"{field}.pivot") if "pivot" in obs else centre
         mv_v.append(v)

@@ -16,9 +16,10 @@ origin (not flipped like an image); the same rule applies with p = value / 100.
 Map files (map_server's YAML): ``image`` (PGM or PNG, relative to the YAML file),
 ``resolution`` (m per cell), ``origin`` [x, y, yaw] (the pose of the lower-left corner of the
 lower-left pixel), ``negate`` (0/1), ``occupied_thresh``, ``free_thresh`` (probabilities),
-``mode`` (trinary, the default, or scale/raw: both read as trinary here, which the loader
-says). A pixel of value v (0..255) has occupancy p = (255 - v) / 255 (v / 255 when
-negate); p > occupied_thresh: occupied; p < free_thresh: free; otherwise unknown.
+``mode`` (trinary, the default, or scale: read the same way, since only free cells matter;
+raw, whose pixels are occupancies 0..100, is refused). A pixel of value v (0..255) has
+occupancy p = (255 - v) / 255 (v / 255 when negate); p > occupied_thresh: occupied;
+p < free_thresh: free; otherwise unknown.
 """
 from __future__ import annotations
 
@@ -268,6 +269,15 @@ def read_map_yaml(path: Path, field: str = "map.yaml") -> OccupancyMap:
     negate = meta.get("negate", 0)
     if negate not in (0, 1, True, False):
         raise SceneError(f"{where}.negate", f"must be 0 or 1, got {negate!r}", "write 0 or 1")
+    mode = meta.get("mode", "trinary")
+    if mode == "raw":
+        raise SceneError(f"{where}.mode", "is raw: its pixels are occupancies 0..100 (255 "
+                         "unknown), which are not read here", "convert the image to trinary "
+                         "(0 occupied, 254 free, 205 unknown) and write mode: trinary")
+    if mode not in ("trinary", "scale"):
+        raise SceneError(f"{where}.mode", f"unknown mode {show(mode)}",
+                         "write mode: trinary (or scale, read the same way: a cell is free "
+                         "when its occupancy is under free_thresh)")
     occupied = checks.number(meta.get("occupied_thresh", 0.65), f"{where}.occupied_thresh")
     free = checks.number(meta.get("free_thresh", 0.25), f"{where}.free_thresh")
     if not 0.0 <= free <= occupied <= 1.0:

@@ -9,7 +9,9 @@ the free space of a region (random sequential addition).
 Candidates are drawn uniformly in the region (radii uniformly in [R_min, R_max] when a range
 is given), in batches; a candidate is kept when its centre is in the region, its disk lies
 clear of every wall, obstacle and blocked map cell, and it does not overlap a disk kept
-before (within a batch, the earlier candidate wins).
+before (within a batch, the earlier candidate wins). A region that a closed polyline wall (a
+room's outline, a pillar's) passes through is refused, as a source's is: agents would be
+placed on both sides of it.
 
 The count is compared with what the region can hold before anything is drawn. Random
 sequential addition of equal disks jams when they cover about 0.547 of the plane (Feder 1980,
@@ -39,9 +41,11 @@ from scipy.spatial import cKDTree
 from sweep_core import checks
 from sweep_core.errors import SceneError, show
 from sweep_core.model import elementary
-from sweep_core.model.geometry import Geometry, single_rows
+from sweep_core.model.flow_checks import crossing_wall
+from sweep_core.model.geometry import SEGMENT, Geometry, single_rows
 from sweep_core.model.maps import OccupancyMap
 from sweep_core.model.outlines import chain_points, perimeter, points_in_polygon, signed_area
+from sweep_core.model.regions import Region
 
 #: jamming coverage of random sequential addition of equal disks (Hinrichsen, Feder and
 #: Jossang 1986; Feder 1980 estimated 0.547)
@@ -110,6 +114,13 @@ def spawn(value: Any, field: str, geometry: Geometry, grid: OccupancyMap | None
                           fix=f"set {field}.seed to an integer >= 0")
     lo_r, hi_r = _radius(spec["radius"], f"{field}.radius")
     inside, lo, hi, outline = _region(spec["region"], f"{field}.region")
+    box = spec["region"]["kind"] == "rectangle"
+    wall = crossing_wall(Region(outline, lo, hi, {}, box), geometry)
+    if wall is not None:
+        raise SceneError(f"{field}.region", f"is crossed by {geometry.describe(SEGMENT, wall)}: "
+                         "part of it lies on the outline's other side, where agents would be "
+                         "placed and stay",
+                         f"keep {field}.region on one side of {geometry.path(SEGMENT, wall)}")
     most = capacity(grown_area(outline, hi_r), lo_r, hi_r)
     radius = show([lo_r, hi_r]) if hi_r > lo_r else f"{lo_r:g} m"
     if count > most:
