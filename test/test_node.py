@@ -1214,15 +1214,21 @@ def test_record_may_not_be_the_scene(installed, tmp_path):
     victim = tmp_path / "victim.yaml"
     victim.write_text(yaml.safe_dump(SCENE))
     before = victim.read_bytes()
-    node = Running(installed, tmp_path, {"scene": str(victim), "record": str(victim)})
+    log = _refused_at_start(installed, tmp_path, {"scene": str(victim), "record": str(victim)})
+    assert f"parameter record: {victim}: is also an input" in log, log
+    assert "record:=OTHER.mcap" in log
+    assert victim.read_bytes() == before
+
+
+def _refused_at_start(installed, tmp_path: Path, overrides: dict) -> str:
+    """The log of a node that refuses to start with ``overrides``: exit 2, no traceback."""
+    node = Running(installed, tmp_path, overrides)
     try:
         code = node.proc.wait(timeout=60)
     finally:
         node.stop(signal.SIGKILL)
-    assert code == 2, node.log
-    assert f"parameter record: {victim}: is also an input" in node.log, node.log
-    assert "record:=OTHER.mcap" in node.log and "Traceback" not in node.log
-    assert victim.read_bytes() == before
+    assert code == 2 and "Traceback" not in node.log, node.log
+    return node.log
 
 
 def test_an_existing_recording_is_not_replaced_unasked(installed, tmp_path):
@@ -1233,15 +1239,10 @@ def test_an_existing_recording_is_not_replaced_unasked(installed, tmp_path):
     scene_path.write_text(yaml.safe_dump(SCENE))
     old = tmp_path / "run.mcap"
     old.write_bytes(b"the last run's recording")
-    node = Running(installed, tmp_path, {"scene": str(scene_path), "record": str(old)})
-    try:
-        code = node.proc.wait(timeout=60)
-    finally:
-        node.stop(signal.SIGKILL)
-    assert code == 2, node.log
+    log = _refused_at_start(installed, tmp_path, {"scene": str(scene_path), "record": str(old)})
     assert (f"parameter record: {old}: exists, and the node does not replace a recording "
-            "unasked") in node.log and "record_overwrite:=true" in node.log, node.log
-    assert "Traceback" not in node.log and old.read_bytes() == b"the last run's recording"
+            "unasked") in log and "record_overwrite:=true" in log, log
+    assert old.read_bytes() == b"the last run's recording"
     node = Running(installed, tmp_path, {"scene": str(scene_path), "record": str(old),
                                          "record_overwrite": True, "dt": DT})
     try:
