@@ -18,7 +18,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
-from sweep_ros import params
+from sweep_ros import params_files
 from sweep_ros.errors import StartError
 from sweep_ros.node import NODE_NAME, SweepNode
 
@@ -59,7 +59,7 @@ class StopOnSignal:
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``ros2 run sweep_ros sweep_node``."""
     # a broken --params-file is a one-line error here, not rclpy's traceback
-    problems = params.check_params_files(sys.argv if args is None else args, NODE_NAME)
+    problems = params_files.check_params_files(sys.argv if args is None else args, NODE_NAME)
     if problems:
         for problem in problems:
             print(f"{NODE_NAME}: error: {problem}", file=sys.stderr)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from sweep_ros import params
+from sweep_ros import params_files
 
 GOOD = "/**:\n  ros__parameters:\n    dt: 0.02\n    seed: 3\n"
 
@@ -62,7 +62,7 @@ def argv(*paths: str) -> list[str]:
 @pytest.mark.parametrize("case, text, words", BROKEN, ids=[b[0] for b in BROKEN])
 def test_broken_params_file_is_one_line(tmp_path, case, text, words):
     path = write(tmp_path, case, text)
-    problems = params.check_params_files(argv(path))
+    problems = params_files.check_params_files(argv(path))
     assert len(problems) == 1, problems
     msg = problems[0]
     assert msg.startswith(f"params file {path}"), msg
@@ -74,10 +74,10 @@ def test_good_files_pass_and_every_file_is_checked(tmp_path):
     good = write(tmp_path, "good", GOOD)
     named = write(tmp_path, "named", "sweep_node:\n  ros__parameters:\n    dt: 0.02\n")
     nested = write(tmp_path, "nested", "/**:\n  ros__parameters:\n    solver:\n      a: 1\n")
-    assert params.check_params_files(argv(good, named, nested)) == []
-    assert params.check_params_files(["sweep_node"]) == []
+    assert params_files.check_params_files(argv(good, named, nested)) == []
+    assert params_files.check_params_files(["sweep_node"]) == []
     bad = write(tmp_path, "bad", "- 1\n")
-    problems = params.check_params_files(argv(good, bad, str(tmp_path / "none.yaml")))
+    problems = params_files.check_params_files(argv(good, bad, str(tmp_path / "none.yaml")))
     assert [p.split(":")[0].split(" line")[0] for p in problems] == [
         f"params file {bad}", f"params file {tmp_path / 'none.yaml'}"]
 
@@ -85,25 +85,25 @@ def test_good_files_pass_and_every_file_is_checked(tmp_path):
 def test_bundled_config_passes():
     from pathlib import Path
     config = Path(__file__).resolve().parents[1] / "config" / "sweep_node.yaml"
-    assert params.check_params_files(argv(str(config))) == []
+    assert params_files.check_params_files(argv(str(config))) == []
 
 
 def test_node_name_and_namespace_remaps_are_followed(tmp_path):
     path = write(tmp_path, "ns", "crowd:\n  sim:\n    ros__parameters:\n      dt: 0.02\n")
-    assert params.check_params_files(argv(path))  # not for /sweep_node
-    assert params.check_params_files(argv(path) + ["-r", "__ns:=/crowd", "-r",
+    assert params_files.check_params_files(argv(path))  # not for /sweep_node
+    assert params_files.check_params_files(argv(path) + ["-r", "__ns:=/crowd", "-r",
                                                     "__node:=sim"]) == []
-    assert params.node_fqn(["x", "--ros-args", "--remap", "__ns:=/a/b"], "n") == "/a/b/n"
+    assert params_files.node_fqn(["x", "--ros-args", "--remap", "__ns:=/a/b"], "n") == "/a/b/n"
     wild = write(tmp_path, "wild", "/*/sim:\n  ros__parameters:\n    dt: 0.02\n")
-    assert params.check_params_files(argv(wild) + ["-r", "__ns:=/crowd", "-r",
+    assert params_files.check_params_files(argv(wild) + ["-r", "__ns:=/crowd", "-r",
                                                    "__node:=sim"]) == []
 
 
 def test_params_files_found_only_inside_ros_args():
-    assert params.params_files(["x", "--params-file", "a.yaml"]) == []
-    assert params.params_files(["x", "--ros-args", "--params-file", "a.yaml", "--", "y",
-                                "--ros-args", "--params-file", "b.yaml"]) == ["a.yaml", "b.yaml"]
-    assert params.check_params_files(["x", "--ros-args", "--params-file"]) == [
+    assert params_files.params_files(["x", "--params-file", "a.yaml"]) == []
+    assert params_files.params_files(["x", "--ros-args", "--params-file", "a.yaml", "--", "y",
+                                      "--ros-args", "--params-file", "b.yaml"]) == ["a.yaml", "b.yaml"]
+    assert params_files.check_params_files(["x", "--ros-args", "--params-file"]) == [
         "--params-file: no file after it (fix: write --params-file FILE inside --ros-args)"]
 
 
@@ -122,4 +122,4 @@ def test_rcl_agrees_on_what_it_refuses(tmp_path, case, text, words):
         refused = False
         ctx.try_shutdown()
     assert refused == (case in RCL_REFUSES)
-    assert params.check_params_files(argv(path))
+    assert params_files.check_params_files(argv(path))
