@@ -321,4 +321,3 @@ def plain_field_from_spec(spec: dict, kind: str, n_agents: int, field: str = "dr
     if kind == "grid":
         return grid_field(spec["x"], spec["y"], spec["vx"], spec["vy"], field)
     return NoDrift()
-

@@ -59,10 +59,9 @@ from sweep_core.numerics.robots.weighted import project_weighted
 from sweep_core.numerics.schemes import Scheme, StepResult
 
 
-def blocked_cells(scene: Scene) -> Callable[[np.ndarray], np.ndarray] | None:
-    """The test of whether points (N, 2) (m) lie in a blocked cell of ``scene``'s map (None
+def blocked_cells(grid: Any) -> Callable[[np.ndarray], np.ndarray] | None:
+    """The test of whether points (N, 2) (m) lie in a blocked cell of the map ``grid`` (None
     without a map): what placements and the robots' targets are checked against."""
-    grid = scene_map(scene)
     return None if grid is None else grid.is_blocked
 
 
@@ -98,7 +97,8 @@ class Fleet:
             self.controllers: dict[str, Callable] = dict(controllers_of(scene))
         except SceneError as err:
             raise goal_refusal(scene, err) from err
-        self._blocked = blocked_cells(scene)
+        self._map = scene_map(scene)  # decoded once per scene, not per placement
+        self._blocked = blocked_cells(self._map)
         self.reset()
 
     def reset(self) -> None:
@@ -148,7 +148,8 @@ class Fleet:
             planner: Any = self.controllers[name]  # a bundled one (fields_for)
             planner.rescene(scene, f)
         self.scene = scene
-        self._blocked = blocked_cells(scene)
+        self._map = scene_map(scene)  # decoded once per scene, not per placement
+        self._blocked = blocked_cells(self._map)
 
     def check_geometry(self, scene: Scene, t: float) -> str:
         """What a robot's current disk would overlap in ``scene``'s walls, obstacles and map
@@ -195,8 +196,7 @@ class Fleet:
         others = [(s.pose[0], s.pose[1], s.robot.radius, f"robot {s.robot.name}")
                   for s in self.states.values() if s is not st]
         problem = overlap(st.robot, (x, y), self.scene.geometry, people, radii, others,
-                          self._blocked, t, ids=ids) or no_way(  # outside a closed hall, say
-            st.robot, (x, y), self.scene, scene_map(self.scene))
+                          self._blocked, t, ids=ids) or no_way(st.robot, (x, y), self.scene, self._map)
         if problem:
             raise SceneError("initialpose", problem, "place the robot in free space, clear of "
                              "people, walls and other robots, where its goal can be reached")
