@@ -7,7 +7,7 @@ package_name = "sweep_ros"
 
 setup(
     name=package_name,
-    version="0.4.2",
+    version="0.4.3",
     packages=find_packages(include=["sweep_core", "sweep_core.*", "sweep_ros"]),
     package_data={"sweep_core": ["scenes/*.yaml", "scenes/maps/*", "scenes/rimea/*.yaml",
                                  "analysis/data/*.csv", "py.typed"]},

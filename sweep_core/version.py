@@ -1,3 +1,3 @@
 """The package's version, kept in a module of its own so that ``sweep --version`` and the
 recordings' metadata read it without importing the engine."""
-__version__ = "0.4.2"
+__version__ = "0.4.3"

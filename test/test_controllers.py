@@ -260,3 +260,21 @@ def test_bench_social_says_a_goal_reached_at_the_start_was_reached(tmp_path, cap
     assert row["reached"] == "True" and float(row["time_to_goal_s"]) == 0.0
     printed = capsys.readouterr().out
     assert "goal at 0.00 s" in printed and "goal not reached" not in printed, printed
+
+
+def test_robot_crowd_reaches_its_goal_without_robot_contact_and_in_time():
+    """The bundled robot_crowd with its own controller, as `sweep bench social` runs it (dt
+    0.01 s, the scene's horizon), seeds 0-9: at least 9 reach the goal with no robot-on-person
+    contact, and the mean time to goal is within 1.5 times the straight-line time at the
+    robot's top speed. Runs are the same bits on every CPU (test_cpu_bits), so this is the
+    measured table of docs/social_bench.md, not a sample of it."""
+    from sweep_core.bench.social_runs import Run, simulate
+    from sweep_core.model.scene import load_scene
+
+    robot = load_scene("robot_crowd").robots[0]
+    rows = [simulate(Run("robot_crowd", robot.controller, seed, 0.01, None)) for seed in range(10)]
+    seen = [(r["seed"], r["reached"], r["robot_contacts"], r["time_to_goal_s"]) for r in rows]
+    assert sum(bool(r["success"]) for r in rows) >= 9, seen
+    straight = math.dist(robot.goal, robot.pose[:2]) / robot.max_speed
+    times = [r["time_to_goal_s"] for r in rows if r["reached"]]
+    assert np.mean(times) <= 1.5 * straight, seen

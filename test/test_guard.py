@@ -168,6 +168,53 @@ def test_safe_speeds_keep_the_bits_of_the_numpy_form() -> None:
         assert safe_speeds(*args).tobytes() == numpy_form(*args).tobytes()
 
 
+def test_safe_speeds_with_people_noise_keep_the_bits_of_the_numpy_form() -> None:
+    """safe_speeds' compiled bound with people_noise > 0 gives, bit for bit, what the numpy
+    form below gives (Newton's method on whole arrays from the smallest one-term root), on
+    random robots, people and parameters, people in contact and beside the robot included
+    (the compiled form skips people whose bound cannot be the smallest: the minimum must not
+    change)."""
+    from sweep_core.numerics.robots.guard import AHEAD, NEWTON_STEPS
+
+    def reach_root(quartic, square, linear, room):
+        s = room / linear
+        if square > 0:
+            s = np.minimum(s, np.sqrt(room / square))
+        s = np.minimum(s, np.where(quartic > 0, np.sqrt(np.sqrt(room / np.maximum(quartic, 1e-300))),
+                                   np.inf))
+        for _ in range(NEWTON_STEPS):
+            f = ((quartic * s * s + square) * s + linear) * s - room
+            s = np.maximum(s - f / ((4.0 * quartic * s * s + 2.0 * square) * s + linear), 0.0)
+        return s
+
+    def numpy_form(pose, directions, radius, people, people_radii, accel, margin, ps, noise):
+        if not len(people):
+            return np.full(len(directions), math.inf)
+        rel = people - np.array(pose[:2])
+        d = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
+        c = (rel[:, :1] / d[:, None]) * directions[:, 0] + \
+            (rel[:, 1:] / d[:, None]) * directions[:, 1]
+        gap = np.maximum(d - radius - people_radii - margin, 0.0)
+        room = np.broadcast_to(gap[:, None], c.shape)
+        s = reach_root(accel * np.maximum(c, 0.0) / 2.0, ps, noise, room)
+        bound = np.where(room > 0.0, accel * s * s, 0.0)
+        return np.where(c > AHEAD, bound, math.inf).min(axis=0, initial=math.inf)
+
+    rng = np.random.default_rng(11)
+    for _ in range(500):
+        m, k = int(rng.integers(0, 60)), int(rng.integers(1, 80))
+        phi = rng.uniform(0.0, 2 * math.pi, k)
+        people = rng.normal(size=(m, 2)) * 3
+        if m:
+            people[0] = (0.55, 0.0)  # in contact with the robot at the origin
+        args = ((0.0, 0.0, 0.0) if m % 3 == 0 else (float(rng.normal()), float(rng.normal()), 0.0),
+                np.column_stack([np.cos(phi), np.sin(phi)]), 0.3, people,
+                rng.uniform(0.1, 0.4, m), float(rng.uniform(0.5, 3.0)),
+                float(rng.uniform(0.0, 0.2)), float(rng.choice([0.0, 0.1, 0.5])),
+                float(rng.choice([0.01, 0.05, 0.3, 1.0])))
+        assert safe_speeds(*args).tobytes() == numpy_form(*args).tobytes()
+
+
 def test_social_force_people_term_keeps_the_bits_of_the_numpy_form() -> None:
     """SocialForce.people_force (compiled terms, elementary's exponentials) gives, bit for bit,
     what the numpy form below gives, on random people, velocities and headings."""

@@ -11,13 +11,13 @@ Scenes (``STEP_SCENES``), each the bundled scene of that name at the dt given th
 Engine: ``Simulator.step()`` (ms per step). ORCA: the RVO2 library through its Python bindings
 ``pyrvo`` (an optional benchmark dependency, requirements-dev.txt; never a dependency of
 sweep_ros) on the same agent count, positions, radii and walls (as line obstacles), a Python
-loop setting each agent's preferred velocity (towards the scene's goal at its speed; the
-robot towards its goal at its top speed; robot_crowd's people, who only mill about, a seeded
-random velocity of 0.3 m/s rms) followed by ``doStep`` at the same dt. The two are interleaved
-step by step in one loop, so a load on the machine falls on both alike. Median and p90 over
-the measured steps; ratio = engine / ORCA, median over median; the same of the process's CPU
-time (``cpu_ratio``, in the note), which leaves out the time a loaded machine keeps the
-process waiting for a core.
+loop setting each agent's preferred velocity (towards the scene's goal at its speed; the robot
+towards its goal at its top speed; robot_crowd's people, who only stand about, a seeded random
+velocity of sigma m/s per axis, their Brownian displacement over 1 s) followed by ``doStep`` at
+the same dt. The two are interleaved step by step in one loop, so a load on the machine falls
+on both alike. Median and p90 over the measured steps; ratio = engine / ORCA, median over
+median; the same of the process's CPU time (``cpu_ratio``, in the note), which leaves out the
+time a loaded machine keeps the process waiting for a core.
 
 Recorded run: ``record_run`` (what ``sweep run`` does: ``/poses``, ``/agents`` and the robot's
 topics every step, MCAP to a temporary file; a step is the time between two of its ``on_state``
@@ -65,8 +65,6 @@ STEP_SCENES = {"crowdnav": (0.1, 20, 300), "robot_crowd": (0.01, 20, 300),
 COLUMNS = ("measure", "scene", "agents", "sweep_median_ms", "sweep_p90_ms",
            "other", "other_median_ms", "other_p90_ms", "ratio", "sweep_cpu_median_ms",
            "other_cpu_median_ms", "cpu_ratio", "note")
-#: rms speed (m/s) of the random preferred velocities of robot_crowd's people under ORCA
-MILLING = 0.3
 
 
 def pyrvo_missing() -> str | None:
@@ -93,6 +91,9 @@ class Orca:
         speed = float(drift.get("speed", (spec.get("agents") or {}).get("speed", 1.3)))
         self.goal = (np.asarray(drift["goal"], dtype=np.float64)
                      if drift.get("kind") == "goal" else None)
+        # people without a goal: a random velocity per axis of sd sigma (m/s), the scene's
+        # Brownian displacement over 1 s
+        self.still = float(np.mean((spec.get("noise") or {}).get("sigma", 0.0)))
         # time step, neighbour distance, max neighbours, time horizons (agents, obstacles),
         # radius, max speed: RVO2's example values (a 2 s horizon, 10 neighbours)
         self.sim = pyrvo.RVOSimulator(dt, 3.0, 10, 2.0, 2.0, float(r.max()), 2.0)
@@ -119,8 +120,8 @@ class Orca:
         sim = self.sim
         for i in range(self.n):
             gx, gy, speed = self.targets[i]
-            if gx != gx:  # no goal: milling about
-                vx, vy = self.rng.normal(0.0, MILLING / math.sqrt(2.0), 2)
+            if gx != gx:  # no goal: standing about
+                vx, vy = self.rng.normal(0.0, self.still, 2)
             else:
                 p = sim.get_agent_position(i)
                 dx, dy = gx - p.x, gy - p.y

@@ -25,7 +25,7 @@ is the largest v with
     c_j v^2 / (2 a) + v_h v / a + n sqrt(v / a) <= g_j - g_0,
 
 found in s = sqrt(v / a) (the left side c_j a s^4 / 2 + v_h s^2 + n s, increasing and convex
-in s >= 0) by Newton's method from above (:func:`reach_root`); n = 0 gives the closed form.
+in s >= 0) by Newton's method from above (:func:`noise_bounds`); n = 0 gives the closed form.
 
 Walls and obstacles stand still: along u the robot's disk can run d m before it touches one
 (:func:`free_run`), and v <= sqrt(2 a (d - g_0)) keeps it able to stop g_0 short of it
@@ -46,27 +46,9 @@ from sweep_core.model.elementary import atan2, sincos
 AHEAD = 1e-9
 
 
-#: Newton steps of :func:`reach_root` (from within a factor 3 of the root, quadratic
+#: Newton steps of :func:`noise_bounds` (from within a factor 3 of the root, quadratic
 #: convergence: machine precision well before)
 NEWTON_STEPS = 12
-
-
-def reach_root(quartic: np.ndarray, square: float, linear: float, room: np.ndarray
-               ) -> np.ndarray:
-    """The root s >= 0 of quartic s^4 + square s^2 + linear s = room, elementwise (arrays of
-    one shape; quartic >= 0, square >= 0, linear > 0, room >= 0): Newton's method from the
-    smallest of the three one-term roots, an upper bound (each term alone is at most room);
-    the left side is increasing and convex in s >= 0, so every iterate stays at or above the
-    root and decreases to it."""
-    s = room / linear
-    if square > 0:
-        s = np.minimum(s, np.sqrt(room / square))
-    s = np.minimum(s, np.where(quartic > 0, (room / np.maximum(quartic, 1e-300)) ** 0.25,
-                               np.inf))
-    for _ in range(NEWTON_STEPS):
-        f = ((quartic * s * s + square) * s + linear) * s - room
-        s = np.maximum(s - f / ((4.0 * quartic * s * s + 2.0 * square) * s + linear), 0.0)
-    return np.asarray(s)
 
 
 def safe_speeds(pose: tuple[float, float, float], directions: np.ndarray, radius: float,
@@ -81,22 +63,100 @@ def safe_speeds(pose: tuple[float, float, float], directions: np.ndarray, radius
     if not len(people):
         return out
     if people_noise > 0:
-        rel = people - np.array(pose[:2])
-        d = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
-        # (M, K) cosines, each x-then-y product (not BLAS, whose kernels differ by CPU);
-        # within AHEAD of 0: not ahead (rounding)
-        c = (rel[:, :1] / d[:, None]) * directions[:, 0] + \
-            (rel[:, 1:] / d[:, None]) * directions[:, 1]
-        gap = np.maximum(d - radius - people_radii - margin, 0.0)
-        room = np.broadcast_to(gap[:, None], c.shape)
-        s = reach_root(accel * np.maximum(c, 0.0) / 2.0, people_speed, people_noise, room)
-        bound = np.where(room > 0.0, accel * s * s, 0.0)
-        return np.asarray(np.where(c > AHEAD, bound, math.inf).min(axis=0, initial=math.inf))
+        noise_bounds(float(pose[0]), float(pose[1]),
+                     np.ascontiguousarray(directions, dtype=np.float64), float(radius),
+                     np.ascontiguousarray(people, dtype=np.float64),
+                     np.ascontiguousarray(people_radii, dtype=np.float64), float(accel),
+                     float(margin), float(people_speed), float(people_noise), out)
+        return out
     bounds_along(float(pose[0]), float(pose[1]), np.ascontiguousarray(directions, dtype=np.float64),
                  float(radius), np.ascontiguousarray(people, dtype=np.float64),
                  np.ascontiguousarray(people_radii, dtype=np.float64), float(accel),
                  float(margin), float(people_speed), out)
     return out
+
+
+@numba.njit(cache=True)
+def start(room: float, quartic: float, square: float, linear: float) -> float:
+    """About the smallest of the one-term roots of quartic s^4 + square s^2 + linear s = room
+    (m^(1/2) s^(1/2); the square root of a square root for the quartic's): used only to
+    skip people in :func:`noise_bounds`, never in a bound."""
+    s = room / linear
+    if square > 0:
+        s = min(s, math.sqrt(room / square))
+    if quartic > 0:
+        s = min(s, math.sqrt(math.sqrt(room / quartic)))
+    return s
+
+
+@numba.njit(cache=True)
+def noise_bounds(x: float, y: float, directions: np.ndarray, radius: float, people: np.ndarray,
+                 radii: np.ndarray, accel: float, margin: float, people_speed: float,
+                 people_noise: float, out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """:func:`safe_speeds` with ``people_noise`` n > 0 into out (K,): for each direction the
+    smallest over the people j ahead (cosine > AHEAD) of a s^2, s the root s >= 0 of
+    (a c_j / 2) s^4 + v_h s^2 + n s = gap_j (the module docstring's bound), 0 where the gap is
+    not positive, inf when no one is ahead, NaN propagated. The root: Newton's method from the
+    smallest of the three one-term roots, an upper bound (each term alone is at most the gap);
+    the left side is increasing and convex in s >= 0, so the iterates decrease to it. Each
+    operation in the order of the numpy form in test_guard, so the bits are the same, and only
+    correctly rounded ones (no power, exp or log): the same bits on every CPU."""
+    m, k = people.shape[0], directions.shape[0]
+    ex, ey, gap = np.empty(m), np.empty(m), np.empty(m)
+    for j in range(m):
+        rx, ry = people[j, 0] - x, people[j, 1] - y
+        d = math.hypot(rx, ry)
+        if not (d != d or d >= 1e-12):
+            d = 1e-12
+        ex[j], ey[j] = rx / d, ry / d
+        g = ((d - radius) - radii[j]) - margin
+        gap[j] = g if (g != g or g >= 0.0) else 0.0
+    for i in range(k):
+        dx, dy = directions[i, 0], directions[i, 1]
+        # People are skipped whose bound is surely above the smallest (the minimum is then
+        # unchanged): above it, a s^2 at the smallest one-term root s (the Newton start; the
+        # iterates decrease); below each person's, a (g / L)^2 with L = q s^3 + v_h s + n, as
+        # the left side is at most L s' for s' <= s. Both only approximate (to rounding), so
+        # a person is skipped only when that lower bound exceeds the upper one by 1 %.
+        upper = math.inf
+        for j in range(m):
+            ck = ex[j] * dx + ey[j] * dy
+            room = gap[j]
+            if ck > AHEAD and room == room:
+                s = start(room, accel * ck / 2.0, people_speed, people_noise)
+                upper = min(upper, accel * s * s)
+        low = math.inf
+        for j in range(m):
+            ck = ex[j] * dx + ey[j] * dy
+            if not ck > AHEAD:  # NaN included: numpy's where gave inf there
+                continue
+            room = gap[j]
+            bound = 0.0
+            if room > 0.0:
+                q = accel * ck / 2.0
+                s = start(room, q, people_speed, people_noise)
+                s = room / ((q * s * s + people_speed) * s + people_noise)
+                if accel * s * s > 1.01 * upper:
+                    continue
+                s = room / people_noise
+                if people_speed > 0:
+                    t = math.sqrt(room / people_speed)
+                    s = s if (s <= t or s != s) else t
+                # the quartic's root by two square roots, rounded alike on every CPU (a
+                # power's SIMD variants differ in the last bit)
+                t = math.sqrt(math.sqrt(room / (q if q >= 1e-300 else 1e-300))) if q > 0 \
+                    else math.inf
+                s = s if (s <= t or s != s) else t
+                for _ in range(NEWTON_STEPS):
+                    f = ((q * s * s + people_speed) * s + people_noise) * s - room
+                    t = s - f / ((4.0 * q * s * s + 2.0 * people_speed) * s + people_noise)
+                    s = t if (t >= 0.0 or t != t) else 0.0
+                bound = accel * s * s
+            if bound != bound:
+                low = math.nan
+                break
+            low = min(low, bound)
+        out[i] = low
 
 
 @numba.njit(cache=True)
