@@ -243,13 +243,14 @@ def test_cut_recording_is_read_to_its_last_complete_chunk(tmp_path, run, capsys)
 
 
 def test_sigkilled_sweep_run_is_analysed(tmp_path):
-    """`sweep run` killed with SIGKILL mid-run: what reached the disk is analysed."""
+    """`sweep run` killed with SIGKILL mid-run: what reached the disk is analysed. The run is
+    far longer than the test (500 000 steps), so that no machine finishes it before the kill."""
     scene = tmp_path / "s.yaml"
     scene.write_text(yaml.safe_dump(SCENE))
     out = tmp_path / "killed.mcap"
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
     proc = subprocess.Popen([sys.executable, "-m", "sweep_core.cli", "run", str(scene),
-                             "--t-end", "50", "--seed", str(SEED), "--out", str(out), "--quiet"],
+                             "--t-end", "5000", "--seed", str(SEED), "--out", str(out), "--quiet"],
                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 60
