@@ -283,9 +283,12 @@ def _exercise() -> None:
     elementary.atan2(0.5, 1.0)
     elementary.sin_of(v), elementary.cos_of(v), elementary.exp_of(v), elementary.atan2_of(v, v)
     elementary.z_rotations(v, np.empty((3, 4)))  # the markers' orientations
-    # the planners' safety layer
-    guard.nearest_safe(np.array([1.0, 0.0]), (0.0, 0.0, 0.0), 0.3, np.ones((1, 2)),
-                       np.ones(1) * 0.2, 1.0, 0.05, 0.5)
+    # the planners' safety layer, with and without people's noise (its root's start helper
+    # compiled into it; its own entry cached too)
+    for people_noise in (0.0, 0.05):
+        guard.nearest_safe(np.array([1.0, 0.0]), (0.0, 0.0, 0.0), 0.3, np.ones((1, 2)),
+                           np.ones(1) * 0.2, 1.0, 0.05, 0.5, people_noise=people_noise)
+    guard.start(1.0, 1.0, 1.0, 1.0)
     # and its walls (a segment and a circle obstacle ahead)
     guard.Walls(np.zeros(2), 0.3, np.ones((1, 2)), 2 * np.ones((1, 2)), np.ones((1, 2)),
                 np.ones(1), 1.0, 0.1).speeds(np.array([[1.0, 0.0]]))
