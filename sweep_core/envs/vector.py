@@ -50,6 +50,7 @@ from sweep_core.envs.memory import check_workers, memory_need, memory_refusal
 from sweep_core.envs.workers import Workers, reset_all, stack, step_share
 from sweep_core.errors import SceneError, show
 from sweep_core.model.scene import Scene, load_scene
+from sweep_core.numerics import kernels
 
 #: the info values combined in one pass per key (:meth:`CrowdNavVectorEnv._combine`)
 _SCALARS = (int, float, bool)
@@ -166,6 +167,10 @@ class CrowdNavVectorEnv(VectorEnv):
         scene, first = _first(kwargs.pop("scene", None), kwargs)
         self.memory_estimate = _check_memory(k, w, first,
                                              lambda: CrowdNavEnv(scene=scene, **kwargs))
+        if w > 1:
+            # every kernel loaded before the workers fork, so that they share the loaded code
+            # instead of each loading what its first steps call, in those steps
+            kernels.warm_up()
         # built afresh: the measured one's generator was seeded (reset(seed=None) draws anew)
         self.workers = Workers(k, w, scene, kwargs) if w > 1 else None
         self.envs = [] if w > 1 else [CrowdNavEnv(scene=scene, **kwargs) for _ in range(k)]

@@ -13,7 +13,9 @@ Workers are forked where the platform forks safely (Linux: they start at once, w
 parent's imports and compiled kernels, and a script needs no ``__main__`` guard), else
 spawned (macOS, Windows: a script must then create the vector environment under
 ``if __name__ == "__main__":``); they end with the vector environment's ``close`` or its
-process.
+process. Every kernel is loaded before a worker's first step: by the parent before it forks
+the workers, and by each worker after building its share (at once when forked, the whole load
+when spawned).
 """
 from __future__ import annotations
 
@@ -110,6 +112,10 @@ def _serve(conn: Connection, scene: Any, count: int, kwargs: dict[str, Any],
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         envs = [CrowdNavEnv(scene=scene, **kwargs) for _ in range(count)]
+        # the kernels loaded now, not in the first steps (a forked worker has the parent's:
+        # a few milliseconds; a spawned one loads them here)
+        from sweep_core.numerics import kernels
+        kernels.warm_up()
         conn.send(("ok", None))
     except BaseException as err:  # noqa: BLE001 - reported to the parent
         conn.send(("error", portable(err)))
