@@ -59,12 +59,6 @@ from sweep_core.numerics.robots.weighted import project_weighted
 from sweep_core.numerics.schemes import Scheme, StepResult
 
 
-def blocked_cells(grid: Any) -> Callable[[np.ndarray], np.ndarray] | None:
-    """The test of whether points (N, 2) (m) lie in a blocked cell of the map ``grid`` (None
-    without a map): what placements and the robots' targets are checked against."""
-    return None if grid is None else grid.is_blocked
-
-
 def check_step_length(scene: Scene, dt: float) -> None:
     """SceneError naming the first robot of ``scene`` that a step of ``dt`` (s) at its
     max_speed moves by its radius or more (a step could jump a wall), and the longest dt."""
@@ -97,8 +91,7 @@ class Fleet:
             self.controllers: dict[str, Callable] = dict(controllers_of(scene))
         except SceneError as err:
             raise goal_refusal(scene, err) from err
-        self._map = scene_map(scene)  # decoded once per scene, not per placement
-        self._blocked = blocked_cells(self._map)
+        self._use_map(scene)
         self.reset()
 
     def reset(self) -> None:
@@ -148,8 +141,14 @@ class Fleet:
             planner: Any = self.controllers[name]  # a bundled one (fields_for)
             planner.rescene(scene, f)
         self.scene = scene
-        self._map = scene_map(scene)  # decoded once per scene, not per placement
-        self._blocked = blocked_cells(self._map)
+        self._use_map(scene)
+
+    def _use_map(self, scene: Scene) -> None:
+        """``scene``'s map, decoded once per scene (not per placement), and its test of whether
+        points (N, 2) (m) lie in a blocked cell (None without a map): what placements and the
+        robots' targets are checked against."""
+        self._map = scene_map(scene)
+        self._blocked = None if self._map is None else self._map.is_blocked
 
     def check_geometry(self, scene: Scene, t: float) -> str:
         """What a robot's current disk would overlap in ``scene``'s walls, obstacles and map
