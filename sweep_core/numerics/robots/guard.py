@@ -103,6 +103,7 @@ def noise_bounds(x: float, y: float, directions: np.ndarray, radius: float, peop
     correctly rounded ones (no power, exp or log): the same bits on every CPU."""
     m, k = people.shape[0], directions.shape[0]
     ex, ey, gap = np.empty(m), np.empty(m), np.empty(m)
+    cosine, first = np.empty(m), np.empty(m)  # per direction: c_j, the start below
     for j in range(m):
         rx, ry = people[j, 0] - x, people[j, 1] - y
         d = math.hypot(rx, ry)
@@ -121,20 +122,22 @@ def noise_bounds(x: float, y: float, directions: np.ndarray, radius: float, peop
         upper = math.inf
         for j in range(m):
             ck = ex[j] * dx + ey[j] * dy
+            cosine[j] = ck
             room = gap[j]
             if ck > AHEAD and room == room:
                 s = start(room, accel * ck / 2.0, people_speed, people_noise)
+                first[j] = s
                 upper = min(upper, accel * s * s)
         low = math.inf
         for j in range(m):
-            ck = ex[j] * dx + ey[j] * dy
+            ck = cosine[j]
             if not ck > AHEAD:  # NaN included: numpy's where gave inf there
                 continue
             room = gap[j]
             bound = 0.0
             if room > 0.0:
                 q = accel * ck / 2.0
-                s = start(room, q, people_speed, people_noise)
+                s = first[j]
                 s = room / ((q * s * s + people_speed) * s + people_noise)
                 if accel * s * s > 1.01 * upper:
                     continue
