@@ -13,8 +13,10 @@ import pytest
 
 from sweep_core import Scene, Simulator
 from sweep_core.analysis.causes import ContactLog, robot_shares
+from sweep_core.bench.social_runs import Run, simulate
 from sweep_core.cli import main
 from sweep_core.errors import SceneError
+from sweep_core.model.scene import load_scene
 from sweep_core.numerics.robots.control import observe
 from sweep_core.numerics.robots.planners import controller_for
 
@@ -268,9 +270,6 @@ def test_robot_crowd_reaches_its_goal_without_robot_contact_and_in_time():
     contact, and the mean time to goal is within 1.5 times the straight-line time at the
     robot's top speed. Runs are the same bits on every CPU (test_cpu_bits), so this is the
     measured table of docs/social_bench.md, not a sample of it."""
-    from sweep_core.bench.social_runs import Run, simulate
-    from sweep_core.model.scene import load_scene
-
     robot = load_scene("robot_crowd").robots[0]
     rows = [simulate(Run("robot_crowd", robot.controller, seed, 0.01, None)) for seed in range(10)]
     seen = [(r["seed"], r["reached"], r["robot_contacts"], r["time_to_goal_s"]) for r in rows]

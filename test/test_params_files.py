@@ -92,11 +92,11 @@ def test_node_name_and_namespace_remaps_are_followed(tmp_path):
     path = write(tmp_path, "ns", "crowd:\n  sim:\n    ros__parameters:\n      dt: 0.02\n")
     assert params_files.check_params_files(argv(path))  # not for /sweep_node
     assert params_files.check_params_files(argv(path) + ["-r", "__ns:=/crowd", "-r",
-                                                    "__node:=sim"]) == []
+                                                          "__node:=sim"]) == []
     assert params_files.node_fqn(["x", "--ros-args", "--remap", "__ns:=/a/b"], "n") == "/a/b/n"
     wild = write(tmp_path, "wild", "/*/sim:\n  ros__parameters:\n    dt: 0.02\n")
     assert params_files.check_params_files(argv(wild) + ["-r", "__ns:=/crowd", "-r",
-                                                   "__node:=sim"]) == []
+                                                          "__node:=sim"]) == []
 
 
 def test_params_files_found_only_inside_ros_args():
